@@ -1,0 +1,573 @@
+"""One configuration for the whole pipeline: frozen dataclasses, TOML in and out.
+
+Every threshold and every membership function lives here, each with the reason for its value
+(``reasons()``). Angles are radians in the code; in TOML they sit in keys ending in ``_deg`` and
+are converted once, at load. Unknown keys are an error that names the key.
+
+``Config()`` is the default: the best configuration measurement supports (see the README).
+``Config.preset("paper")`` keeps every rule and value the paper states (with SPEC's corrections)
+and takes our defaults where the paper states none.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on 3.10 only
+    import tomli as tomllib
+
+import tomli_w
+
+__all__ = [
+    "ConfigError",
+    "Config",
+    "FuzzyConfig",
+    "FilterConfig",
+    "SegmentationConfig",
+    "AngularPointConfig",
+    "LineConfig",
+    "VirtualPointConfig",
+    "MatchingConfig",
+    "FusionConfig",
+    "PRESETS",
+]
+
+Triangle = tuple[float, float, float]
+
+
+class ConfigError(ValueError):
+    """A configuration value or file is wrong; the message names the key."""
+
+
+def _reason(text: str, **kw: Any) -> Any:
+    """A dataclass field whose metadata records why it has its default."""
+    return field(metadata={"reason": text}, **kw)
+
+
+def _partition(peaks: tuple[float, ...]) -> tuple[Triangle, ...]:
+    """Triangles peaked at ``peaks`` whose feet are the neighbouring peaks: a partition of unity."""
+    out = []
+    for i, p in enumerate(peaks):
+        left = peaks[i - 1] if i > 0 else p
+        right = peaks[i + 1] if i + 1 < len(peaks) else p
+        out.append((float(left), float(p), float(right)))
+    return tuple(out)
+
+
+_UNIT_SETS = _partition((0.0, 0.5, 1.0))  # S, M, B on [0, 1]
+
+
+@dataclass(frozen=True)
+class FuzzyConfig:
+    """Membership functions (triangles ``(left foot, peak, right foot)``) and rule bases.
+
+    Rule tables are written as strings of consequent labels ``S``/``M``/``B`` (centres 0, 0.5,
+    1), one string per row: ``point_rules`` rows are ρ's sets GS..GB, columns β's sets S..B
+    (Table 1); ``line_rules`` rows δ S..B, columns σ S..B (Table 2); ``virtual_pair_rules`` rows
+    f_L2 S..B, columns f_L1 S..B (Table 3, upper); ``virtual_distance_rules`` rows d_v GS..GB,
+    columns the upper table's result S..B (Table 3, lower).
+    """
+
+    inference: str = _reason(
+        "eq. 4: product inference with centre-average defuzzification; 'mamdani' = min/max + centroid",
+        default="product",
+    )
+    mamdani_resolution: int = _reason(
+        "samples of the output universe for the Mamdani centroid", default=1001
+    )
+    detection_angle_sets: tuple[Triangle, ...] = _reason(
+        "β's S, M, B on [0°, 90°] (SPEC default; Fig. 5 is missing from the text); stored in radians",
+        default=_partition((0.0, math.pi / 4, math.pi / 2)),
+    )
+    distance_sets: tuple[Triangle, ...] = _reason(
+        "ρ's GS..GB peaked at 0, ¼, ½, ¾, 1 × ρ_max = 8 m (SPEC default; Fig. 6 missing)",
+        default=_partition((0.0, 2.0, 4.0, 6.0, 8.0)),
+    )
+    uncertainty_sets: tuple[Triangle, ...] = _reason(
+        "u, δ, f_L1, f_L2 S, M, B on [0, 1] (SPEC default; Figs. 7–8 missing)", default=_UNIT_SETS
+    )
+    line_distance_sets: tuple[Triangle, ...] = _reason(
+        "σ's S, M, B peaked at 0, ½, 1 × σ_max = 5 cm (SPEC default; Fig. 9 missing)",
+        default=_partition((0.0, 0.025, 0.05)),
+    )
+    virtual_distance_sets: tuple[Triangle, ...] = _reason(
+        "d_v's GS..GB peaked at 0, ¼, ½, ¾, 1 × d_max = 4 m (SPEC default; Fig. 10 missing)",
+        default=_partition((0.0, 1.0, 2.0, 3.0, 4.0)),
+    )
+    output_centres: tuple[float, float, float] = _reason(
+        "consequent centres of S, M, B (SPEC)", default=(0.0, 0.5, 1.0)
+    )
+    point_rules: tuple[str, ...] = _reason(
+        "Table 1 (rows ρ GS..GB, columns β S..B)", default=("MSS", "MSS", "BMM", "BBM", "BBB")
+    )
+    line_rules: tuple[str, ...] = _reason(
+        "Table 2 (rows δ S..B, columns σ S..B)", default=("SSM", "SMB", "MBB")
+    )
+    virtual_pair_rules: tuple[str, ...] = _reason(
+        "Table 3 upper (rows f_L2 S..B, columns f_L1 S..B)", default=("SSM", "SMB", "MBB")
+    )
+    virtual_distance_rules: tuple[str, ...] = _reason(
+        "Table 3 lower (rows d_v GS..GB, columns f_L1·f_L2 S..B)",
+        default=("SSM", "SSM", "SMB", "MBB", "BBB"),
+    )
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    detection_angle_threshold: float = _reason(
+        "ξ_TH = 22.5°, the paper's value (§3.1): points seen at a sharper angle are removed",
+        default=math.radians(22.5),
+    )
+
+
+@dataclass(frozen=True)
+class SegmentationConfig:
+    gap_distance: float = _reason(
+        "T2 (eq. 13), fixed part: 0.20 m between consecutive points is a gap (a doorway, an "
+        "occlusion) at the 8 m scale of the fuzzy sets",
+        default=0.20,
+    )
+    gap_distance_per_metre: float = _reason(
+        "T2 grows with range: 5 beam spacings at the point's range (ρ·Δφ·5) so that a wall "
+        "sampled sparsely far away is not cut into pieces",
+        default=5.0,
+    )
+    gap_difference: float = _reason(
+        "T1 (eq. 13): a gap must exceed the spacing on its other side by 0.10 m, so a "
+        "uniformly sparse surface is not all break points",
+        default=0.10,
+    )
+    min_cluster_points: int = _reason(
+        "clusters too small to fit a line (fewer than 4 points, §5) are dropped", default=4
+    )
+
+
+@dataclass(frozen=True)
+class AngularPointConfig:
+    interior_angle_threshold: float = _reason(
+        "θ_TH (eq. 14, as the interior angle): 135° separates corners (≈90°) from walls (180°) "
+        "with room for noise",
+        default=math.radians(135.0),
+    )
+    neighbour_step: int = _reason(
+        "k (SPEC step 5): neighbours 3 beams away keep range noise from making every point a corner",
+        default=3,
+    )
+    neighbour_distance: float = _reason(
+        "the k-step neighbours must also be at least 0.10 m away (more beams are taken near the robot)",
+        default=0.10,
+    )
+    refine: bool = _reason(
+        "move an angular point to the intersection of its two lines (SPEC step 5): exact where "
+        "the sampled corner is up to a beam spacing off",
+        default=True,
+    )
+
+
+@dataclass(frozen=True)
+class LineConfig:
+    min_points: int = _reason("§5: only lines with at least four points are kept", default=4)
+    corner_exclusion: int = _reason(
+        "points within this many beams of an angular point belong to neither line (SPEC step 6)",
+        default=1,
+    )
+    min_length: float = _reason(
+        "lines shorter than 0.15 m give direction too poorly to intersect", default=0.15
+    )
+
+
+@dataclass(frozen=True)
+class VirtualPointConfig:
+    min_intersection_angle: float = _reason(
+        "two lines must differ in direction by at least 30° to intersect well", default=math.radians(30.0)
+    )
+    max_uncertainty: float = _reason(
+        "§3.6: virtual angular points more uncertain than this are removed", default=0.6
+    )
+    max_distance: float = _reason(
+        "an intersection farther than this from its lines' centres is not a usable point",
+        default=8.0,
+    )
+    merge_distance: float = _reason(
+        "feature points closer than 0.10 m are one feature (a wall split by an occlusion gives "
+        "its corner twice); the most certain is kept",
+        default=0.10,
+    )
+
+
+@dataclass(frozen=True)
+class MatchingConfig:
+    pairing_distance: float = _reason(
+        "T (eq. 18): a mapped feature pairs with the one feature of the next scan within 0.5 m",
+        default=0.5,
+    )
+    same_kind_only: bool = _reason(
+        "pair a feature only with one of its own kind (break/angular/virtual): fewer false pairs",
+        default=True,
+    )
+    mutual: bool = _reason(
+        "also require the pair to be the only candidate seen from the other scan", default=True
+    )
+    min_pair_separation: float = _reason(
+        "eq. 22's determinant is ±|p′₁ − p′₂|²: two pairs closer than 0.3 m are ill-conditioned",
+        default=0.3,
+    )
+    min_pairs: int = _reason("two pairs fix a pose (eq. 19–22)", default=2)
+    use_break_points: bool = _reason(
+        "break points are not the same physical point from two poses (§1): the default leaves "
+        "them out of the pose",
+        default=False,
+    )
+    use_angular_points: bool = _reason("real angular points (§3.4)", default=True)
+    use_virtual_points: bool = _reason("virtual angular points (§3.6)", default=True)
+    repair_iterations: int = _reason(
+        "re-pair with the refined motion this many times, with the tighter distance below", default=2
+    )
+    repair_distance: float = _reason(
+        "T for re-pairing once the motion is known to a few centimetres", default=0.15
+    )
+    refine_with_lines: bool = _reason(
+        "beyond the paper: fit the next scan's filtered points to this scan's lines (point-to-"
+        "line Gauss-Newton), hundreds of points instead of a dozen features",
+        default=True,
+    )
+    line_gate: float = _reason(
+        "a point is matched to a line within 0.3 m of it (and within its extent)", default=0.3
+    )
+    line_iterations: int = _reason(
+        "Gauss-Newton steps of the point-to-line refinement (most converge in 3-5)",
+        default=10,
+    )
+    line_prior_weight: float = _reason(
+        "weight of the prior increment in the point-to-line fit (1e-3 of one point's "
+        "constraint): what the lines leave unobservable, the prior decides; elsewhere it "
+        "pulls by well under a millimetre",
+        default=1e-3,
+    )
+    line_min_points: int = _reason(
+        "the point-to-line fit needs at least 20 matched points", default=20
+    )
+
+
+@dataclass(frozen=True)
+class FusionConfig:
+    method: str = _reason(
+        "'weighted_mean' = eq. 23–24 (certainty weights, circular mean); 'least_squares' = "
+        "certainty-weighted least squares over all pairs",
+        default="least_squares",
+    )
+    robust: bool = _reason(
+        "consensus before fusion: the two-pair solution that most pairs agree with picks the "
+        "inlier pairs, so one false pair cannot drag the mean",
+        default=True,
+    )
+    inlier_distance: float = _reason(
+        "a pair agrees with a solution when its points land within 0.10 m of each other",
+        default=0.10,
+    )
+    trim_floor: float = _reason(
+        "after the least-squares fit, pairs beyond 3 robust sigmas of the residuals (but never "
+        "a tighter cut than 1 cm) are dropped and the fit repeated",
+        default=0.01,
+    )
+    max_solutions: int = _reason(
+        "at most this many two-pair solutions (all pairs of pairs up to it; a fixed random subset beyond)",
+        default=2000,
+    )
+
+
+_SECTIONS: dict[str, type] = {
+    "fuzzy": FuzzyConfig,
+    "filtering": FilterConfig,
+    "segmentation": SegmentationConfig,
+    "angular_points": AngularPointConfig,
+    "lines": LineConfig,
+    "virtual_points": VirtualPointConfig,
+    "matching": MatchingConfig,
+    "fusion": FusionConfig,
+}
+
+# fields holding angles (radians in code, degrees in TOML under "<name>_deg")
+_ANGLE_FIELDS = {
+    ("fuzzy", "detection_angle_sets"),
+    ("filtering", "detection_angle_threshold"),
+    ("angular_points", "interior_angle_threshold"),
+    ("virtual_points", "min_intersection_angle"),
+}
+
+
+@dataclass(frozen=True)
+class Config:
+    """Every threshold and membership function of the pipeline."""
+
+    fuzzy: FuzzyConfig = field(default_factory=FuzzyConfig)
+    filtering: FilterConfig = field(default_factory=FilterConfig)
+    segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
+    angular_points: AngularPointConfig = field(default_factory=AngularPointConfig)
+    lines: LineConfig = field(default_factory=LineConfig)
+    virtual_points: VirtualPointConfig = field(default_factory=VirtualPointConfig)
+    matching: MatchingConfig = field(default_factory=MatchingConfig)
+    fusion: FusionConfig = field(default_factory=FusionConfig)
+
+    def __post_init__(self) -> None:
+        _validate(self)
+
+    # -- presets -------------------------------------------------------------------------------
+    @classmethod
+    def preset(cls, name: str) -> "Config":
+        """A named configuration: ``default`` or ``paper``."""
+        try:
+            overrides = PRESETS[name]
+        except KeyError:
+            raise ConfigError(f"unknown preset {name!r}; known: {', '.join(sorted(PRESETS))}") from None
+        return cls().with_overrides(overrides)
+
+    def with_overrides(self, overrides: Mapping[str, Mapping[str, Any]]) -> "Config":
+        """A copy with ``{section: {field: value}}`` replaced (code units: radians)."""
+        sections = {}
+        for sec_name, values in overrides.items():
+            if sec_name not in _SECTIONS:
+                raise ConfigError(f"unknown config section {sec_name!r}")
+            sec = getattr(self, sec_name)
+            known = {f.name for f in fields(sec)}
+            for k in values:
+                if k not in known:
+                    raise ConfigError(f"unknown config key {sec_name}.{k}")
+            sections[sec_name] = replace(sec, **dict(values))
+        return replace(self, **sections)
+
+    # -- TOML ----------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """Plain TOML-ready dictionary, angles in ``_deg`` keys."""
+        out: dict[str, dict[str, Any]] = {}
+        for sec_name in _SECTIONS:
+            sec = getattr(self, sec_name)
+            d: dict[str, Any] = {}
+            for f in fields(sec):
+                v = getattr(sec, f.name)
+                if (sec_name, f.name) in _ANGLE_FIELDS:
+                    d[f.name + "_deg"] = _to_deg(v)
+                else:
+                    d[f.name] = _plain(v)
+            out[sec_name] = d
+        return out
+
+    @classmethod
+    def from_dict(
+        cls, data: Mapping[str, Any], base: "Config | None" = None, source: str = "config"
+    ) -> "Config":
+        """Build from a TOML-shaped mapping; keys missing keep ``base`` (default: ``Config()``)."""
+        base = base if base is not None else cls()
+        overrides: dict[str, dict[str, Any]] = {}
+        for sec_name, values in data.items():
+            if sec_name == "preset":
+                continue
+            if sec_name not in _SECTIONS:
+                raise ConfigError(f"{source}: unknown config section [{sec_name}]")
+            if not isinstance(values, Mapping):
+                raise ConfigError(f"{source}: [{sec_name}] must be a table")
+            sec = getattr(base, sec_name)
+            ftypes = {f.name: f for f in fields(sec)}
+            conv: dict[str, Any] = {}
+            for key, raw in values.items():
+                name = key[:-4] if key.endswith("_deg") else key
+                is_angle = (sec_name, name) in _ANGLE_FIELDS
+                if name not in ftypes or (is_angle != key.endswith("_deg")):
+                    hint = f" (use {name}_deg)" if is_angle and not key.endswith("_deg") else ""
+                    raise ConfigError(f"{source}: unknown config key {sec_name}.{key}{hint}")
+                current = getattr(sec, name)
+                conv[name] = _coerce(raw, current, is_angle, f"{source}: {sec_name}.{key}")
+            overrides[sec_name] = conv
+        return base.with_overrides(overrides)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> "Config":
+        """Load a TOML file; an optional top-level ``preset = "paper"`` picks the base."""
+        p = Path(path)
+        try:
+            text = p.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ConfigError(f"{p}: cannot read config: {exc.strerror or exc}") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{p}: invalid TOML: {exc}") from None
+        preset = data.get("preset", "default")
+        if not isinstance(preset, str):
+            raise ConfigError(f"{p}: preset must be a string")
+        return cls.from_dict(data, base=cls.preset(preset), source=str(p))
+
+    def to_toml(self) -> str:
+        return tomli_w.dumps(self.to_dict())
+
+    def dump(self, path: str | Path) -> None:
+        Path(path).write_text(self.to_toml(), encoding="utf-8")
+
+    @staticmethod
+    def reasons() -> dict[str, str]:
+        """``{"section.key": reason}`` for every setting."""
+        out = {}
+        for sec_name, cls_ in _SECTIONS.items():
+            for f in fields(cls_):
+                out[f"{sec_name}.{f.name}"] = f.metadata.get("reason", "")
+        return out
+
+
+# The paper's way: every rule and value it states, with SPEC's corrections; ours elsewhere.
+PRESETS: dict[str, dict[str, dict[str, Any]]] = {
+    "default": {},
+    "paper": {
+        "angular_points": {"refine": False},
+        "matching": {
+            "same_kind_only": False,
+            "mutual": False,
+            "use_break_points": True,
+            "use_angular_points": True,
+            "use_virtual_points": True,
+            "repair_iterations": 0,
+            "refine_with_lines": False,
+        },
+        "fusion": {"method": "weighted_mean", "robust": False},
+    },
+}
+
+
+# -- helpers -------------------------------------------------------------------------------------
+def _to_deg(v: Any) -> Any:
+    if isinstance(v, tuple):
+        return [_to_deg(x) for x in v]
+    return round(math.degrees(v), 12)
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, tuple):
+        return [_plain(x) for x in v]
+    return v
+
+
+def _coerce(raw: Any, current: Any, is_angle: bool, where: str) -> Any:
+    """Convert a TOML value to the type of ``current`` (the default), degrees to radians."""
+    if isinstance(current, bool):
+        if not isinstance(raw, bool):
+            raise ConfigError(f"{where} must be true or false, got {raw!r}")
+        return raw
+    if isinstance(current, int):
+        if isinstance(raw, bool) or not isinstance(raw, int):
+            raise ConfigError(f"{where} must be an integer, got {raw!r}")
+        return raw
+    if isinstance(current, float):
+        if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+            raise ConfigError(f"{where} must be a number, got {raw!r}")
+        return math.radians(raw) if is_angle else float(raw)
+    if isinstance(current, str):
+        if not isinstance(raw, str):
+            raise ConfigError(f"{where} must be a string, got {raw!r}")
+        return raw
+    if isinstance(current, tuple):
+        if not isinstance(raw, list):
+            raise ConfigError(f"{where} must be a list, got {raw!r}")
+        if current and isinstance(current[0], tuple):  # list of triangles
+            out = []
+            for item in raw:
+                if not isinstance(item, list) or len(item) != 3:
+                    raise ConfigError(f"{where}: each membership function is [left, peak, right]")
+                out.append(tuple(_coerce(x, 0.0, is_angle, where) for x in item))
+            return tuple(out)
+        if current and isinstance(current[0], str):
+            return tuple(_coerce(x, "", False, where) for x in raw)
+        return tuple(_coerce(x, 0.0, is_angle, where) for x in raw)
+    raise ConfigError(f"{where}: unsupported value {raw!r}")  # pragma: no cover
+
+
+def _check_sets(name: str, sets: tuple[Triangle, ...], n: int | None = None) -> None:
+    if n is not None and len(sets) != n:
+        raise ConfigError(f"fuzzy.{name} needs {n} membership functions, got {len(sets)}")
+    for t in sets:
+        if len(t) != 3 or not all(math.isfinite(v) for v in t):
+            raise ConfigError(f"fuzzy.{name}: {t!r} is not a finite (left, peak, right) triangle")
+        if not t[0] <= t[1] <= t[2] or t[0] == t[2]:
+            raise ConfigError(f"fuzzy.{name}: {t!r} needs left <= peak <= right and left < right")
+    peaks = [t[1] for t in sets]
+    if peaks != sorted(peaks):
+        raise ConfigError(f"fuzzy.{name}: membership functions must be ordered by their peaks")
+
+
+def _check_rules(name: str, rules: tuple[str, ...], rows: int, cols: int) -> None:
+    if len(rules) != rows or any(len(r) != cols or set(r) - set("SMB") for r in rules):
+        raise ConfigError(
+            f"fuzzy.{name} needs {rows} rows of {cols} labels from S/M/B, got {list(rules)!r}"
+        )
+
+
+def _validate(cfg: Config) -> None:
+    fz = cfg.fuzzy
+    if fz.inference not in ("product", "mamdani"):
+        raise ConfigError(f"fuzzy.inference must be 'product' or 'mamdani', got {fz.inference!r}")
+    if fz.mamdani_resolution < 11:
+        raise ConfigError("fuzzy.mamdani_resolution must be at least 11")
+    _check_sets("detection_angle_sets", fz.detection_angle_sets, 3)
+    _check_sets("distance_sets", fz.distance_sets, 5)
+    _check_sets("uncertainty_sets", fz.uncertainty_sets, 3)
+    _check_sets("line_distance_sets", fz.line_distance_sets, 3)
+    _check_sets("virtual_distance_sets", fz.virtual_distance_sets, 5)
+    if len(fz.output_centres) != 3:
+        raise ConfigError("fuzzy.output_centres needs 3 values (S, M, B)")
+    _check_rules("point_rules", fz.point_rules, 5, 3)
+    _check_rules("line_rules", fz.line_rules, 3, 3)
+    _check_rules("virtual_pair_rules", fz.virtual_pair_rules, 3, 3)
+    _check_rules("virtual_distance_rules", fz.virtual_distance_rules, 5, 3)
+    positive = {
+        "segmentation.gap_distance": cfg.segmentation.gap_distance,
+        "matching.pairing_distance": cfg.matching.pairing_distance,
+        "matching.repair_distance": cfg.matching.repair_distance,
+        "virtual_points.max_distance": cfg.virtual_points.max_distance,
+    }
+    for key, v in positive.items():
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ConfigError(f"{key} must be a positive number, got {v!r}")
+    nonneg = {
+        "segmentation.gap_distance_per_metre": cfg.segmentation.gap_distance_per_metre,
+        "segmentation.gap_difference": cfg.segmentation.gap_difference,
+        "matching.min_pair_separation": cfg.matching.min_pair_separation,
+        "lines.min_length": cfg.lines.min_length,
+        "angular_points.neighbour_distance": cfg.angular_points.neighbour_distance,
+        "fusion.inlier_distance": cfg.fusion.inlier_distance,
+        "fusion.trim_floor": cfg.fusion.trim_floor,
+    }
+    for key, v in nonneg.items():
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise ConfigError(f"{key} must be a non-negative number, got {v!r}")
+    if not 0 <= cfg.filtering.detection_angle_threshold < math.pi / 2:
+        raise ConfigError("filtering.detection_angle_threshold must lie in [0°, 90°)")
+    if not 0 < cfg.angular_points.interior_angle_threshold < math.pi:
+        raise ConfigError("angular_points.interior_angle_threshold must lie in (0°, 180°)")
+    if cfg.angular_points.neighbour_step < 1:
+        raise ConfigError("angular_points.neighbour_step must be at least 1")
+    if cfg.lines.min_points < 2:
+        raise ConfigError("lines.min_points must be at least 2")
+    if cfg.segmentation.min_cluster_points < 1:
+        raise ConfigError("segmentation.min_cluster_points must be at least 1")
+    if cfg.lines.corner_exclusion < 0:
+        raise ConfigError("lines.corner_exclusion must be non-negative")
+    if not 0 < cfg.virtual_points.min_intersection_angle <= math.pi / 2:
+        raise ConfigError("virtual_points.min_intersection_angle must lie in (0°, 90°]")
+    if cfg.matching.min_pairs < 2:
+        raise ConfigError("matching.min_pairs must be at least 2")
+    if cfg.matching.repair_iterations < 0:
+        raise ConfigError("matching.repair_iterations must be non-negative")
+    if cfg.fusion.method not in ("weighted_mean", "least_squares"):
+        raise ConfigError(
+            f"fusion.method must be 'weighted_mean' or 'least_squares', got {cfg.fusion.method!r}"
+        )
+    if cfg.fusion.max_solutions < 1:
+        raise ConfigError("fusion.max_solutions must be at least 1")
+    if not (cfg.matching.use_break_points or cfg.matching.use_angular_points
+            or cfg.matching.use_virtual_points):
+        raise ConfigError("matching: at least one kind of feature point must be used")
+

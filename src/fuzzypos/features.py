@@ -1,0 +1,691 @@
+"""Feature extraction (§3.1–3.6): each stage a function over arrays, one call runs them all.
+
+A scan's valid readings become points with a detection angle (eq. 3) and a fuzzy uncertainty
+(eq. 4); sharp-angle points are filtered (§3.1); break points (eq. 13) split the rest into
+clusters (§3.3); angular points (eq. 14) cut the clusters into segments; each segment of at
+least four points gets a total-least-squares line in normal form ``n·p = d`` with a fuzzy
+uncertainty (eq. 5–9); pairs of lines intersect into virtual angular points (eq. 10–12, §3.6).
+
+Geometry that depends on the beam (ranges, detection angles) is computed in the sensor frame;
+every point, line and feature is returned in the robot frame (SPEC: the scan's points are
+moved into the robot frame by ``sensor_pose`` first). No Python loop runs over beams or points:
+per-cluster and per-segment statistics use ``np.bincount`` over labels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .config import Config, FuzzyConfig
+from .fuzzy import RuleBases
+from .geometry import transform_points
+from .scan import LaserScan
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+__all__ = [
+    "BREAK_POINT",
+    "ANGULAR_POINT",
+    "VIRTUAL_ANGULAR_POINT",
+    "KIND_NAMES",
+    "FeaturePoints",
+    "Lines",
+    "Features",
+    "rule_bases",
+    "detection_angles",
+    "point_uncertainty",
+    "filter_points",
+    "break_points",
+    "clusters",
+    "angular_points",
+    "fit_lines",
+    "virtual_angular_points",
+    "extract_features",
+]
+
+BREAK_POINT = 0
+ANGULAR_POINT = 1
+VIRTUAL_ANGULAR_POINT = 2
+KIND_NAMES = ("break point", "angular point", "virtual angular point")
+
+
+@lru_cache(maxsize=16)
+def rule_bases(cfg: FuzzyConfig) -> RuleBases:
+    """The three fuzzy systems for a fuzzy config, built once and cached."""
+    return RuleBases.from_config(cfg)
+
+
+# ---------------------------------------------------------------------------------------------
+# data containers
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class FeaturePoints:
+    """Point features of one scan, in the robot frame.
+
+    ``kind`` is BREAK_POINT, ANGULAR_POINT or VIRTUAL_ANGULAR_POINT; ``uncertainty`` in [0, 1]
+    is the fuzzy uncertainty (eq. 4 for break and sampled angular points, eq. 11 for virtual
+    and refined angular points).
+    """
+
+    xy: FloatArray
+    uncertainty: FloatArray
+    kind: NDArray[np.int8]
+
+    def __len__(self) -> int:
+        return int(self.xy.shape[0])
+
+    def select(self, mask: BoolArray) -> "FeaturePoints":
+        return FeaturePoints(self.xy[mask], self.uncertainty[mask], self.kind[mask])
+
+    @classmethod
+    def empty(cls) -> "FeaturePoints":
+        return cls(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=np.int8))
+
+
+@dataclass(frozen=True, eq=False)
+class Lines:
+    """Line features in normal form ``normal · p = distance`` (robot frame).
+
+    ``start``/``end`` are the segment's endpoints (§3.5), ``centre`` their midpoint, ``sigma``
+    the mean point-to-line distance (eq. 8), ``delta`` the mean point uncertainty (eq. 6) and
+    ``uncertainty`` the line's fuzzy uncertainty (eq. 9, Table 2). ``segment`` is the id of the
+    segment the line was fitted to and ``cluster`` its cluster.
+    """
+
+    normal: FloatArray
+    distance: FloatArray
+    start: FloatArray
+    end: FloatArray
+    centre: FloatArray
+    n_points: IntArray
+    sigma: FloatArray
+    delta: FloatArray
+    uncertainty: FloatArray
+    segment: IntArray
+    cluster: IntArray
+
+    def __len__(self) -> int:
+        return int(self.normal.shape[0])
+
+    @property
+    def direction(self) -> FloatArray:
+        """Unit direction along each line (the normal turned by −90°)."""
+        return np.stack([self.normal[:, 1], -self.normal[:, 0]], axis=1)
+
+    @property
+    def length(self) -> FloatArray:
+        return np.linalg.norm(self.end - self.start, axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class Features:
+    """Everything :func:`extract_features` found in one scan, every stage kept for plotting.
+
+    Per valid reading (arrays of length ``n_valid``): ``beam_index`` (into the scan),
+    ``points`` (robot frame), ``ranges``, ``detection_angle`` (β, eq. 3), ``uncertainty``
+    (eq. 4) and ``kept`` (survived filtering, §3.1). Per kept point (arrays of length
+    ``n_kept``, ``kept_index`` into the valid arrays): ``is_break_point`` (eq. 13),
+    ``cluster`` (−1 for dropped clusters), ``is_angular_point`` (eq. 14) and ``segment``
+    (−1 where a point belongs to no line fit). Then ``lines``, the virtual angular points with
+    the indices of their two lines (``virtual_lines``), and ``points_of_interest``: the
+    feature points used for pairing.
+    """
+
+    stamp: float
+    beam_index: IntArray
+    points: FloatArray
+    ranges: FloatArray
+    detection_angle: FloatArray
+    uncertainty: FloatArray
+    kept: BoolArray
+    kept_index: IntArray
+    is_break_point: BoolArray
+    is_field_of_view_edge: BoolArray
+    cluster: IntArray
+    is_angular_point: BoolArray
+    segment: IntArray
+    lines: Lines
+    angular_points: FeaturePoints
+    virtual_points: FeaturePoints
+    virtual_lines: IntArray
+    break_points: FeaturePoints
+    points_of_interest: FeaturePoints
+
+    @property
+    def n_valid(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def kept_points(self) -> FloatArray:
+        return self.points[self.kept_index]
+
+    @property
+    def n_clusters(self) -> int:
+        c = self.cluster[self.cluster >= 0]
+        return int(np.unique(c).size)
+
+
+# ---------------------------------------------------------------------------------------------
+# stages
+# ---------------------------------------------------------------------------------------------
+def _steps(points: FloatArray, closed: bool) -> FloatArray:
+    """Distance from each point to the next one (the last: to the first if ``closed``, else inf)."""
+    if points.shape[0] == 0:
+        return np.zeros(0)
+    nxt = np.roll(points, -1, axis=0)
+    d = np.hypot(nxt[:, 0] - points[:, 0], nxt[:, 1] - points[:, 1])
+    if not closed:
+        d[-1] = np.inf
+    return d
+
+
+def gap_thresholds(ranges: FloatArray, angle_increment: float, cfg: Config) -> FloatArray:
+    """T2 per point: the fixed gap distance, or a few beam spacings at the point's range."""
+    seg = cfg.segmentation
+    return np.maximum(seg.gap_distance, seg.gap_distance_per_metre * abs(angle_increment) * ranges)
+
+
+def break_points(
+    points: FloatArray, thresholds: FloatArray, gap_difference: float, closed: bool = False
+) -> tuple[BoolArray, BoolArray]:
+    """Eq. 13 over an ordered point sequence.
+
+    A point is a break point when the step to a neighbour exceeds T2 (``thresholds``) and the
+    steps on its two sides differ by more than T1 (``gap_difference``): both points that border
+    a gap qualify, a uniformly sparse surface does not. Returns ``(is_break_point, split)``
+    where ``split[j]`` says the sequence is cut between points j and j+1. The two ends of an
+    open sequence are break points too (field-of-view edges, eq. 13's ``i = 1, 180``).
+    """
+    n = points.shape[0]
+    if n == 0:
+        return np.zeros(0, bool), np.zeros(0, bool)
+    d_next = _steps(points, closed)
+    d_prev = np.roll(d_next, 1)
+    if not closed:
+        d_prev[0] = np.inf
+    big_next = d_next > thresholds
+    big_prev = d_prev > thresholds
+    with np.errstate(invalid="ignore"):
+        differ = np.abs(d_next - d_prev) > gap_difference
+    differ |= np.isinf(d_next) ^ np.isinf(d_prev)
+    is_break = (big_next | big_prev) & differ
+    # cut between j and j+1 where the step is a gap bordered by a break point on either side
+    split = big_next & (is_break | np.roll(is_break, -1))
+    if not closed:
+        split[-1] = True
+        is_break[0] = True
+        is_break[-1] = True
+    return is_break, split
+
+
+def detection_angles(points_sensor: FloatArray, gap_after: BoolArray, closed: bool = False) -> FloatArray:
+    """β (eq. 3, SPEC step 1): angle between the beam and the surface, folded into [0, π/2].
+
+    The surface through point i runs to its neighbour i+1, or to i−1 where i+1 lies across a
+    gap (``gap_after[i]``) or does not exist. π/2 = square-on, 0 = grazing. A point with no
+    neighbour on its surface (gaps on both sides) gets β = 0, so filtering removes it.
+    """
+    n = points_sensor.shape[0]
+    if n == 0:
+        return np.zeros(0)
+    nxt = np.roll(points_sensor, -1, axis=0)
+    prv = np.roll(points_sensor, 1, axis=0)
+    gap_before = np.roll(gap_after, 1)
+    if not closed:
+        gap_before = gap_before.copy()
+        gap_before[0] = True
+    use_next = ~gap_after
+    step = np.where(use_next[:, None], nxt - points_sensor, points_sensor - prv)
+    beam = points_sensor
+    cross = np.abs(beam[:, 0] * step[:, 1] - beam[:, 1] * step[:, 0])
+    dot = np.abs(beam[:, 0] * step[:, 0] + beam[:, 1] * step[:, 1])
+    beta = np.arctan2(cross, dot)  # folded: both |·| put it in [0, π/2]
+    isolated = gap_after & gap_before
+    return np.where(isolated, 0.0, beta)
+
+
+def point_uncertainty(ranges: FloatArray, beta: FloatArray, bases: RuleBases) -> FloatArray:
+    """Eq. 4 / Table 1: the fuzzy uncertainty of each point from ρ and β."""
+    if ranges.shape[0] == 0:
+        return np.zeros(0)
+    return bases.points(ranges, beta)
+
+
+def filter_points(beta: FloatArray, threshold: float) -> BoolArray:
+    """§3.1: keep points whose detection angle exceeds ξ_TH."""
+    return beta > threshold
+
+
+def clusters(split: BoolArray, min_points: int) -> IntArray:
+    """§3.3: cluster labels 0, 1, … from cuts (``split[j]``: cut after point j); −1 = too small."""
+    n = split.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    starts = np.empty(n, bool)
+    starts[0] = True
+    starts[1:] = split[:-1]
+    label = np.cumsum(starts) - 1
+    size = np.bincount(label)
+    ok = size >= min_points
+    new_id = np.cumsum(ok) - 1
+    return np.where(ok[label], new_id[label], -1).astype(np.int64)
+
+
+def angular_points(
+    points: FloatArray,
+    cluster: IntArray,
+    step_spacing: FloatArray,
+    cfg: Config,
+) -> tuple[BoolArray, FloatArray]:
+    """Eq. 14 (SPEC step 5): corners inside clusters, and the interior angle at every point.
+
+    The interior angle at P_i is between P_i→P_{i−k} and P_i→P_{i+k}, with k the configured
+    step, widened so the neighbours are at least ``neighbour_distance`` away (``step_spacing``
+    is each point's distance to the next). Points whose angle is at most θ_TH are candidates;
+    of a run of consecutive candidates the sharpest wins.
+    """
+    n = points.shape[0]
+    angle = np.full(n, np.pi)
+    if n == 0:
+        return np.zeros(0, bool), angle
+    ap = cfg.angular_points
+    with np.errstate(divide="ignore"):
+        wanted = np.ceil(ap.neighbour_distance / np.maximum(step_spacing, 1e-9))
+    k = np.clip(wanted, ap.neighbour_step, 4 * ap.neighbour_step).astype(np.int64)
+    idx = np.arange(n)
+    lo = idx - k
+    hi = idx + k
+    inside = (lo >= 0) & (hi < n) & (cluster >= 0)
+    lo_c = np.clip(lo, 0, n - 1)
+    hi_c = np.clip(hi, 0, n - 1)
+    inside &= (cluster[lo_c] == cluster) & (cluster[hi_c] == cluster)
+    a = points[lo_c] - points
+    b = points[hi_c] - points
+    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
+    angle = np.where(inside, np.abs(np.arctan2(cross, dot)), np.pi)
+    cand = angle <= ap.interior_angle_threshold
+    if not cand.any():
+        return cand, angle
+    # runs of consecutive candidates within a cluster: keep the sharpest of each run
+    prev_cand = np.concatenate([[False], cand[:-1]])
+    same_cluster_prev = np.concatenate([[False], cluster[1:] == cluster[:-1]])
+    run_start = cand & ~(prev_cand & same_cluster_prev)
+    run_id = np.cumsum(run_start) - 1
+    ci = np.flatnonzero(cand)
+    order = np.lexsort((angle[ci], run_id[ci]))
+    ci_sorted = ci[order]
+    first = np.ones(ci_sorted.shape[0], bool)
+    first[1:] = run_id[ci_sorted[1:]] != run_id[ci_sorted[:-1]]
+    is_corner = np.zeros(n, bool)
+    is_corner[ci_sorted[first]] = True
+    return is_corner, angle
+
+
+def segments(cluster: IntArray, is_corner: BoolArray, corner_exclusion: int) -> IntArray:
+    """Cut clusters at angular points into segments (§3.5). Returns a segment id per point.
+
+    Ids are global and consecutive: the segment before the angular point at i is ``seg[i]``
+    and the one after it ``seg[i] + 1``. Points within ``corner_exclusion`` of an angular
+    point, the angular point itself, and points of dropped clusters get −1 (no line).
+    """
+    if cluster.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    seg = raw_segment_ids(cluster, is_corner)
+    excluded = is_corner.copy()
+    for s in range(1, corner_exclusion + 1):
+        excluded[s:] |= is_corner[:-s]
+        excluded[:-s] |= is_corner[s:]
+    excluded |= cluster < 0
+    return np.where(excluded, -1, seg).astype(np.int64)
+
+
+def raw_segment_ids(cluster: IntArray, is_corner: BoolArray) -> IntArray:
+    """Segment id of every point, counting a new segment at each cluster start and after each
+    angular point; the angular point itself belongs to the segment before it."""
+    n = cluster.shape[0]
+    new_cluster = np.ones(n, bool)
+    new_cluster[1:] = cluster[1:] != cluster[:-1]
+    after_corner = np.zeros(n, bool)
+    after_corner[1:] = is_corner[:-1] & ~new_cluster[1:]
+    return np.cumsum(new_cluster | after_corner) - 1
+
+
+def fit_lines(
+    points: FloatArray,
+    uncertainty: FloatArray,
+    segment: IntArray,
+    cluster: IntArray,
+    bases: RuleBases,
+    cfg: Config,
+) -> Lines:
+    """§3.5, eq. 5–9: a total-least-squares line per segment of at least ``min_points`` points.
+
+    The normal is the eigenvector of the scatter matrix's smallest eigenvalue (the orthogonal
+    fit, valid for vertical and horizontal walls alike); endpoints are the projections of the
+    segment's extreme points (joined at angular points later, see :func:`join_at_corners`).
+    """
+    used = segment >= 0
+    if not used.any():
+        return _empty_lines()
+    seg = segment[used]
+    p = points[used]
+    u = uncertainty[used]
+    nseg = int(seg.max()) + 1
+    count = np.bincount(seg, minlength=nseg).astype(float)
+    good = count >= cfg.lines.min_points
+    if not good.any():
+        return _empty_lines()
+    safe = np.maximum(count, 1.0)
+    mx = np.bincount(seg, p[:, 0], nseg) / safe
+    my = np.bincount(seg, p[:, 1], nseg) / safe
+    dx = p[:, 0] - mx[seg]
+    dy = p[:, 1] - my[seg]
+    sxx = np.bincount(seg, dx * dx, nseg)
+    syy = np.bincount(seg, dy * dy, nseg)
+    sxy = np.bincount(seg, dx * dy, nseg)
+    # principal direction φ of the scatter; the normal is perpendicular to it
+    phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
+    nx, ny = -np.sin(phi), np.cos(phi)
+    dist = nx * mx + ny * my
+    flip = dist < 0
+    nx = np.where(flip, -nx, nx)
+    ny = np.where(flip, -ny, ny)
+    dist = np.abs(dist)
+    # eq. 7–8 (SPEC fix: x·a + y·b + c) with a unit normal: d_i = |n·p_i − d|
+    resid = np.abs(nx[seg] * p[:, 0] + ny[seg] * p[:, 1] - dist[seg])
+    sigma = np.bincount(seg, resid, nseg) / safe
+    delta = np.bincount(seg, u, nseg) / safe  # eq. 6
+    # extreme points of each segment (first and last in scan order)
+    order_idx = np.arange(seg.shape[0])
+    first = np.full(nseg, -1)
+    last = np.full(nseg, -1)
+    np.maximum.at(last, seg, order_idx)
+    first_rev = np.full(nseg, seg.shape[0])
+    np.minimum.at(first_rev, seg, order_idx)
+    first = first_rev
+    ids = np.flatnonzero(good)
+    normal = np.stack([nx[ids], ny[ids]], axis=1)
+    d = dist[ids]
+    start = _project(p[first[ids]], normal, d)
+    end = _project(p[last[ids]], normal, d)
+    long_enough = np.linalg.norm(end - start, axis=1) >= cfg.lines.min_length
+    ids = ids[long_enough]
+    normal = normal[long_enough]
+    d = d[long_enough]
+    start = start[long_enough]
+    end = end[long_enough]
+    if ids.size == 0:
+        return _empty_lines()
+    f_line = bases.lines(delta[ids], sigma[ids])  # eq. 9 / Table 2
+    seg_cluster = np.full(nseg, -1)
+    seg_cluster[seg] = cluster[used]
+    return Lines(
+        normal=normal,
+        distance=d,
+        start=start,
+        end=end,
+        centre=0.5 * (start + end),
+        n_points=count[ids].astype(np.int64),
+        sigma=sigma[ids],
+        delta=delta[ids],
+        uncertainty=f_line,
+        segment=ids.astype(np.int64),
+        cluster=seg_cluster[ids].astype(np.int64),
+    )
+
+
+def _project(p: FloatArray, normal: FloatArray, d: FloatArray) -> FloatArray:
+    off = np.sum(p * normal, axis=1) - d
+    return p - off[:, None] * normal
+
+
+def _empty_lines() -> Lines:
+    z2 = np.zeros((0, 2))
+    z = np.zeros(0)
+    zi = np.zeros(0, dtype=np.int64)
+    return Lines(z2, z, z2, z2, z2, zi, z, z, z, zi, zi)
+
+
+def intersect_lines(
+    n1: FloatArray, d1: FloatArray, n2: FloatArray, d2: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Intersections of lines ``n·p = d`` (SPEC's fix of eq. 15–16: normal form, homogeneous
+    cross product, so vertical lines work). Returns ``(points, |sin angle|)``."""
+    det = n1[:, 0] * n2[:, 1] - n1[:, 1] * n2[:, 0]
+    safe = np.where(np.abs(det) > 1e-12, det, 1.0)
+    x = (d1 * n2[:, 1] - d2 * n1[:, 1]) / safe
+    y = (n1[:, 0] * d2 - n2[:, 0] * d1) / safe
+    return np.stack([x, y], axis=1), np.abs(det)
+
+
+def join_at_corners(
+    lines: Lines,
+    corner_segment_before: IntArray,
+    bases: RuleBases,
+    cfg: Config,
+) -> tuple[Lines, FloatArray, FloatArray, BoolArray]:
+    """§3.5 b): where two lines meet at an angular point, their shared endpoint is their
+    intersection. Returns the updated lines and, per angular point, the intersection, its
+    uncertainty (eq. 10–12 with the two lines) and whether it exists."""
+    m = corner_segment_before.shape[0]
+    xy = np.full((m, 2), np.nan)
+    unc = np.full(m, np.nan)
+    ok = np.zeros(m, bool)
+    if m == 0 or len(lines) < 2:
+        return lines, xy, unc, ok
+    pos = np.full(int(max(lines.segment.max(), corner_segment_before.max()) + 2), -1)
+    pos[lines.segment] = np.arange(len(lines))
+    a = pos[corner_segment_before]
+    b = pos[corner_segment_before + 1]
+    have = (a >= 0) & (b >= 0)
+    if not have.any():
+        return lines, xy, unc, ok
+    ia, ib = a[have], b[have]
+    pts, sin_ang = intersect_lines(lines.normal[ia], lines.distance[ia], lines.normal[ib], lines.distance[ib])
+    good = sin_ang >= np.sin(cfg.virtual_points.min_intersection_angle)
+    hv = np.flatnonzero(have)[good]
+    ia, ib, pts = ia[good], ib[good], pts[good]
+    start = lines.start.copy()
+    end = lines.end.copy()
+    end[ia] = pts
+    start[ib] = pts
+    centre = 0.5 * (start + end)
+    dv = 0.5 * (np.linalg.norm(pts - centre[ia], axis=1) + np.linalg.norm(pts - centre[ib], axis=1))
+    xy[hv] = pts
+    unc[hv] = bases.virtual_points(lines.uncertainty[ia], lines.uncertainty[ib], dv) if hv.size else unc[hv]
+    ok[hv] = True
+    new = Lines(
+        lines.normal, lines.distance, start, end, centre, lines.n_points, lines.sigma,
+        lines.delta, lines.uncertainty, lines.segment, lines.cluster,
+    )
+    return new, xy, unc, ok
+
+
+def virtual_angular_points(
+    lines: Lines, bases: RuleBases, cfg: Config, exclude_pairs: IntArray | None = None
+) -> tuple[FeaturePoints, IntArray, FloatArray]:
+    """§3.6, eq. 10–12: intersections of every two lines at least the minimum angle apart.
+
+    Each gets the uncertainty of Table 3 from its lines' uncertainties and d_v (eq. 10), and
+    points above the threshold are removed. ``exclude_pairs`` (k, 2) are line pairs that meet
+    at a real angular point: that intersection is the angular point, not a second feature.
+    Returns the points, their line index pairs and their d_v.
+    """
+    nl = len(lines)
+    if nl < 2:
+        return FeaturePoints.empty(), np.zeros((0, 2), dtype=np.int64), np.zeros(0)
+    i, j = np.triu_indices(nl, 1)
+    pts, sin_ang = intersect_lines(lines.normal[i], lines.distance[i], lines.normal[j], lines.distance[j])
+    keep = sin_ang >= np.sin(cfg.virtual_points.min_intersection_angle)
+    if exclude_pairs is not None and exclude_pairs.size:
+        code = i * nl + j
+        lo = np.minimum(exclude_pairs[:, 0], exclude_pairs[:, 1])
+        hi = np.maximum(exclude_pairs[:, 0], exclude_pairs[:, 1])
+        keep &= ~np.isin(code, lo * nl + hi)
+    i, j, pts = i[keep], j[keep], pts[keep]
+    dv = 0.5 * (
+        np.linalg.norm(pts - lines.centre[i], axis=1) + np.linalg.norm(pts - lines.centre[j], axis=1)
+    )  # eq. 10
+    near = dv <= cfg.virtual_points.max_distance
+    i, j, pts, dv = i[near], j[near], pts[near], dv[near]
+    if i.size == 0:
+        return FeaturePoints.empty(), np.zeros((0, 2), dtype=np.int64), np.zeros(0)
+    f = bases.virtual_points(lines.uncertainty[i], lines.uncertainty[j], dv)  # eq. 11–12
+    ok = f <= cfg.virtual_points.max_uncertainty
+    fp = FeaturePoints(pts[ok], f[ok], np.full(int(ok.sum()), VIRTUAL_ANGULAR_POINT, dtype=np.int8))
+    return fp, np.stack([i[ok], j[ok]], axis=1).astype(np.int64), dv[ok]
+
+
+# ---------------------------------------------------------------------------------------------
+# the whole chain
+# ---------------------------------------------------------------------------------------------
+def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
+    """Run every stage of §3.1–3.6 on one scan and keep each intermediate result."""
+    cfg = config if config is not None else Config()
+    bases = rule_bases(cfg.fuzzy)
+    closed = bool(scan.is_full_circle)
+    valid = scan.valid
+    beam_index = np.flatnonzero(valid)
+    ranges = np.asarray(scan.ranges)[beam_index]
+    angles = scan.angles[beam_index]
+    p_sensor = np.stack([ranges * np.cos(angles), ranges * np.sin(angles)], axis=1)
+    sp = scan.sensor_pose
+    if sp.x == 0.0 and sp.y == 0.0 and sp.theta == 0.0:
+        points = p_sensor
+    else:
+        points = transform_points(sp.as_array(), p_sensor)
+    inc = scan.angle_increment
+    t2_valid = gap_thresholds(ranges, inc, cfg)
+
+    # 1. gaps among the valid points, then β (eq. 3), then 2. uncertainty (eq. 4)
+    _, gap_after = break_points(p_sensor, t2_valid, cfg.segmentation.gap_difference, closed)
+    beta = detection_angles(p_sensor, gap_after, closed)
+    u = point_uncertainty(ranges, beta, bases)
+
+    # 3. filtering (§3.1)
+    kept = filter_points(beta, cfg.filtering.detection_angle_threshold)
+    kept_index = np.flatnonzero(kept)
+    kp = points[kept_index]
+    ku = u[kept_index]
+    kr = ranges[kept_index]
+
+    # 4. break points (eq. 13) and clusters (§3.3) on the filtered points
+    t2 = t2_valid[kept_index]
+    is_break, split = break_points(kp, t2, cfg.segmentation.gap_difference, closed)
+    fov_edge = np.zeros(kept_index.shape[0], bool)
+    if kept_index.size and not closed:
+        fov_edge[0] = True
+        fov_edge[-1] = True
+    if closed and kept_index.size and not split.any():
+        split = split.copy()
+        split[-1] = True  # a closed loop with no gap still needs a start
+    cluster = clusters(split, cfg.segmentation.min_cluster_points)
+
+    # 5. angular points (eq. 14)
+    steps = _steps(kp, closed)
+    is_corner, _interior = angular_points(kp, cluster, steps, cfg)
+
+    # 6. lines (§3.5, eq. 5–9)
+    segment = segments(cluster, is_corner, cfg.lines.corner_exclusion)
+    lines = fit_lines(kp, ku, segment, cluster, bases, cfg)
+    corner_idx = np.flatnonzero(is_corner)
+    raw_seg = raw_segment_ids(cluster, is_corner) if kp.shape[0] else np.zeros(0, dtype=np.int64)
+    seg_before = raw_seg[corner_idx]
+    lines, corner_xy, corner_unc, joined = join_at_corners(lines, seg_before, bases, cfg)
+
+    # angular points: sampled (the paper) or refined to their lines' intersection (SPEC step 5)
+    ang_xy = kp[corner_idx]
+    ang_u = ku[corner_idx]
+    if cfg.angular_points.refine and corner_idx.size:
+        spacing = np.abs(inc) * kr[corner_idx]
+        near = joined & (np.linalg.norm(np.nan_to_num(corner_xy) - ang_xy, axis=1) <= 3.0 * spacing + 0.05)
+        ang_xy = np.where(near[:, None], corner_xy, ang_xy)
+        ang_u = np.where(near, corner_unc, ang_u)
+    angular = FeaturePoints(ang_xy, ang_u, np.full(corner_idx.size, ANGULAR_POINT, dtype=np.int8))
+
+    # 7. virtual angular points (§3.6), without the ones that are real angular points
+    exclude = _corner_line_pairs(lines, seg_before)
+    virtual, virtual_lines, _dv = virtual_angular_points(lines, bases, cfg, exclude)
+
+    # break points as features: not at field-of-view edges, only in kept clusters
+    bp_mask = is_break & ~fov_edge & (cluster >= 0)
+    breaks = FeaturePoints(
+        kp[bp_mask], ku[bp_mask], np.full(int(bp_mask.sum()), BREAK_POINT, dtype=np.int8)
+    )
+    m = cfg.matching
+    parts = []
+    if m.use_break_points:
+        parts.append(breaks)
+    if m.use_angular_points:
+        parts.append(angular)
+    if m.use_virtual_points:
+        parts.append(virtual)
+    poi = merge_duplicates(
+        FeaturePoints(
+            np.concatenate([p.xy for p in parts]) if parts else np.zeros((0, 2)),
+            np.concatenate([p.uncertainty for p in parts]) if parts else np.zeros(0),
+            np.concatenate([p.kind for p in parts]) if parts else np.zeros(0, dtype=np.int8),
+        ),
+        cfg.virtual_points.merge_distance,
+    )
+    return Features(
+        stamp=scan.stamp,
+        beam_index=beam_index,
+        points=points,
+        ranges=ranges,
+        detection_angle=beta,
+        uncertainty=u,
+        kept=kept,
+        kept_index=kept_index,
+        is_break_point=is_break,
+        is_field_of_view_edge=fov_edge,
+        cluster=cluster,
+        is_angular_point=is_corner,
+        segment=segment,
+        lines=lines,
+        angular_points=angular,
+        virtual_points=virtual,
+        virtual_lines=virtual_lines,
+        break_points=breaks,
+        points_of_interest=poi,
+    )
+
+
+def merge_duplicates(points: FeaturePoints, radius: float) -> FeaturePoints:
+    """Keep one feature of each group closer than ``radius``: the least uncertain.
+
+    One wall seen as two lines (split by an occlusion) gives the same corner twice; the
+    pairing rule "exactly one candidate within T" (§3.7) would then reject the true pair.
+    """
+    n = len(points)
+    if n < 2 or radius <= 0:
+        return points
+    order = np.lexsort((-points.kind, points.uncertainty))  # most certain first; ties: virtual, angular, break
+    xy = points.xy[order]
+    d2 = np.sum((xy[:, None, :] - xy[None, :, :]) ** 2, axis=2)
+    close = np.triu(d2 < radius * radius, 1)
+    # a point is dropped when a more certain point it is close to is kept; one sweep over the
+    # (small) upper triangle in order approximates this by dropping anything close to an
+    # earlier point, which is exact when duplicates form tight groups
+    dropped = close.any(axis=0)
+    keep = np.sort(order[~dropped])
+    return FeaturePoints(points.xy[keep], points.uncertainty[keep], points.kind[keep])
+
+
+def _corner_line_pairs(lines: Lines, seg_before: IntArray) -> IntArray:
+    """Line index pairs (k, 2) of lines that meet at a real angular point."""
+    if len(lines) < 2 or seg_before.size == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    pos = np.full(int(max(lines.segment.max(), seg_before.max()) + 2), -1)
+    pos[lines.segment] = np.arange(len(lines))
+    a = pos[seg_before]
+    b = pos[seg_before + 1]
+    ok = (a >= 0) & (b >= 0)
+    return np.stack([a[ok], b[ok]], axis=1).astype(np.int64)

@@ -1,0 +1,175 @@
+"""SE(2) geometry: poses ``(x, y, theta)``, composition, inversion, point transforms.
+
+Array functions do the work; :class:`Pose2D` is a thin frozen wrapper over them. Every array
+function takes poses as ``(..., 3)`` arrays ``[x, y, theta]`` and points as ``(..., 2)`` arrays
+and broadcasts over the leading axes. Angles are radians and wrapped to ``[-pi, pi)``.
+
+Conventions (SPEC): ``a ⊕ b`` composes, ``⊖a`` inverts; the odometry increment between poses
+``o_k`` and ``o_{k+1}`` is ``⊖o_k ⊕ o_{k+1}``, the pose of k+1 in the frame of k.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+__all__ = [
+    "Pose2D",
+    "wrap_angle",
+    "compose",
+    "inverse",
+    "relative",
+    "transform_points",
+    "rotation_matrix",
+    "circular_mean",
+]
+
+
+def wrap_angle(angle: ArrayLike) -> FloatArray:
+    """Wrap angles to ``[-pi, pi)``; exact for inputs already in range."""
+    a = np.asarray(angle, dtype=float)
+    out = np.mod(a + np.pi, 2.0 * np.pi) - np.pi
+    # mod can round up to exactly 2*pi (e.g. for a just below -pi), giving +pi: fold it to -pi
+    out = np.where(out >= np.pi, -np.pi, out)
+    # keep values already inside the interval bit-exact (mod can perturb the last digit)
+    inside = (a >= -np.pi) & (a < np.pi)
+    return np.where(inside, a, out)
+
+
+def _as_poses(p: ArrayLike) -> FloatArray:
+    arr = np.asarray(p, dtype=float)
+    if arr.shape[-1:] != (3,):
+        raise ValueError(f"poses must have a last axis of length 3 (x, y, theta), got shape {arr.shape}")
+    return arr
+
+
+def _as_points(p: ArrayLike) -> FloatArray:
+    arr = np.asarray(p, dtype=float)
+    if arr.shape[-1:] != (2,):
+        raise ValueError(f"points must have a last axis of length 2 (x, y), got shape {arr.shape}")
+    return arr
+
+
+def rotation_matrix(theta: ArrayLike) -> FloatArray:
+    """Rotation matrices ``(..., 2, 2)`` for angles ``(...)``."""
+    t = np.asarray(theta, dtype=float)
+    c, s = np.cos(t), np.sin(t)
+    return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
+
+
+def compose(a: ArrayLike, b: ArrayLike) -> FloatArray:
+    """``a ⊕ b``: the pose ``b`` (given in the frame of ``a``) in the frame ``a`` is given in."""
+    a = _as_poses(a)
+    b = _as_poses(b)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+    th = wrap_angle(a[..., 2] + b[..., 2])
+    return np.stack(np.broadcast_arrays(x, y, th), axis=-1)
+
+
+def inverse(a: ArrayLike) -> FloatArray:
+    """``⊖a``: the pose of the outer frame seen from ``a``."""
+    a = _as_poses(a)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = -(c * a[..., 0] + s * a[..., 1])
+    y = s * a[..., 0] - c * a[..., 1]
+    return np.stack([x, y, wrap_angle(-a[..., 2])], axis=-1)
+
+
+def relative(a: ArrayLike, b: ArrayLike) -> FloatArray:
+    """``⊖a ⊕ b``: the pose ``b`` in the frame of ``a`` (e.g. the odometry increment)."""
+    return compose(inverse(a), b)
+
+
+def transform_points(pose: ArrayLike, points: ArrayLike) -> FloatArray:
+    """Map points given in the frame ``pose`` into the frame ``pose`` is given in.
+
+    ``pose`` is ``(3,)`` or ``(..., 3)`` and ``points`` ``(..., 2)``; the leading axes broadcast
+    as in numpy (one pose per point for ``(N, 3)`` with ``(N, 2)``). To move a set of ``M``
+    points by each of ``N`` poses, pass ``pose[:, None, :]`` with ``(M, 2)`` or ``(N, M, 2)``.
+    """
+    pose = _as_poses(pose)
+    pts = _as_points(points)
+    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    tx, ty = pose[..., 0], pose[..., 1]
+    x = tx + c * pts[..., 0] - s * pts[..., 1]
+    y = ty + s * pts[..., 0] + c * pts[..., 1]
+    return np.stack([x, y], axis=-1)
+
+
+def circular_mean(angles: ArrayLike, weights: ArrayLike | None = None) -> float:
+    """Weighted circular mean of angles (SPEC's fix of eq. 24). Returns 0.0 for no weight."""
+    a = np.asarray(angles, dtype=float)
+    w = np.ones_like(a) if weights is None else np.asarray(weights, dtype=float)
+    s = float(np.sum(w * np.sin(a)))
+    c = float(np.sum(w * np.cos(a)))
+    if s == 0.0 and c == 0.0:
+        return 0.0
+    return float(wrap_angle(np.arctan2(s, c)))  # arctan2 can return +pi; keep [-pi, pi)
+
+
+@dataclass(frozen=True)
+class Pose2D:
+    """A pose in SE(2): position ``(x, y)`` in metres and heading ``theta`` in radians."""
+
+    x: float = 0.0
+    y: float = 0.0
+    theta: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("x", "y", "theta"):
+            v = getattr(self, name)
+            try:
+                fv = float(v)
+            except (TypeError, ValueError):
+                raise ValueError(f"Pose2D.{name} must be a number, got {v!r}") from None
+            if not np.isfinite(fv):
+                raise ValueError(f"Pose2D.{name} must be finite, got {fv}")
+            object.__setattr__(self, name, fv)
+        object.__setattr__(self, "theta", float(wrap_angle(self.theta)))
+
+    @classmethod
+    def from_array(cls, arr: ArrayLike) -> "Pose2D":
+        a = np.asarray(arr, dtype=float).reshape(-1)
+        if a.shape != (3,):
+            raise ValueError(f"a pose array needs 3 values (x, y, theta), got {a.shape[0]}")
+        return cls(float(a[0]), float(a[1]), float(a[2]))
+
+    @classmethod
+    def identity(cls) -> "Pose2D":
+        return cls(0.0, 0.0, 0.0)
+
+    def as_array(self) -> FloatArray:
+        return np.array([self.x, self.y, self.theta], dtype=float)
+
+    def __iter__(self) -> Iterator[float]:
+        return iter((self.x, self.y, self.theta))
+
+    def compose(self, other: "Pose2D") -> "Pose2D":
+        """``self ⊕ other``."""
+        return Pose2D.from_array(compose(self.as_array(), other.as_array()))
+
+    def __matmul__(self, other: "Pose2D") -> "Pose2D":
+        return self.compose(other)
+
+    def inverse(self) -> "Pose2D":
+        """``⊖self``."""
+        return Pose2D.from_array(inverse(self.as_array()))
+
+    def relative_to(self, other: "Pose2D") -> "Pose2D":
+        """``⊖other ⊕ self``: this pose in the frame of ``other``."""
+        return Pose2D.from_array(relative(other.as_array(), self.as_array()))
+
+    def transform_points(self, points: ArrayLike) -> FloatArray:
+        """Points given in this pose's frame, in the frame this pose is given in."""
+        return transform_points(self.as_array(), points)
+
+    @property
+    def translation_norm(self) -> float:
+        return float(np.hypot(self.x, self.y))

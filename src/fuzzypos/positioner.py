@@ -1,0 +1,171 @@
+"""The per-scan loop: features, pairing with the odometry prior, pose, trajectory.
+
+``Positioner.update(scan, odom)`` takes each scan in turn with the odometry pose at that scan
+(or ``None``). The prior for the motion since the previous scan is the odometry increment
+``⊖o_k ⊕ o_{k+1}`` (SPEC) when both scans have odometry, else the last estimated increment. A
+scan with too few features or pairs falls back to the prior and is flagged ``degraded``; an
+empty or all-invalid scan is not an error but such a degraded estimate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from .config import Config
+from .features import Features, FeaturePoints, Lines, extract_features
+from .geometry import Pose2D, compose, relative
+from .matching import estimate_increment, pair_features, refine_point_to_line
+from .scan import LaserScan
+
+__all__ = ["Estimate", "Positioner"]
+
+
+@dataclass(frozen=True, eq=False)
+class Estimate:
+    """The estimate at one scan.
+
+    ``pose``: the robot's pose in the trajectory frame (which starts at the first scan's
+    odometry pose, or the origin). ``increment``: the pose of this scan in the frame of the
+    previous one (the identity for the first scan). ``prior``: the increment pairing started
+    from. ``n_pairs``: the pairs the increment rests on. ``degraded``: True where the estimate
+    fell back to the prior. ``features``: this scan's features (None unless kept).
+    """
+
+    stamp: float
+    pose: Pose2D
+    increment: Pose2D
+    prior: Pose2D
+    n_pairs: int
+    degraded: bool
+    features: Features | None = None
+    reason: str = ""
+
+
+class Positioner:
+    """Fuzzy-based positioning of a robot from consecutive scans and odometry."""
+
+    def __init__(self, config: Config | None = None) -> None:
+        self.config = config if config is not None else Config()
+        self.reset()
+
+    def reset(self) -> None:
+        self._prev_points: FeaturePoints | None = None
+        self._prev_lines: Lines | None = None
+        self._prev_odom: Pose2D | None = None
+        self._pose: np.ndarray | None = None
+        self._last_increment = np.zeros(3)
+
+    @property
+    def pose(self) -> Pose2D | None:
+        """The latest pose estimate (None before the first scan)."""
+        return None if self._pose is None else Pose2D.from_array(self._pose)
+
+    def update(self, scan: LaserScan, odom: Pose2D | None = None) -> Estimate:
+        """Process the next scan; ``odom`` is the odometry pose at this scan, if any."""
+        if not isinstance(scan, LaserScan):
+            raise TypeError(f"update() needs a LaserScan, got {type(scan).__name__}")
+        if odom is not None and not isinstance(odom, Pose2D):
+            raise TypeError(f"odom must be a Pose2D or None, got {type(odom).__name__}")
+        cfg = self.config
+        features = extract_features(scan, cfg)
+        points = features.points_of_interest
+
+        if self._pose is None:  # the first scan: its odometry pose, or the origin
+            start = odom.as_array() if odom is not None else np.zeros(3)
+            self._pose = start
+            self._prev_points = points
+            self._prev_lines = features.lines
+            self._prev_odom = odom
+            zero = Pose2D()
+            return Estimate(scan.stamp, Pose2D.from_array(start), zero, zero, len(points), False, features)
+
+        if odom is not None and self._prev_odom is not None:
+            prior = relative(self._prev_odom.as_array(), odom.as_array())
+        else:
+            prior = self._last_increment
+        increment, n_pairs, reason = self._match(self._prev_points, points, prior)
+        m = self.config.matching
+        if m.refine_with_lines and self._prev_lines is not None:
+            start = prior if increment is None else increment
+            weights = 1.0 - features.uncertainty[features.kept_index]
+            refined, n_line = refine_point_to_line(
+                self._prev_lines, features.kept_points, weights, start, prior,
+                m.line_gate, m.line_iterations, m.line_prior_weight, m.line_min_points,
+                self.config.fusion.trim_floor,
+            )
+            if refined is not None:
+                increment = refined
+                reason = reason + " (lines only)" if reason else ""
+                n_pairs = max(n_pairs, n_line)
+        degraded = increment is None
+        if increment is None:
+            increment = prior
+        self._pose = compose(self._pose, increment)
+        self._last_increment = np.asarray(increment, dtype=float)
+        self._prev_points = points
+        self._prev_lines = features.lines
+        self._prev_odom = odom
+        return Estimate(
+            stamp=scan.stamp,
+            pose=Pose2D.from_array(self._pose),
+            increment=Pose2D.from_array(increment),
+            prior=Pose2D.from_array(prior),
+            n_pairs=n_pairs,
+            degraded=degraded,
+            features=features,
+            reason=reason,
+        )
+
+    def _match(
+        self, prev: FeaturePoints | None, curr: FeaturePoints, prior: np.ndarray
+    ) -> tuple[np.ndarray | None, int, str]:
+        cfg = self.config
+        m = cfg.matching
+        if prev is None or len(prev) < m.min_pairs or len(curr) < m.min_pairs:
+            return None, 0, "too few features"
+        pairs = pair_features(prev, curr, prior, m.pairing_distance, m.same_kind_only, m.mutual)
+        est, n_used = estimate_increment(pairs, cfg.fusion, m.min_pair_separation, m.min_pairs)
+        if est is None:
+            return None, len(pairs), "too few pairs"
+        for _ in range(m.repair_iterations):  # re-pair with the refined motion
+            pairs = pair_features(prev, curr, est, m.repair_distance, m.same_kind_only, m.mutual)
+            refined, n_refined = estimate_increment(pairs, cfg.fusion, m.min_pair_separation, m.min_pairs)
+            if refined is None:
+                break
+            est, n_used = refined, n_refined
+        return est, n_used, ""
+
+    def run(
+        self,
+        scans: Iterable[LaserScan],
+        odoms: Iterable[Pose2D | None] | None = None,
+        keep_features: bool = False,
+    ) -> list[Estimate]:
+        """Process a sequence; ``odoms`` (same length, entries may be None) is optional."""
+        return list(self.iter_run(scans, odoms, keep_features))
+
+    def iter_run(
+        self,
+        scans: Iterable[LaserScan],
+        odoms: Iterable[Pose2D | None] | None = None,
+        keep_features: bool = False,
+    ) -> Iterator[Estimate]:
+        """Like :meth:`run`, one estimate at a time (for streaming long logs)."""
+        odom_iter = iter(odoms) if odoms is not None else None
+        for k, scan in enumerate(scans):
+            odom = None
+            if odom_iter is not None:
+                try:
+                    odom = next(odom_iter)
+                except StopIteration:
+                    raise ValueError(f"odoms ran out at scan {k}: give one odometry pose per scan") from None
+            est = self.update(scan, odom)
+            if not keep_features:
+                est = Estimate(
+                    est.stamp, est.pose, est.increment, est.prior, est.n_pairs, est.degraded, None,
+                    est.reason,
+                )
+            yield est

@@ -1,0 +1,209 @@
+"""2D laser scans shaped like ROS ``sensor_msgs/LaserScan`` (SPEC, "Conventions").
+
+Beam ``i`` is at bearing ``angle_min + i*angle_increment`` (radians, counter-clockwise, x
+forward as in REP-103); a negative increment (upside-down mount) is allowed. A reading is
+valid iff it is finite, ``> 0`` and ``range_min <= r < range_max``: 0, NaN and ±inf are invalid
+(REP-117), and so is a reading at the maximum ("no return"). Invalid readings are data, not
+errors; malformed metadata raises :class:`ScanError`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .geometry import Pose2D, transform_points
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+__all__ = ["ScanError", "LaserScan"]
+
+#: slack on the "at most one turn" check, radians (float round-off of n*increment)
+_TURN_TOL = 1e-9
+
+
+class ScanError(ValueError):
+    """A malformed :class:`LaserScan` (the message names the offending field)."""
+
+
+def _as_ranges(ranges: ArrayLike, name: str = "ranges") -> FloatArray:
+    """A read-only 1-D float64 copy of ``ranges``; ScanError if not 1-D and numeric."""
+    try:
+        arr = np.asarray(ranges)
+    except (TypeError, ValueError) as exc:  # ragged sequences etc.
+        raise ScanError(f"LaserScan.{name} must be a 1-D numeric array: {exc}") from None
+    if arr.ndim != 1:
+        raise ScanError(f"LaserScan.{name} must be 1-D, got shape {arr.shape}")
+    if arr.dtype.kind not in "iuf":
+        raise ScanError(f"LaserScan.{name} must be numeric (int or float), got dtype {arr.dtype}")
+    out = np.array(arr, dtype=np.float64, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+def _as_real(name: str, value: Any) -> float:
+    """``value`` as a Python float; ScanError naming ``name`` if it is not a real number."""
+    if isinstance(value, (bool, np.bool_, str, bytes)):
+        raise ScanError(f"LaserScan.{name} must be a real number, got {value!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ScanError(f"LaserScan.{name} must be a real number, got {value!r}") from None
+
+
+@dataclass(frozen=True, eq=False)
+class LaserScan:
+    """One 2D laser scan (ROS ``LaserScan`` semantics, SPEC "Conventions").
+
+    ``ranges`` are metres, angles radians, ``stamp`` float seconds; ``sensor_pose`` is the
+    sensor's pose on the robot (default the origin). ``angles`` and ``valid`` are computed
+    once at construction; all arrays are read-only.
+    """
+
+    ranges: FloatArray
+    angle_min: float
+    angle_increment: float
+    range_min: float = 0.0
+    range_max: float = math.inf
+    stamp: float = 0.0
+    sensor_pose: Pose2D = field(default=Pose2D(0.0, 0.0, 0.0))
+
+    def __post_init__(self) -> None:
+        ranges = _as_ranges(self.ranges)
+        object.__setattr__(self, "ranges", ranges)
+
+        for name in ("angle_min", "angle_increment", "stamp"):
+            v = _as_real(name, getattr(self, name))
+            if not math.isfinite(v):
+                raise ScanError(f"LaserScan.{name} must be finite, got {v}")
+            object.__setattr__(self, name, v)
+        if self.angle_increment == 0.0:
+            raise ScanError("LaserScan.angle_increment must be non-zero")
+
+        rmin = _as_real("range_min", self.range_min)
+        if math.isnan(rmin) or rmin < 0.0:
+            raise ScanError(f"LaserScan.range_min must be >= 0, got {rmin}")
+        rmax = _as_real("range_max", self.range_max)
+        if math.isnan(rmax) or rmax <= rmin:
+            raise ScanError(
+                f"LaserScan.range_max must be > range_min ({rmin}), got {rmax}"
+            )
+        object.__setattr__(self, "range_min", rmin)
+        object.__setattr__(self, "range_max", rmax)
+
+        if not isinstance(self.sensor_pose, Pose2D):
+            raise ScanError(
+                f"LaserScan.sensor_pose must be a Pose2D, got {type(self.sensor_pose).__name__}"
+            )
+
+        n = ranges.shape[0]
+        inc = self.angle_increment
+        if n > 1 and abs(inc) * (n - 1) > 2.0 * math.pi + _TURN_TOL:
+            raise ScanError(
+                f"LaserScan.angle_increment {inc} spans {abs(inc) * (n - 1)} rad over "
+                f"{n} beams, more than one turn (2*pi)"
+            )
+
+        angles = self.angle_min + np.arange(n, dtype=np.float64) * inc
+        angles.setflags(write=False)
+        with np.errstate(invalid="ignore"):
+            valid = (
+                np.isfinite(ranges) & (ranges > 0.0) & (ranges >= rmin) & (ranges < rmax)
+            )
+        valid.setflags(write=False)
+        object.__setattr__(self, "_angles", angles)
+        object.__setattr__(self, "_valid", valid)
+
+    # -- construction ------------------------------------------------------------------
+    @classmethod
+    def from_angles(
+        cls,
+        ranges: ArrayLike,
+        angle_min: float,
+        angle_max: float,
+        *,
+        angle_increment: float | None = None,
+        **kw: Any,
+    ) -> "LaserScan":
+        """Build from ROS ``angle_min``/``angle_max``: ``angle_max = angle_min + (n-1)*inc``.
+
+        With fewer than 2 beams the increment cannot be derived and ``angle_increment`` must be
+        given (then ``angle_max`` must equal ``angle_min`` for one beam). With 2 or more beams a
+        given ``angle_increment`` must agree with the derived one. ``kw`` go to the constructor.
+        """
+        r = _as_ranges(ranges)
+        n = r.shape[0]
+        a0 = _as_real("angle_min", angle_min)
+        a1 = _as_real("angle_max", angle_max)
+        if not math.isfinite(a1):
+            raise ScanError(f"LaserScan.angle_max must be finite, got {a1}")
+        if n < 2:
+            if angle_increment is None:
+                raise ScanError(
+                    f"LaserScan.angle_increment must be given explicitly for a scan of {n} beam(s)"
+                )
+            if n == 1 and not math.isclose(a0, a1, rel_tol=0.0, abs_tol=1e-9):
+                raise ScanError(
+                    f"LaserScan.angle_max must equal angle_min for a single beam, got {a1} != {a0}"
+                )
+            inc = angle_increment
+        else:
+            inc = (a1 - a0) / (n - 1)
+            if angle_increment is not None:
+                given = _as_real("angle_increment", angle_increment)
+                if not math.isclose(given, inc, rel_tol=1e-9, abs_tol=1e-12):
+                    raise ScanError(
+                        f"LaserScan.angle_increment {given} disagrees with "
+                        f"(angle_max - angle_min)/(n-1) = {inc}"
+                    )
+        return cls(r, a0, inc, **kw)
+
+    def with_ranges(self, new_ranges: ArrayLike) -> "LaserScan":
+        """A copy with other ranges (same beam count) and the same metadata."""
+        r = _as_ranges(new_ranges)
+        if r.shape != self.ranges.shape:
+            raise ScanError(
+                f"LaserScan.ranges must keep {self.n_beams} beams, got {r.shape[0]}"
+            )
+        return dataclasses.replace(self, ranges=r)
+
+    # -- derived quantities ------------------------------------------------------------
+    @property
+    def n_beams(self) -> int:
+        return int(self.ranges.shape[0])
+
+    @property
+    def angles(self) -> FloatArray:
+        """Bearings ``angle_min + i*angle_increment`` (not wrapped), shape ``(n,)``."""
+        return self._angles  # type: ignore[attr-defined, no-any-return]
+
+    @property
+    def valid(self) -> BoolArray:
+        """``finite & r > 0 & range_min <= r < range_max``, shape ``(n,)``."""
+        return self._valid  # type: ignore[attr-defined, no-any-return]
+
+    @property
+    def field_of_view(self) -> float:
+        """``n * |angle_increment|`` radians (each beam covers one increment)."""
+        return self.n_beams * abs(self.angle_increment)
+
+    @property
+    def is_full_circle(self) -> bool:
+        """True when the beams close a turn (``n*|inc| >= 2*pi - |inc|/2``): indices wrap."""
+        inc = abs(self.angle_increment)
+        return self.n_beams * inc >= 2.0 * math.pi - inc / 2.0
+
+    def points_sensor(self) -> FloatArray:
+        """All beams as ``(n, 2)`` points in the sensor frame; NaN rows for invalid beams."""
+        r = np.where(self.valid, self.ranges, np.nan)
+        return np.stack([r * np.cos(self.angles), r * np.sin(self.angles)], axis=-1)
+
+    def points_robot(self) -> FloatArray:
+        """:meth:`points_sensor` moved into the robot frame by ``sensor_pose``."""
+        return transform_points(self.sensor_pose.as_array(), self.points_sensor())
