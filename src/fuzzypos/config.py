@@ -234,8 +234,9 @@ class MatchingConfig:
     )
     refine_with_lines: bool = _reason(
         "beyond the paper: fit the next scan's filtered points to this scan's lines (point-to-"
-        "line Gauss-Newton), hundreds of points instead of a dozen features",
-        default=True,
+        "line Gauss-Newton), hundreds of points instead of a dozen features; off until it "
+        "measures better: with 1 cm noise it is biased by round pillars seen as short lines",
+        default=False,
     )
     line_gate: float = _reason(
         "a point is matched to a line within 0.3 m of it (and within its extent)", default=0.3
@@ -270,6 +271,11 @@ class FusionConfig:
     inlier_distance: float = _reason(
         "a pair agrees with a solution when its points land within 0.10 m of each other",
         default=0.10,
+    )
+    min_inliers: int = _reason(
+        "with robust fusion, an increment needs at least 3 consistent pairs: two pairs always "
+        "agree with their own solution, so a false one cannot be told apart",
+        default=3,
     )
     trim_floor: float = _reason(
         "after the least-squares fit, pairs beyond 3 robust sigmas of the residuals (but never "
@@ -565,6 +571,8 @@ def _validate(cfg: Config) -> None:
         raise ConfigError(
             f"fusion.method must be 'weighted_mean' or 'least_squares', got {cfg.fusion.method!r}"
         )
+    if cfg.fusion.min_inliers < 2:
+        raise ConfigError("fusion.min_inliers must be at least 2")
     if cfg.fusion.max_solutions < 1:
         raise ConfigError("fusion.max_solutions must be at least 1")
     if not (cfg.matching.use_break_points or cfg.matching.use_angular_points

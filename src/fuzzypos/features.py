@@ -176,13 +176,30 @@ class Features:
 # ---------------------------------------------------------------------------------------------
 def _steps(points: FloatArray, closed: bool) -> FloatArray:
     """Distance from each point to the next one (the last: to the first if ``closed``, else inf)."""
-    if points.shape[0] == 0:
-        return np.zeros(0)
-    nxt = np.roll(points, -1, axis=0)
-    d = np.hypot(nxt[:, 0] - points[:, 0], nxt[:, 1] - points[:, 1])
-    if not closed:
-        d[-1] = np.inf
+    n = points.shape[0]
+    d = np.empty(n)
+    if n == 0:
+        return d
+    diff = points[1:] - points[:-1]
+    d[:-1] = np.sqrt(diff[:, 0] ** 2 + diff[:, 1] ** 2)
+    d[-1] = np.hypot(*(points[0] - points[-1])) if closed else np.inf
     return d
+
+
+def _shift_prev(a: NDArray, closed: bool, fill: object) -> NDArray:
+    """``a[i-1]`` at i (wrapping when ``closed``, else ``fill`` at 0)."""
+    out = np.empty_like(a)
+    out[1:] = a[:-1]
+    out[0] = a[-1] if closed else fill
+    return out
+
+
+def _shift_next(a: NDArray, closed: bool, fill: object) -> NDArray:
+    """``a[i+1]`` at i (wrapping when ``closed``, else ``fill`` at the end)."""
+    out = np.empty_like(a)
+    out[:-1] = a[1:]
+    out[-1] = a[0] if closed else fill
+    return out
 
 
 def gap_thresholds(ranges: FloatArray, angle_increment: float, cfg: Config) -> FloatArray:
@@ -206,9 +223,7 @@ def break_points(
     if n == 0:
         return np.zeros(0, bool), np.zeros(0, bool)
     d_next = _steps(points, closed)
-    d_prev = np.roll(d_next, 1)
-    if not closed:
-        d_prev[0] = np.inf
+    d_prev = _shift_prev(d_next, closed, np.inf)
     big_next = d_next > thresholds
     big_prev = d_prev > thresholds
     with np.errstate(invalid="ignore"):
@@ -216,7 +231,7 @@ def break_points(
     differ |= np.isinf(d_next) ^ np.isinf(d_prev)
     is_break = (big_next | big_prev) & differ
     # cut between j and j+1 where the step is a gap bordered by a break point on either side
-    split = big_next & (is_break | np.roll(is_break, -1))
+    split = big_next & (is_break | _shift_next(is_break, closed, False))
     if not closed:
         split[-1] = True
         is_break[0] = True
@@ -234,12 +249,9 @@ def detection_angles(points_sensor: FloatArray, gap_after: BoolArray, closed: bo
     n = points_sensor.shape[0]
     if n == 0:
         return np.zeros(0)
-    nxt = np.roll(points_sensor, -1, axis=0)
-    prv = np.roll(points_sensor, 1, axis=0)
-    gap_before = np.roll(gap_after, 1)
-    if not closed:
-        gap_before = gap_before.copy()
-        gap_before[0] = True
+    nxt = _shift_next(points_sensor, closed, np.nan)
+    prv = _shift_prev(points_sensor, closed, np.nan)
+    gap_before = _shift_prev(gap_after, closed, True)
     use_next = ~gap_after
     step = np.where(use_next[:, None], nxt - points_sensor, points_sensor - prv)
     beam = points_sensor

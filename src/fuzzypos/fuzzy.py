@@ -42,6 +42,29 @@ class FuzzyError(ValueError):
     """Bad input to the fuzzy engine (wrong number of inputs, mismatched shapes)."""
 
 
+def _slopes(sets: ArrayLike) -> FloatArray:
+    """Rows (left, 1/rise, right, 1/fall, lo, hi) for fast evaluation of triangles.
+
+    A shoulder (a foot equal to its peak) at the end of the variable's range gets a unit
+    slope on its open side, which the clamping to the range makes exactly 1 there; an
+    interior foot equal to its peak is a vertical edge.
+    """
+    s = np.asarray(sets, dtype=float)
+    left, peak, right = s[:, 0], s[:, 1], s[:, 2]
+    lo, hi = s[0, 0], s[-1, 2]
+    rise_w = np.where(peak > left, peak - left, np.where(peak <= lo, 1.0, 1e-12))
+    fall_w = np.where(right > peak, right - peak, np.where(peak >= hi, 1.0, 1e-12))
+    left_eff = np.where(peak > left, left, peak - rise_w)
+    right_eff = np.where(right > peak, right, peak + fall_w)
+    return np.stack([left_eff, 1.0 / rise_w, right_eff, 1.0 / fall_w, np.full_like(peak, lo), np.full_like(peak, hi)])
+
+
+def _memberships(x: FloatArray, slopes: FloatArray) -> FloatArray:
+    left, inv_rise, right, inv_fall, lo, hi = slopes
+    v = np.clip(x, lo[0], hi[0])[:, None]
+    return np.clip(np.minimum((v - left) * inv_rise, (right - v) * inv_fall), 0.0, 1.0)
+
+
 def triangular_memberships(x: ArrayLike, sets: ArrayLike) -> FloatArray:
     """Memberships ``(n, k)`` of values ``x`` (n,) in ``k`` triangles ``(left, peak, right)``.
 
@@ -49,18 +72,7 @@ def triangular_memberships(x: ArrayLike, sets: ArrayLike) -> FloatArray:
     [0, 1] (SPEC); a set whose foot equals its peak is a shoulder. Inputs are clamped to the
     variable's range, ``[first set's left foot, last set's right foot]``.
     """
-    s = np.asarray(sets, dtype=float)
-    v = np.clip(np.asarray(x, dtype=float).reshape(-1, 1), s[0, 0], s[-1, 2])
-    left, peak, right = s[:, 0], s[:, 1], s[:, 2]
-    rise_w = peak - left
-    fall_w = right - peak
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rise = np.where(rise_w > 0, (v - left) / np.where(rise_w > 0, rise_w, 1.0), np.inf)
-        fall = np.where(fall_w > 0, (right - v) / np.where(fall_w > 0, fall_w, 1.0), np.inf)
-    mu = np.minimum(rise, fall)
-    # a shoulder is 1 on its open side (within the clamped range)
-    mu = np.where(np.isinf(mu), 1.0, mu)
-    return np.clip(mu, 0.0, 1.0)
+    return _memberships(np.asarray(x, dtype=float).reshape(-1), _slopes(sets))
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,6 +100,8 @@ class RuleBase:
             )
         if self.mode not in ("product", "mamdani"):
             raise FuzzyError(f"{self.name}: unknown inference mode {self.mode!r}")
+        object.__setattr__(self, "_slopes", tuple(_slopes(s) for s in self.input_sets))
+        object.__setattr__(self, "_centres", self.output_centres[self.consequents.reshape(-1)])
 
     @property
     def n_rules(self) -> int:
@@ -101,9 +115,10 @@ class RuleBase:
         n = arrays[0].shape[0]
         if any(a.shape[0] != n for a in arrays):
             raise FuzzyError(f"{self.name}: inputs have different lengths {[a.shape[0] for a in arrays]}")
-        w = triangular_memberships(arrays[0], self.input_sets[0])
-        for a, sets in zip(arrays[1:], self.input_sets[1:]):
-            mu = triangular_memberships(a, sets)
+        slopes = self._slopes  # type: ignore[attr-defined]
+        w = _memberships(arrays[0], slopes[0])
+        for a, sl in zip(arrays[1:], slopes[1:]):
+            mu = _memberships(a, sl)
             if self.mode == "product":
                 w = (w[:, :, None] * mu[:, None, :]).reshape(n, -1)
             else:
@@ -116,7 +131,7 @@ class RuleBase:
         cons = self.consequents.reshape(-1)
         if self.mode == "product":
             # eq. 4: Σ ȳ_l w_l / Σ w_l (centre-average defuzzifier)
-            num = w @ self.output_centres[cons]
+            num = w @ self._centres  # type: ignore[attr-defined]
             den = w.sum(axis=1)
             out = np.divide(num, den, out=np.zeros_like(num), where=den > 0)
             # a weighted average lies between the centres; rounding can overshoot by an ulp

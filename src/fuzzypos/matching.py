@@ -238,9 +238,12 @@ def estimate_increment(
     sols = two_pair_solutions(pairs, min_separation, cfg.max_solutions)
     if len(sols) == 0:
         return None, len(pairs)
-    if cfg.robust and len(pairs) > 2:
+    if cfg.robust:
+        # two pairs always agree with their own solution: a consensus needs a third witness
+        if len(pairs) < cfg.min_inliers:
+            return None, len(pairs)
         used = consensus_inliers(pairs, sols, cfg.inlier_distance)
-        if used.sum() < min_pairs:
+        if used.sum() < max(min_pairs, cfg.min_inliers):
             return None, len(pairs)
         keep = used[sols.i] & used[sols.j]
         if not keep.any():
@@ -257,7 +260,7 @@ def estimate_increment(
     if cfg.robust:  # trim what the least-squares fit does not explain, and fit again
         for _ in range(2):
             keep = _trim(inliers, pose, cfg.trim_floor, cfg.inlier_distance)
-            if keep.sum() < min_pairs or keep.all():
+            if keep.sum() < max(min_pairs, cfg.min_inliers) or keep.all():
                 break
             inliers = inliers.select(keep)
             pose = fuse_least_squares(inliers)

@@ -90,9 +90,10 @@ class Positioner:
         m = self.config.matching
         if m.refine_with_lines and self._prev_lines is not None:
             start = prior if increment is None else increment
-            weights = 1.0 - features.uncertainty[features.kept_index]
+            on_line = np.isin(features.segment, features.lines.segment)
+            weights = 1.0 - features.uncertainty[features.kept_index[on_line]]
             refined, n_line = refine_point_to_line(
-                self._prev_lines, features.kept_points, weights, start, prior,
+                self._prev_lines, features.kept_points[on_line], weights, start, prior,
                 m.line_gate, m.line_iterations, m.line_prior_weight, m.line_min_points,
                 self.config.fusion.trim_floor,
             )

@@ -24,7 +24,7 @@ from typing import Iterable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .geometry import Pose2D, wrap_angle
+from .geometry import Pose2D, compose, relative, wrap_angle
 from .scan import LaserScan
 
 FloatArray = NDArray[np.float64]
@@ -44,6 +44,8 @@ __all__ = [
     "doorway_wall",
     "box_polygon",
     "circle_polygon",
+    "arc_path",
+    "drifting_odometry",
 ]
 
 #: Hits nearer than this along the ray are ignored (no self-hits on the surface a ray starts on).
@@ -785,3 +787,40 @@ def doorway_wall(
             )
         polys.append(np.array([[back_wall_distance, -half], [back_wall_distance, half]]))
     return World.from_polygons(polys, closed=False, name="doorway_wall")
+
+
+def arc_path(start: Pose2D, n: int, step: float, turn_deg: float) -> list[Pose2D]:
+    """``n`` poses from ``start``, each ``step`` metres forward and ``turn_deg`` degrees left of
+    the previous one (a constant-curvature arc; ``turn_deg=0`` is a straight line)."""
+    if n < 1:
+        raise SimError(f"arc_path needs at least one pose, got n={n}")
+    inc = np.array([step, 0.0, math.radians(turn_deg)])
+    poses = [start.as_array()]
+    for _ in range(n - 1):
+        poses.append(compose(poses[-1], inc))
+    return [Pose2D.from_array(p) for p in poses]
+
+
+def drifting_odometry(
+    true_poses: Sequence[Pose2D],
+    scale: float = 1.0,
+    rotation_bias_deg: float = 0.0,
+    noise_std: tuple[float, float] = (0.0, 0.0),
+    rng: np.random.Generator | None = None,
+) -> list[Pose2D]:
+    """Odometry that integrates distorted true increments: translation scaled by ``scale``,
+    ``rotation_bias_deg`` added to every increment's rotation, plus Gaussian noise
+    ``(metres, degrees)`` per increment. It starts at the first true pose."""
+    if not true_poses:
+        return []
+    rng = rng if rng is not None else np.random.default_rng(0)
+    arr = np.array([p.as_array() for p in true_poses])
+    odo = [arr[0]]
+    for k in range(1, len(arr)):
+        u = relative(arr[k - 1], arr[k])
+        u[:2] *= scale
+        u[2] += math.radians(rotation_bias_deg)
+        u[:2] += rng.normal(0.0, noise_std[0], 2)
+        u[2] += math.radians(rng.normal(0.0, noise_std[1]))
+        odo.append(compose(odo[-1], u))
+    return [Pose2D.from_array(p) for p in odo]
