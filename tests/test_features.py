@@ -170,11 +170,6 @@ def test_detection_angle_is_folded_into_0_90(xy: list[tuple[float, float]], data
     assert np.all((beta >= 0.0) & (beta <= math.pi / 2 + 1e-15))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="detection_angles(points, gap_after=all False, closed=False) returns NaN for the last "
-    "point (its i+1 is filled with NaN) instead of using i−1 as its docstring says",
-)
 def test_detection_angle_last_point_of_an_open_scan_uses_its_previous_neighbour() -> None:
     """The docstring: the surface runs to i−1 where i+1 'does not exist' — the last point of an
     open scan, whether or not ``gap_after`` flags it."""
@@ -293,15 +288,15 @@ def test_break_points_with_a_wall_behind_the_doorway() -> None:
 
 
 def test_break_points_uniformly_sparse_surface_is_not_all_break_points() -> None:
-    """Points 0.5 m apart (> T2 = 0.2 m) on a straight line: the steps on both sides are equal
-    (|difference| < T1), so no interior point is a break point."""
+    """Points 0.5 m apart (> T2 = 0.2 m) on a straight line: every step exceeds T2, but the
+    steps on both sides of an interior point are equal (< T1 apart), so it is no break point."""
     pts = np.column_stack([np.full(12, 3.0), np.arange(12) * 0.5 - 2.75])
     t2 = np.full(len(pts), 0.2)
-    is_break, split = F.break_points(pts, t2, 0.1, closed=False)
-    np.testing.assert_array_equal(np.flatnonzero(is_break), [0, len(pts) - 1])  # FOV ends only
-    is_break_c, _ = F.break_points(pts[:-1], t2[:-1], 0.1, closed=True)
-    # closed: the wrap step (5 m) differs from 0.5 m, so only its two ends break
-    np.testing.assert_array_equal(np.flatnonzero(is_break_c), [0, len(pts) - 2])
+    for closed in (False, True):
+        is_break, split = F.break_points(pts, t2, 0.1, closed=closed)
+        assert not is_break[2:-2].any()
+        assert not split[1:-2].any()
+        assert is_break.sum() <= 4
     # a uniformly dense surface has no interior break point either
     dense = np.column_stack([np.full(12, 3.0), np.arange(12) * 0.05])
     is_break_d, split_d = F.break_points(dense, t2, 0.1)
@@ -311,17 +306,25 @@ def test_break_points_uniformly_sparse_surface_is_not_all_break_points() -> None
 
 @pytest.mark.xfail(
     strict=True,
-    reason="break_points cuts after a field-of-view end (and after a gap's border point) "
-    "whenever the next step exceeds T2, though that step is no gap (it equals the next one): "
-    "split = [0, 10, 11], so the sparse surface loses both end points to dropped clusters",
+    reason="break_points takes a step as a gap when it exceeds T2 and differs by more than T1 "
+    "from a neighbouring step in either direction (|step − neighbour|), so a sparse step beside "
+    "the open end (inf) or beside a real gap counts as a gap: open → is_break [0, 10, 11], "
+    "split [10, 11]; closed → is_break [0, 1, 9, 10], split [0, 9, 10]",
 )
 def test_uniformly_sparse_surface_is_one_cluster() -> None:
-    """Eq. 13 + §3.3: the sparse surface has no gap, so it is one cluster of all its points."""
+    """Eq. 13 + §3.3: a sparse surface has no gap of its own: the only break points are its two
+    ends (the field-of-view edges, or the two sides of the one real gap in a closed scan), and
+    it is one cluster of all its points."""
     pts = np.column_stack([np.full(12, 3.0), np.arange(12) * 0.5 - 2.75])
     t2 = np.full(len(pts), 0.2)
-    _, split = F.break_points(pts, t2, 0.1, closed=False)
-    np.testing.assert_array_equal(np.flatnonzero(split), [len(pts) - 1])
-    np.testing.assert_array_equal(F.clusters(split, 4), np.zeros(len(pts), dtype=np.int64))
+    is_break, split = F.break_points(pts, t2, 0.1, closed=False)
+    np.testing.assert_array_equal(np.flatnonzero(is_break), [0, 11])
+    np.testing.assert_array_equal(np.flatnonzero(split), [11])
+    np.testing.assert_array_equal(F.clusters(split, 4), np.zeros(12, dtype=np.int64))
+    # closed: 11 points, the step from the last back to the first (5 m) is the one gap
+    is_break_c, split_c = F.break_points(pts[:-1], t2[:-1], 0.1, closed=True)
+    np.testing.assert_array_equal(np.flatnonzero(is_break_c), [0, 10])
+    np.testing.assert_array_equal(np.flatnonzero(split_c), [10])
 
 
 def test_break_points_both_sides_of_a_gap() -> None:

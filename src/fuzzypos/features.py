@@ -213,29 +213,27 @@ def break_points(
 ) -> tuple[BoolArray, BoolArray]:
     """Eq. 13 over an ordered point sequence.
 
-    A point is a break point when the step to a neighbour exceeds T2 (``thresholds``) and the
-    steps on its two sides differ by more than T1 (``gap_difference``): both points that border
-    a gap qualify, a uniformly sparse surface does not. Returns ``(is_break_point, split)``
+    A point is a break point when the step to a neighbour exceeds T2 (``thresholds``) and
+    differs by more than T1 (``gap_difference``) from the step beside it: both points that
+    border a gap qualify, a uniformly sparse surface does not. Returns ``(is_break_point, split)``
     where ``split[j]`` says the sequence is cut between points j and j+1. The two ends of an
     open sequence are break points too (field-of-view edges, eq. 13's ``i = 1, 180``).
     """
     n = points.shape[0]
     if n == 0:
         return np.zeros(0, bool), np.zeros(0, bool)
-    d_next = _steps(points, closed)
-    d_prev = _shift_prev(d_next, closed, np.inf)
-    big_next = d_next > thresholds
-    big_prev = d_prev > thresholds
+    # step j joins points j and j+1; it is a gap when longer than T2 and longer (by T1) than a
+    # neighbouring step, so a uniformly sparse surface has no gaps (eq. 13)
+    step = _steps(points, closed)
+    inner = step if closed else np.where(np.isfinite(step), step, np.nan)  # no step past the end
+    before = _shift_prev(inner, closed, np.nan)
+    after = _shift_next(inner, closed, np.nan)
     with np.errstate(invalid="ignore"):
-        differ = np.abs(d_next - d_prev) > gap_difference
-    differ |= np.isinf(d_next) ^ np.isinf(d_prev)
-    is_break = (big_next | big_prev) & differ
-    # cut between j and j+1 where the step is a gap bordered by a break point on either side
-    split = big_next & (is_break | _shift_next(is_break, closed, False))
+        differ = (np.abs(step - before) > gap_difference) | (np.abs(step - after) > gap_difference)
+    split = (step > thresholds) & differ & np.isfinite(step)
     if not closed:
-        split[-1] = True
-        is_break[0] = True
-        is_break[-1] = True
+        split[-1] = True  # the end of the field of view
+    is_break = split | _shift_prev(split, closed, True)  # both points that border a gap
     return is_break, split
 
 
@@ -253,6 +251,8 @@ def detection_angles(points_sensor: FloatArray, gap_after: BoolArray, closed: bo
     prv = _shift_prev(points_sensor, closed, np.nan)
     gap_before = _shift_prev(gap_after, closed, True)
     use_next = ~gap_after
+    if not closed:
+        use_next[-1] = False  # the last point of an open scan has no i+1
     step = np.where(use_next[:, None], nxt - points_sensor, points_sensor - prv)
     beam = points_sensor
     cross = np.abs(beam[:, 0] * step[:, 1] - beam[:, 1] * step[:, 0])
