@@ -204,7 +204,8 @@ def test_detection_angle_through_extract_features() -> None:
 # 3. filtering (§3.1)
 # ---------------------------------------------------------------------------------------------
 def test_filtering_removes_grazing_points() -> None:
-    """A long wall at x = 2 seen from -75° to +75°: points with β <= 22.5° (|φ| >= 67.5°) go."""
+    """A long wall at x = 2 seen from -75° to +75°: points with β <= 22.5° (|φ| >= 67.5°)
+    are removed."""
     scan = sim.simulate_scan(wall_world(2.0, 8.0), Pose2D(), HALF)
     f = F.extract_features(scan)
     phi_deg = np.degrees(scan.angles[f.beam_index])
@@ -304,25 +305,29 @@ def test_break_points_uniformly_sparse_surface_is_not_all_break_points() -> None
     np.testing.assert_array_equal(np.flatnonzero(split_d), [11])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="break_points takes a step as a gap when it exceeds T2 and differs by more than T1 "
-    "from a neighbouring step in either direction (|step − neighbour|), so a sparse step beside "
-    "the open end (inf) or beside a real gap counts as a gap: open → is_break [0, 10, 11], "
-    "split [10, 11]; closed → is_break [0, 1, 9, 10], split [0, 9, 10]",
-)
-def test_uniformly_sparse_surface_is_one_cluster() -> None:
-    """Eq. 13 + §3.3: a sparse surface has no gap of its own: the only break points are its two
-    ends (the field-of-view edges, or the two sides of the one real gap in a closed scan), and
-    it is one cluster of all its points."""
+def test_uniformly_sparse_surface_at_the_ends_of_an_open_scan() -> None:
+    """A sparse surface that ends at the field-of-view edges is one cluster of all its points."""
     pts = np.column_stack([np.full(12, 3.0), np.arange(12) * 0.5 - 2.75])
     t2 = np.full(len(pts), 0.2)
     is_break, split = F.break_points(pts, t2, 0.1, closed=False)
     np.testing.assert_array_equal(np.flatnonzero(is_break), [0, 11])
     np.testing.assert_array_equal(np.flatnonzero(split), [11])
     np.testing.assert_array_equal(F.clusters(split, 4), np.zeros(12, dtype=np.int64))
-    # closed: 11 points, the step from the last back to the first (5 m) is the one gap
-    is_break_c, split_c = F.break_points(pts[:-1], t2[:-1], 0.1, closed=True)
+
+
+def test_sparse_surfaces_beside_a_gap_break_only_at_the_gap() -> None:
+    """Eq. 13: only the two points that border the gap are break points (and the FOV ends);
+    each sparse wall stays one cluster with its edge point in it."""
+    y = np.concatenate([np.arange(6) * 0.5, 5.5 + np.arange(6) * 0.5])
+    pts = np.column_stack([np.full(12, 3.0), y])
+    t2 = np.full(12, 0.2)
+    is_break, split = F.break_points(pts, t2, 0.1, closed=False)
+    np.testing.assert_array_equal(np.flatnonzero(is_break), [0, 5, 6, 11])
+    np.testing.assert_array_equal(np.flatnonzero(split), [5, 11])
+    np.testing.assert_array_equal(F.clusters(split, 4), [0] * 6 + [1] * 6)
+    # closed: 11 points 0.5 m apart, the step from the last back to the first (5 m) is the gap
+    ring = np.column_stack([np.full(11, 3.0), np.arange(11) * 0.5 - 2.75])
+    is_break_c, split_c = F.break_points(ring, t2[:11], 0.1, closed=True)
     np.testing.assert_array_equal(np.flatnonzero(is_break_c), [0, 10])
     np.testing.assert_array_equal(np.flatnonzero(split_c), [10])
 
@@ -562,6 +567,16 @@ def test_virtual_points_are_intersections_of_their_lines(
     assert np.all(vp.uncertainty <= CFG.virtual_points.max_uncertainty)
     assert np.all((vp.uncertainty >= 0) & (vp.uncertainty <= 1))
     assert np.all(vp.kind == F.VIRTUAL_ANGULAR_POINT)
+    # two lines that meet at a real angular point give that angular point, not a virtual one
+    joined = {
+        tuple(sorted((int(a), int(b))))
+        for a in range(len(lines))
+        for b in range(len(lines))
+        if a != b and np.linalg.norm(lines.end[a] - lines.start[b]) < 1e-9
+        and nearest(lines.end[a][None], f.angular_points.xy)[0] < 1e-9
+    }
+    assert joined  # the scene has such corners
+    assert not joined & {tuple(sorted(r)) for r in vl.tolist()}
 
 
 def test_virtual_point_thresholds_select_subsets() -> None:
@@ -591,8 +606,6 @@ def test_virtual_point_thresholds_select_subsets() -> None:
 def test_virtual_points_of_parallel_and_near_parallel_lines_do_not_exist() -> None:
     """virtual_angular_points on hand-made lines: parallel lines and lines 20° apart (< 30°) give
     nothing; a 90° pair gives its intersection."""
-    base = F.extract_features(sim.simulate_scan(ROOM, Pose2D(), FULL)).lines
-
     def lines(angles_deg: list[float], dists: list[float]) -> F.Lines:
         k = len(angles_deg)
         nrm = np.vstack([_unit(math.radians(a)) for a in angles_deg])
@@ -605,7 +618,6 @@ def test_virtual_points_of_parallel_and_near_parallel_lines_do_not_exist() -> No
             np.zeros(k), np.zeros(k), np.arange(k), np.zeros(k, dtype=np.int64),
         )
 
-    assert len(base) > 0  # (the room's lines exist; the hand-made ones below are the test)
     bases = F.rule_bases(CFG.fuzzy)
     vp, vl, _ = F.virtual_angular_points(lines([0.0, 0.0, 180.0, 20.0], [1, 2, 1, 1]), bases, CFG)
     assert len(vp) == 0
@@ -647,7 +659,8 @@ def test_sensor_pose_puts_features_where_they_are_in_the_robot_frame(sensor_pose
     s = ROOM.segments[seg]
     t = (s[:, 2:] - s[:, :2]) / np.linalg.norm(s[:, 2:] - s[:, :2], axis=1)[:, None]
     beam = np.column_stack([np.cos(laser.theta + bearing_rel), np.sin(laser.theta + bearing_rel)])
-    incidence = np.arctan2(np.abs(beam[:, 0] * t[:, 1] - beam[:, 1] * t[:, 0]), np.abs(np.sum(beam * t, axis=1)))
+    cross = np.abs(beam[:, 0] * t[:, 1] - beam[:, 1] * t[:, 0])
+    incidence = np.arctan2(cross, np.abs(np.sum(beam * t, axis=1)))
     # points next to a corner take their step across it: compare away from the corners
     far = nearest(world_pts, ROOM.corner_points()) > 0.5
     assert far.sum() > 100
@@ -666,7 +679,8 @@ def _assert_empty(f: F.Features, n_valid: int) -> None:
     assert f.points.shape == (n_valid, 2)
     assert f.points_of_interest.xy.shape == (0, 2)
     n_kept = len(f.kept_index)
-    for arr in (f.is_break_point, f.cluster, f.is_angular_point, f.segment, f.is_field_of_view_edge):
+    per_kept = (f.is_break_point, f.cluster, f.is_angular_point, f.segment, f.is_field_of_view_edge)
+    for arr in per_kept:
         assert arr.shape == (n_kept,)
 
 
@@ -826,7 +840,8 @@ def test_intermediates_are_consistent(
     np.testing.assert_array_equal(f.kept_index, np.flatnonzero(f.kept))
     m = len(f.kept_index)
     assert m > 0 and np.all((f.kept_index >= 0) & (f.kept_index < n))
-    for arr in (f.is_break_point, f.is_field_of_view_edge, f.cluster, f.is_angular_point, f.segment):
+    per_kept = (f.is_break_point, f.is_field_of_view_edge, f.cluster, f.is_angular_point, f.segment)
+    for arr in per_kept:
         assert arr.shape == (m,)
     np.testing.assert_array_equal(f.kept_points, f.points[f.kept_index])
     # clusters: -1 or 0..k-1, contiguous runs, each at least the minimum size

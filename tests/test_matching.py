@@ -50,7 +50,8 @@ def make_pairs(prev: np.ndarray, curr: np.ndarray, unc: np.ndarray | None = None
     if unc is None:
         unc = np.zeros((m, 2))
     idx = np.arange(m, dtype=np.int64)
-    return M.Pairs(idx, idx, np.asarray(prev, float), np.asarray(curr, float), np.asarray(unc, float))
+    prev, curr = np.asarray(prev, float), np.asarray(curr, float)
+    return M.Pairs(idx, idx, prev, curr, np.asarray(unc, float))
 
 
 def rigid_pairs(pose: np.ndarray, curr: np.ndarray, unc: np.ndarray | None = None) -> M.Pairs:
@@ -102,7 +103,8 @@ def test_two_pairs_agree_with_the_literal_eq22_on_inconsistent_points(p1, p2, q1
 
 
 def test_eq22_determinant_is_minus_the_squared_separation() -> None:
-    """SPEC step 9: det = ±|q1 − q2|², so close primed points make the system ill-conditioned."""
+    """SPEC step 9: det = ±|q1 − q2|², so close primed points make the system
+    ill-conditioned."""
     q1, q2 = np.array([1.0, 2.0]), np.array([-0.5, 2.4])
     assert abs(np.linalg.det(eq22_matrix(q1, q2))) == pytest.approx(np.sum((q1 - q2) ** 2))
 
@@ -125,7 +127,7 @@ def test_two_pairs_flag_ill_conditioned_systems() -> None:
 
 def test_two_pairs_vectorised_matches_one_at_a_time() -> None:
     rng = np.random.default_rng(7)
-    poses = np.column_stack([rng.uniform(-3, 3, 20), rng.uniform(-3, 3, 20), rng.uniform(-3, 3, 20)])
+    poses = rng.uniform(-3, 3, (20, 3))
     q1 = rng.uniform(-5, 5, (20, 2))
     q2 = q1 + rng.uniform(0.6, 3.0, (20, 2))
     p1 = transform_points(poses, q1)
@@ -145,7 +147,9 @@ PREV_XY = np.array(
 )
 
 
-def fp(xy: np.ndarray, kind: int | list[int] = ANGULAR_POINT, unc: np.ndarray | None = None) -> FeaturePoints:
+def fp(
+    xy: np.ndarray, kind: int | list[int] = ANGULAR_POINT, unc: np.ndarray | None = None
+) -> FeaturePoints:
     xy = np.asarray(xy, float).reshape(-1, 2)
     k = np.broadcast_to(np.asarray(kind, dtype=np.int8), (len(xy),)).copy()
     u = np.linspace(0.1, 0.4, len(xy)) if unc is None else np.asarray(unc, float)
@@ -229,7 +233,8 @@ def test_same_kind_only() -> None:
         np.vstack([curr_xy, curr_xy[2] + np.array([0.2, 0.0])]), kinds_prev + [BREAK_POINT]
     )
     assert 2 not in M.pair_features(prev, extra, INCREMENT, 0.5).prev_index.tolist()
-    assert 2 in M.pair_features(prev, extra, INCREMENT, 0.5, same_kind_only=True).prev_index.tolist()
+    kinds_agree = M.pair_features(prev, extra, INCREMENT, 0.5, same_kind_only=True)
+    assert 2 in kinds_agree.prev_index.tolist()
 
 
 def test_mutual() -> None:
@@ -240,7 +245,8 @@ def test_mutual() -> None:
     curr_xy = scan_k1(np.array([[3.0, 0.2], [-2.0, 2.0]]))
     prev, curr = fp(prev_xy), fp(curr_xy)
     plain = M.pair_features(prev, curr, INCREMENT, 0.5, mutual=False)
-    assert sorted(zip(plain.prev_index.tolist(), plain.curr_index.tolist())) == [(0, 0), (1, 0), (2, 1)]
+    got = sorted(zip(plain.prev_index.tolist(), plain.curr_index.tolist()))
+    assert got == [(0, 0), (1, 0), (2, 1)]
     mutual = M.pair_features(prev, curr, INCREMENT, 0.5, mutual=True)
     assert list(zip(mutual.prev_index.tolist(), mutual.curr_index.tolist())) == [(2, 1)]
 
@@ -261,8 +267,10 @@ def test_pairing_with_no_points() -> None:
 def test_weighted_mean_weights_are_one_minus_f() -> None:
     poses = np.array([[1.0, 2.0, 0.1], [3.0, -2.0, 0.5]])
     # f = 1: no influence
-    np.testing.assert_allclose(M.fuse_weighted_mean(poses, np.array([0.0, 1.0])), poses[0], atol=1e-12)
-    np.testing.assert_allclose(M.fuse_weighted_mean(poses, np.array([1.0, 0.2])), poses[1], atol=1e-12)
+    only_first = M.fuse_weighted_mean(poses, np.array([0.0, 1.0]))
+    only_second = M.fuse_weighted_mean(poses, np.array([1.0, 0.2]))
+    np.testing.assert_allclose(only_first, poses[0], atol=1e-12)
+    np.testing.assert_allclose(only_second, poses[1], atol=1e-12)
     # f = (0, 0.5): weights (1, 0.5), so the less uncertain solution counts twice as much
     got = M.fuse_weighted_mean(poses, np.array([0.0, 0.5]))
     assert got[0] == pytest.approx((1.0 * 1 + 0.5 * 3) / 1.5)

@@ -229,7 +229,7 @@ def break_points(
     before = _shift_prev(inner, closed, np.nan)
     after = _shift_next(inner, closed, np.nan)
     with np.errstate(invalid="ignore"):
-        differ = (np.abs(step - before) > gap_difference) | (np.abs(step - after) > gap_difference)
+        differ = (step - before > gap_difference) | (step - after > gap_difference)
     split = (step > thresholds) & differ & np.isfinite(step)
     if not closed:
         split[-1] = True  # the end of the field of view
