@@ -492,10 +492,7 @@ def join_at_corners(
     ok = np.zeros(m, bool)
     if m == 0 or len(lines) < 2:
         return lines, xy, unc, ok
-    pos = np.full(int(max(lines.segment.max(), corner_segment_before.max()) + 2), -1)
-    pos[lines.segment] = np.arange(len(lines))
-    a = pos[corner_segment_before]
-    b = pos[corner_segment_before + 1]
+    a, b = _lines_around_corners(lines, corner_segment_before)
     have = (a >= 0) & (b >= 0)
     if not have.any():
         return lines, xy, unc, ok
@@ -691,13 +688,17 @@ def merge_duplicates(points: FeaturePoints, radius: float) -> FeaturePoints:
     return FeaturePoints(points.xy[keep], points.uncertainty[keep], points.kind[keep])
 
 
+def _lines_around_corners(lines: Lines, seg_before: IntArray) -> tuple[IntArray, IntArray]:
+    """For each angular point, the index of the line before and after it (−1: no line)."""
+    pos = np.full(int(max(lines.segment.max(), seg_before.max()) + 2), -1)
+    pos[lines.segment] = np.arange(len(lines))
+    return pos[seg_before], pos[seg_before + 1]
+
+
 def _corner_line_pairs(lines: Lines, seg_before: IntArray) -> IntArray:
     """Line index pairs (k, 2) of lines that meet at a real angular point."""
     if len(lines) < 2 or seg_before.size == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    pos = np.full(int(max(lines.segment.max(), seg_before.max()) + 2), -1)
-    pos[lines.segment] = np.arange(len(lines))
-    a = pos[seg_before]
-    b = pos[seg_before + 1]
+    a, b = _lines_around_corners(lines, seg_before)
     ok = (a >= 0) & (b >= 0)
     return np.stack([a[ok], b[ok]], axis=1).astype(np.int64)

@@ -99,8 +99,7 @@ class Positioner:
             )
             if refined is not None:
                 increment = refined
-                reason = reason + " (lines only)" if reason else ""
-                n_pairs = max(n_pairs, n_line)
+                reason = ""
         degraded = increment is None
         if increment is None:
             increment = prior
