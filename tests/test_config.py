@@ -28,6 +28,9 @@ ANGLES_DEG = {
     ("filtering", "detection_angle_threshold"): 22.5,
     ("angular_points", "interior_angle_threshold"): 135.0,
     ("virtual_points", "min_intersection_angle"): 30.0,
+    ("matching", "line_angle_gate"): 3.0,
+    ("matching", "line_angle_gate_prior"): 8.0,
+    ("matching", "line_trim_angle"): 0.2,
 }
 ANGLE_WORDS = ("angle", "rotation", "heading", "bearing", "yaw", "theta")
 SECTIONS = [

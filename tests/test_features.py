@@ -763,12 +763,6 @@ def _assert_same_lines_and_points(a: F.Features, b: F.Features) -> None:
         assert np.all(nearest(pa, pb) < 1e-9) and np.all(nearest(pb, pa) < 1e-9), name
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="eq. 3 takes the neighbour i+1 in scan order, so a negative increment changes which "
-    "neighbour gives β: at a box corner beam 25 keeps β=37.5° (step across the corner) in one "
-    "order and gets its true 15.7° (filtered) in the other, and the line fit then mixes two faces",
-)
 def test_negative_increment_is_mirror_consistent_at_a_cluster_end_corner() -> None:
     """office(), robot (-2, 0, 0.1 rad), 360 beams: the SW desk's corner sits at the start of a
     cluster. Same readings reversed must give the same lines."""
@@ -781,11 +775,6 @@ def test_negative_increment_is_mirror_consistent_at_a_cluster_end_corner() -> No
 # ---------------------------------------------------------------------------------------------
 # full-circle wrap-around (SPEC: a 360° scan wraps around, indices modulo m)
 # ---------------------------------------------------------------------------------------------
-@pytest.mark.xfail(
-    strict=True,
-    reason="angular_points/segments do not wrap in a closed scan: a corner within k beams of "
-    "the index wrap (directly behind a 360° scanner) is lost or left unrefined",
-)
 @pytest.mark.parametrize("extra_deg", [0.5, 2.9], ids=["corner-at-wrap", "corner-near-wrap"])
 def test_corner_behind_a_full_circle_scanner(extra_deg: float) -> None:
     pose = Pose2D(0.0, 0.0, math.atan2(3.0, 4.0) + math.radians(extra_deg))
@@ -795,11 +784,6 @@ def test_corner_behind_a_full_circle_scanner(extra_deg: float) -> None:
     assert np.all(nearest(truth, f.angular_points.xy) < 0.02)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="a closed scan without a gap is cut between its last and first beam, so the wall "
-    "behind a 360° scanner is fitted as two lines",
-)
 def test_full_circle_room_gives_one_line_per_wall() -> None:
     f = F.extract_features(sim.simulate_scan(ROOM, Pose2D(), FULL))
     assert len(f.lines) == 4
@@ -836,8 +820,11 @@ def test_intermediates_are_consistent(
     sensor_pts = np.column_stack([f.ranges * np.cos(ang), f.ranges * np.sin(ang)])
     np.testing.assert_allclose(f.points, scan.sensor_pose.transform_points(sensor_pts), atol=1e-12)
     assert np.all((f.uncertainty >= 0) & (f.uncertainty <= 1))
-    # per kept point
-    np.testing.assert_array_equal(f.kept_index, np.flatnonzero(f.kept))
+    # per kept point, in processing order: counter-clockwise, a 360° scan starting after a gap
+    # (or at its sharpest corner), so kept_index is flatnonzero(kept) rotated
+    ordered = np.flatnonzero(f.kept)
+    shift = int(np.flatnonzero(ordered == f.kept_index[0])[0]) if len(ordered) else 0
+    np.testing.assert_array_equal(f.kept_index, np.roll(ordered, -shift))
     m = len(f.kept_index)
     assert m > 0 and np.all((f.kept_index >= 0) & (f.kept_index < n))
     per_kept = (f.is_break_point, f.is_field_of_view_edge, f.cluster, f.is_angular_point, f.segment)

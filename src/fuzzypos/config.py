@@ -168,6 +168,12 @@ class AngularPointConfig:
         "the sampled corner is up to a beam spacing off",
         default=True,
     )
+    pair_unrefined: bool = _reason(
+        "with refine on, whether angular points whose two lines could not be intersected still "
+        "take part in pairing: off, since a sampled corner is up to a beam spacing (several "
+        "centimetres) off and the pose from two pairs inherits that",
+        default=False,
+    )
 
 
 @dataclass(frozen=True)
@@ -232,27 +238,45 @@ class MatchingConfig:
     repair_distance: float = _reason(
         "T for re-pairing once the motion is known to a few centimetres", default=0.15
     )
-    refine_with_lines: bool = _reason(
-        "beyond the paper: fit the next scan's filtered points to this scan's lines (point-to-"
-        "line Gauss-Newton), hundreds of points instead of a dozen features; off until it "
-        "measures better: with 1 cm noise it is biased by round pillars seen as short lines",
-        default=False,
+    match_lines: bool = _reason(
+        "beyond the paper: line-to-line matching after the point features. Lines fitted to "
+        "dozens of points give the rotation and the translation far more precisely than a "
+        "dozen feature points; what they leave unobservable (a corridor) the prior decides",
+        default=True,
     )
-    line_gate: float = _reason(
-        "a point is matched to a line within 0.3 m of it (and within its extent)", default=0.3
+    line_angle_gate: float = _reason(
+        "lines pair when their directions differ by less than 3° once the point features have "
+        "given the motion (8° when starting from the prior, whose heading may be 5° off)",
+        default=math.radians(3.0),
     )
-    line_iterations: int = _reason(
-        "Gauss-Newton steps of the point-to-line refinement (most converge in 3-5)",
-        default=10,
+    line_angle_gate_prior: float = _reason(
+        "the angle gate when the point features gave no motion and pairing starts from the prior",
+        default=math.radians(8.0),
+    )
+    line_distance_gate: float = _reason(
+        "lines pair when their normal distances differ by less than 0.2 m (0.5 m from the prior)",
+        default=0.2,
+    )
+    line_distance_gate_prior: float = _reason(
+        "the distance gate when pairing lines starts from the prior", default=0.5
+    )
+    line_overlap_margin: float = _reason(
+        "paired lines must overlap along their direction, give or take 0.5 m", default=0.5
     )
     line_prior_weight: float = _reason(
-        "weight of the prior increment in the point-to-line fit (1e-3 of one point's "
-        "constraint): what the lines leave unobservable, the prior decides; elsewhere it "
-        "pulls by well under a millimetre",
-        default=1e-3,
+        "weight of the prior translation in the line fit, relative to the best-known line: "
+        "1e-6, so it only decides directions the lines leave unobservable",
+        default=1e-6,
     )
-    line_min_points: int = _reason(
-        "the point-to-line fit needs at least 20 matched points", default=20
+    line_trim_angle: float = _reason(
+        "line pairs whose rotation is beyond 3 robust sigmas of the median are dropped, never "
+        "with a tighter cut than 0.2°",
+        default=math.radians(0.2),
+    )
+    line_trim_distance: float = _reason(
+        "line pairs whose distance residual is beyond 3 robust sigmas are dropped, never with "
+        "a tighter cut than 1 cm",
+        default=0.01,
     )
 
 
@@ -305,6 +329,9 @@ _ANGLE_FIELDS = {
     ("filtering", "detection_angle_threshold"),
     ("angular_points", "interior_angle_threshold"),
     ("virtual_points", "min_intersection_angle"),
+    ("matching", "line_angle_gate"),
+    ("matching", "line_angle_gate_prior"),
+    ("matching", "line_trim_angle"),
 }
 
 
@@ -429,7 +456,7 @@ class Config:
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "default": {},
     "paper": {
-        "angular_points": {"refine": False},
+        "angular_points": {"refine": False, "pair_unrefined": True},
         "matching": {
             "same_kind_only": False,
             "mutual": False,
@@ -437,7 +464,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
             "use_angular_points": True,
             "use_virtual_points": True,
             "repair_iterations": 0,
-            "refine_with_lines": False,
+            "match_lines": False,
         },
         "fusion": {"method": "weighted_mean", "robust": False},
     },
@@ -532,6 +559,10 @@ def _validate(cfg: Config) -> None:
         "segmentation.gap_distance": cfg.segmentation.gap_distance,
         "matching.pairing_distance": cfg.matching.pairing_distance,
         "matching.repair_distance": cfg.matching.repair_distance,
+        "matching.line_angle_gate": cfg.matching.line_angle_gate,
+        "matching.line_angle_gate_prior": cfg.matching.line_angle_gate_prior,
+        "matching.line_distance_gate": cfg.matching.line_distance_gate,
+        "matching.line_distance_gate_prior": cfg.matching.line_distance_gate_prior,
         "virtual_points.max_distance": cfg.virtual_points.max_distance,
     }
     for key, v in positive.items():
@@ -544,6 +575,10 @@ def _validate(cfg: Config) -> None:
         "lines.min_length": cfg.lines.min_length,
         "angular_points.neighbour_distance": cfg.angular_points.neighbour_distance,
         "fusion.inlier_distance": cfg.fusion.inlier_distance,
+        "matching.line_overlap_margin": cfg.matching.line_overlap_margin,
+        "matching.line_prior_weight": cfg.matching.line_prior_weight,
+        "matching.line_trim_angle": cfg.matching.line_trim_angle,
+        "matching.line_trim_distance": cfg.matching.line_trim_distance,
         "fusion.trim_floor": cfg.fusion.trim_floor,
     }
     for key, v in nonneg.items():

@@ -14,7 +14,7 @@ per-cluster and per-segment statistics use ``np.bincount`` over labels.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -50,6 +50,7 @@ __all__ = [
 ]
 
 BREAK_POINT = 0
+_MIN_LINE_NOISE = 0.001  # m: floor of a line's residual spread, so noise-free lines keep finite weights
 ANGULAR_POINT = 1
 VIRTUAL_ANGULAR_POINT = 2
 KIND_NAMES = ("break point", "angular point", "virtual angular point")
@@ -95,7 +96,9 @@ class Lines:
     ``start``/``end`` are the segment's endpoints (§3.5), ``centre`` their midpoint, ``sigma``
     the mean point-to-line distance (eq. 8), ``delta`` the mean point uncertainty (eq. 6) and
     ``uncertainty`` the line's fuzzy uncertainty (eq. 9, Table 2). ``segment`` is the id of the
-    segment the line was fitted to and ``cluster`` its cluster.
+    segment the line was fitted to and ``cluster`` its cluster. ``angle_variance`` and
+    ``distance_variance`` are the least-squares variances of the normal's angle and of the
+    distance (from the residual scatter, at least 1 mm), for line-to-line matching.
     """
 
     normal: FloatArray
@@ -109,6 +112,8 @@ class Lines:
     uncertainty: FloatArray
     segment: IntArray
     cluster: IntArray
+    angle_variance: FloatArray | None = None
+    distance_variance: FloatArray | None = None
 
     def __len__(self) -> int:
         return int(self.normal.shape[0])
@@ -126,6 +131,9 @@ class Lines:
 @dataclass(frozen=True, eq=False)
 class Features:
     """Everything :func:`extract_features` found in one scan, every stage kept for plotting.
+
+    Points are processed counter-clockwise (a scan with a negative increment is reversed) and
+    a 360° scan starts after a gap, or at its sharpest corner when it has none.
 
     Per valid reading (arrays of length ``n_valid``): ``beam_index`` (into the scan),
     ``points`` (robot frame), ``ranges``, ``detection_angle`` (β, eq. 3), ``uncertainty``
@@ -299,7 +307,8 @@ def angular_points(
 
     The interior angle at P_i is between P_i→P_{i−k} and P_i→P_{i+k}, with k the configured
     step, widened so the neighbours are at least ``neighbour_distance`` away (``step_spacing``
-    is each point's distance to the next). Points whose angle is at most θ_TH are candidates;
+    is each point's distance to the next), and shortened at a cluster's ends so long as each
+    arm stays at least half that distance long. Points whose angle is at most θ_TH are candidates;
     of a run of consecutive candidates the sharpest wins.
     """
     n = points.shape[0]
@@ -311,14 +320,27 @@ def angular_points(
         wanted = np.ceil(ap.neighbour_distance / np.maximum(step_spacing, 1e-9))
     k = np.clip(wanted, ap.neighbour_step, 4 * ap.neighbour_step).astype(np.int64)
     idx = np.arange(n)
-    lo = idx - k
-    hi = idx + k
-    inside = (lo >= 0) & (hi < n) & (cluster >= 0)
-    lo_c = np.clip(lo, 0, n - 1)
-    hi_c = np.clip(hi, 0, n - 1)
-    inside &= (cluster[lo_c] == cluster) & (cluster[hi_c] == cluster)
-    a = points[lo_c] - points
-    b = points[hi_c] - points
+    # the k-step neighbours, but never past the cluster's ends: a corner one or two points
+    # before a cluster end is still a corner (else its line swallows the stray point)
+    new_cluster = np.ones(n, bool)
+    new_cluster[1:] = cluster[1:] != cluster[:-1]
+    start = np.maximum.accumulate(np.where(new_cluster, idx, 0))
+    last = np.empty(n, bool)
+    last[:-1] = new_cluster[1:]
+    last[-1] = True
+    end = np.minimum.accumulate(np.where(last, idx, n - 1)[::-1])[::-1]
+    lo = np.maximum(idx - k, start)
+    hi = np.minimum(idx + k, end)
+    a = points[lo] - points
+    b = points[hi] - points
+    min_arm = 0.5 * ap.neighbour_distance
+    inside = (
+        (cluster >= 0)
+        & (lo < idx)
+        & (hi > idx)
+        & (a[:, 0] ** 2 + a[:, 1] ** 2 >= min_arm * min_arm)
+        & (b[:, 0] ** 2 + b[:, 1] ** 2 >= min_arm * min_arm)
+    )
     cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
     dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
     angle = np.where(inside, np.abs(np.arctan2(cross, dot)), np.pi)
@@ -340,22 +362,42 @@ def angular_points(
     return is_corner, angle
 
 
-def segments(cluster: IntArray, is_corner: BoolArray, corner_exclusion: int) -> IntArray:
+def segments(
+    cluster: IntArray, is_corner: BoolArray, corner_exclusion: int, ring: bool = False
+) -> IntArray:
     """Cut clusters at angular points into segments (§3.5). Returns a segment id per point.
 
-    Ids are global and consecutive: the segment before the angular point at i is ``seg[i]``
-    and the one after it ``seg[i] + 1``. Points within ``corner_exclusion`` of an angular
-    point, the angular point itself, and points of dropped clusters get −1 (no line).
+    Ids are global and consecutive (see :func:`raw_segment_ids`). Points within
+    ``corner_exclusion`` of an angular point (circularly when the points form a ``ring``),
+    the angular point itself, and points of dropped clusters get −1 (no line).
     """
     if cluster.shape[0] == 0:
         return np.zeros(0, dtype=np.int64)
     seg = raw_segment_ids(cluster, is_corner)
     excluded = is_corner.copy()
     for s in range(1, corner_exclusion + 1):
-        excluded[s:] |= is_corner[:-s]
-        excluded[:-s] |= is_corner[s:]
+        if ring:
+            excluded |= np.roll(is_corner, s) | np.roll(is_corner, -s)
+        else:
+            excluded[s:] |= is_corner[:-s]
+            excluded[:-s] |= is_corner[s:]
     excluded |= cluster < 0
     return np.where(excluded, -1, seg).astype(np.int64)
+
+
+def _sharpest_ring_corner(points: FloatArray, cfg: Config) -> tuple[int, bool]:
+    """For a gapless 360° ring of points: the index of its sharpest angular point (eq. 14 with
+    neighbours k steps away, modulo the ring) and whether it is sharp enough to be one."""
+    n = points.shape[0]
+    k = cfg.angular_points.neighbour_step
+    if n < 2 * k + 1:
+        return 0, False
+    idx = np.arange(n)
+    a = points[(idx - k) % n] - points
+    b = points[(idx + k) % n] - points
+    angle = np.abs(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.sum(a * b, axis=1)))
+    best = int(np.argmin(angle))
+    return best, bool(angle[best] <= cfg.angular_points.interior_angle_threshold)
 
 
 def raw_segment_ids(cluster: IntArray, is_corner: BoolArray) -> IntArray:
@@ -436,6 +478,17 @@ def fit_lines(
     if ids.size == 0:
         return _empty_lines()
     f_line = bases.lines(delta[ids], sigma[ids])  # eq. 9 / Table 2
+    # least-squares variances: residual variance s² from the scatter's small eigenvalue, the
+    # normal's angle var s²/Σt² (t along the line), the distance var s²/N + var_φ·(c·dir)²
+    half_tr = 0.5 * (sxx[ids] + syy[ids])
+    root = np.sqrt(0.25 * (sxx[ids] - syy[ids]) ** 2 + sxy[ids] ** 2)
+    lam_min = np.maximum(half_tr - root, 0.0)
+    lam_max = np.maximum(half_tr + root, 1e-12)
+    n_ids = count[ids]
+    s2 = np.maximum(lam_min / np.maximum(n_ids - 2.0, 1.0), _MIN_LINE_NOISE**2)
+    var_phi = s2 / lam_max
+    along = mx[ids] * normal[:, 1] - my[ids] * normal[:, 0]
+    var_d = s2 / n_ids + var_phi * along**2
     seg_cluster = np.full(nseg, -1)
     seg_cluster[seg] = cluster[used]
     return Lines(
@@ -450,6 +503,8 @@ def fit_lines(
         uncertainty=f_line,
         segment=ids.astype(np.int64),
         cluster=seg_cluster[ids].astype(np.int64),
+        angle_variance=var_phi,
+        distance_variance=var_d,
     )
 
 
@@ -480,6 +535,7 @@ def intersect_lines(
 def join_at_corners(
     lines: Lines,
     corner_segment_before: IntArray,
+    corner_segment_after: IntArray,
     bases: RuleBases,
     cfg: Config,
 ) -> tuple[Lines, FloatArray, FloatArray, BoolArray]:
@@ -492,7 +548,7 @@ def join_at_corners(
     ok = np.zeros(m, bool)
     if m == 0 or len(lines) < 2:
         return lines, xy, unc, ok
-    a, b = _lines_around_corners(lines, corner_segment_before)
+    a, b = _lines_around_corners(lines, corner_segment_before, corner_segment_after)
     have = (a >= 0) & (b >= 0)
     if not have.any():
         return lines, xy, unc, ok
@@ -510,11 +566,7 @@ def join_at_corners(
     xy[hv] = pts
     unc[hv] = bases.virtual_points(lines.uncertainty[ia], lines.uncertainty[ib], dv) if hv.size else unc[hv]
     ok[hv] = True
-    new = Lines(
-        lines.normal, lines.distance, start, end, centre, lines.n_points, lines.sigma,
-        lines.delta, lines.uncertainty, lines.segment, lines.cluster,
-    )
-    return new, xy, unc, ok
+    return replace(lines, start=start, end=end, centre=centre), xy, unc, ok
 
 
 def virtual_angular_points(
@@ -562,6 +614,8 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     closed = bool(scan.is_full_circle)
     valid = scan.valid
     beam_index = np.flatnonzero(valid)
+    if scan.angle_increment < 0:
+        beam_index = beam_index[::-1]  # process counter-clockwise, so eq. 3's i+1 is the same neighbour
     ranges = np.asarray(scan.ranges)[beam_index]
     angles = scan.angles[beam_index]
     p_sensor = np.stack([ranges * np.cos(angles), ranges * np.sin(angles)], axis=1)
@@ -588,39 +642,56 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     # 4. break points (eq. 13) and clusters (§3.3) on the filtered points
     t2 = t2_valid[kept_index]
     is_break, split = break_points(kp, t2, cfg.segmentation.gap_difference, closed)
+    ring_corner = False
+    if closed and kept_index.size:
+        # a 360° scan wraps around (the paper's "indices additive modulo m"): start the
+        # sequence after a gap, or, with no gap at all, at the sharpest corner of the ring
+        if split.any():
+            first = int(np.flatnonzero(split)[0]) + 1
+        else:
+            first, ring_corner = _sharpest_ring_corner(kp, cfg)
+        order = np.roll(np.arange(kept_index.size), -first)
+        kept_index, kp, ku, kr, t2 = kept_index[order], kp[order], ku[order], kr[order], t2[order]
+        is_break, split = is_break[order], split[order].copy()
+        split[-1] = True
     fov_edge = np.zeros(kept_index.shape[0], bool)
     if kept_index.size and not closed:
         fov_edge[0] = True
         fov_edge[-1] = True
-    if closed and kept_index.size and not split.any():
-        split = split.copy()
-        split[-1] = True  # a closed loop with no gap still needs a start
     cluster = clusters(split, cfg.segmentation.min_cluster_points)
 
     # 5. angular points (eq. 14)
-    steps = _steps(kp, closed)
+    steps = _steps(kp, False)
     is_corner, _interior = angular_points(kp, cluster, steps, cfg)
+    if ring_corner and cluster.size and cluster[0] >= 0:
+        is_corner[0] = True  # the seam of a gapless ring sits on its sharpest corner
 
     # 6. lines (§3.5, eq. 5–9)
-    segment = segments(cluster, is_corner, cfg.lines.corner_exclusion)
+    segment = segments(cluster, is_corner, cfg.lines.corner_exclusion, ring=ring_corner)
     lines = fit_lines(kp, ku, segment, cluster, bases, cfg)
     corner_idx = np.flatnonzero(is_corner)
     raw_seg = raw_segment_ids(cluster, is_corner) if kp.shape[0] else np.zeros(0, dtype=np.int64)
-    seg_before = raw_seg[corner_idx]
-    lines, corner_xy, corner_unc, joined = join_at_corners(lines, seg_before, bases, cfg)
+    n_kept = kp.shape[0]
+    # the lines on either side of each angular point (circularly, for the ring's seam)
+    seg_before = raw_seg[(corner_idx - 1) % max(n_kept, 1)]
+    seg_after = raw_seg[(corner_idx + 1) % max(n_kept, 1)]
+    lines, corner_xy, corner_unc, joined = join_at_corners(lines, seg_before, seg_after, bases, cfg)
 
     # angular points: sampled (the paper) or refined to their lines' intersection (SPEC step 5)
     ang_xy = kp[corner_idx]
     ang_u = ku[corner_idx]
+    pairable = np.ones(corner_idx.size, bool)
     if cfg.angular_points.refine and corner_idx.size:
         spacing = np.abs(inc) * kr[corner_idx]
         near = joined & (np.linalg.norm(np.nan_to_num(corner_xy) - ang_xy, axis=1) <= 3.0 * spacing + 0.05)
         ang_xy = np.where(near[:, None], corner_xy, ang_xy)
         ang_u = np.where(near, corner_unc, ang_u)
+        if not cfg.angular_points.pair_unrefined:
+            pairable = near
     angular = FeaturePoints(ang_xy, ang_u, np.full(corner_idx.size, ANGULAR_POINT, dtype=np.int8))
 
     # 7. virtual angular points (§3.6), without the ones that are real angular points
-    exclude = _corner_line_pairs(lines, seg_before)
+    exclude = _corner_line_pairs(lines, seg_before, seg_after)
     virtual, virtual_lines, _dv = virtual_angular_points(lines, bases, cfg, exclude)
 
     # break points as features: not at field-of-view edges, only in kept clusters
@@ -633,7 +704,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     if m.use_break_points:
         parts.append(breaks)
     if m.use_angular_points:
-        parts.append(angular)
+        parts.append(angular.select(pairable))
     if m.use_virtual_points:
         parts.append(virtual)
     poi = merge_duplicates(
@@ -688,17 +759,19 @@ def merge_duplicates(points: FeaturePoints, radius: float) -> FeaturePoints:
     return FeaturePoints(points.xy[keep], points.uncertainty[keep], points.kind[keep])
 
 
-def _lines_around_corners(lines: Lines, seg_before: IntArray) -> tuple[IntArray, IntArray]:
+def _lines_around_corners(
+    lines: Lines, seg_before: IntArray, seg_after: IntArray
+) -> tuple[IntArray, IntArray]:
     """For each angular point, the index of the line before and after it (−1: no line)."""
-    pos = np.full(int(max(lines.segment.max(), seg_before.max()) + 2), -1)
+    pos = np.full(int(max(lines.segment.max(), seg_before.max(), seg_after.max()) + 1), -1)
     pos[lines.segment] = np.arange(len(lines))
-    return pos[seg_before], pos[seg_before + 1]
+    return pos[seg_before], pos[seg_after]
 
 
-def _corner_line_pairs(lines: Lines, seg_before: IntArray) -> IntArray:
+def _corner_line_pairs(lines: Lines, seg_before: IntArray, seg_after: IntArray) -> IntArray:
     """Line index pairs (k, 2) of lines that meet at a real angular point."""
     if len(lines) < 2 or seg_before.size == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    a, b = _lines_around_corners(lines, seg_before)
+    a, b = _lines_around_corners(lines, seg_before, seg_after)
     ok = (a >= 0) & (b >= 0)
     return np.stack([a[ok], b[ok]], axis=1).astype(np.int64)

@@ -30,7 +30,9 @@ __all__ = [
     "fuse_least_squares",
     "consensus_inliers",
     "estimate_increment",
-    "refine_point_to_line",
+    "LinePairs",
+    "pair_lines",
+    "increment_from_lines",
 ]
 
 
@@ -267,75 +269,133 @@ def estimate_increment(
     return pose, len(inliers)
 
 
-def refine_point_to_line(
-    lines: Lines,
-    points: FloatArray,
-    weights: FloatArray,
+@dataclass(frozen=True, eq=False)
+class LinePairs:
+    """Paired lines: ``prev[i]`` of scan k ↔ ``curr[i]`` of scan k+1 (indices into ``Lines``)."""
+
+    prev_index: IntArray
+    curr_index: IntArray
+
+    def __len__(self) -> int:
+        return int(self.prev_index.shape[0])
+
+
+def _lines_in_prev_frame(curr: Lines, pose: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Scan k+1's lines moved into frame k by ``pose``: normals, distances, start, end."""
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    n = np.stack([c * curr.normal[:, 0] - s * curr.normal[:, 1], s * curr.normal[:, 0] + c * curr.normal[:, 1]], axis=1)
+    d = curr.distance + n[:, 0] * pose[0] + n[:, 1] * pose[1]
+    start = transform_points(pose, curr.start)
+    end = transform_points(pose, curr.end)
+    return n, d, start, end
+
+
+def pair_lines(
+    prev: Lines, curr: Lines, pose: FloatArray, angle_gate: float, distance_gate: float, overlap_margin: float
+) -> LinePairs:
+    """Pair lines of scan k with lines of scan k+1 moved into frame k by ``pose``.
+
+    Two lines pair when their directions differ by less than ``angle_gate``, their normal
+    distances by less than ``distance_gate``, and their extents overlap (give or take
+    ``overlap_margin``) along the line; each line keeps its best match, and only mutual best
+    matches count.
+    """
+    if len(prev) == 0 or len(curr) == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return LinePairs(z, z)
+    n, d, start, end = _lines_in_prev_frame(curr, pose)
+    dot = prev.normal @ n.T  # (P, C)
+    sign = np.where(dot < 0, -1.0, 1.0)  # normals may point either way
+    ang = np.arccos(np.clip(np.abs(dot), 0.0, 1.0))
+    dd = np.abs(prev.distance[:, None] - sign * d[None, :])
+    # overlap along the prev line's direction
+    dirv = prev.direction
+    t0 = np.einsum("pk,pk->p", prev.start, dirv)
+    t1 = np.einsum("pk,pk->p", prev.end, dirv)
+    lo_p, hi_p = np.minimum(t0, t1), np.maximum(t0, t1)
+    u0 = dirv @ start.T
+    u1 = dirv @ end.T
+    lo_c, hi_c = np.minimum(u0, u1), np.maximum(u0, u1)
+    overlap = (np.minimum(hi_p[:, None], hi_c) - np.maximum(lo_p[:, None], lo_c)) > -overlap_margin
+    ok = (ang < angle_gate) & (dd < distance_gate) & overlap
+    cost = np.where(ok, ang / angle_gate + dd / distance_gate, np.inf)
+    j = np.argmin(cost, axis=1)
+    i = np.argmin(cost, axis=0)
+    rows = np.arange(len(prev))
+    good = np.isfinite(cost[rows, j]) & (i[j] == rows)
+    return LinePairs(rows[good].astype(np.int64), j[good].astype(np.int64))
+
+
+def increment_from_lines(
+    prev: Lines,
+    curr: Lines,
+    pairs: LinePairs,
     start: FloatArray,
     prior: FloatArray,
-    gate: float,
-    iterations: int,
     prior_weight: float,
-    min_points: int,
-    trim_floor: float = 0.01,
-    margin: float = 0.05,
-) -> tuple[FloatArray | None, int]:
-    """Beyond the paper: refine the increment by fitting scan k+1's points to scan k's lines.
+    trim_floor_angle: float,
+    trim_floor_distance: float,
+) -> FloatArray | None:
+    """Beyond the paper: the increment from paired lines (line-to-line matching).
 
-    Each point ``q`` (frame k+1) is moved into frame k with the current increment and matched
-    to the nearest line of scan k within ``gate`` (and within the line's extent, give or
-    take ``margin``); matches beyond 3 robust sigmas of the residuals are dropped; Gauss–Newton steps minimise Σ w (n·(T·q) − d)² plus ``prior_weight`` × the squared
-    distance of the increment from ``prior``, which keeps the odometry's say in directions the
-    lines leave unobservable (a corridor). ``weights`` are the points' certainties (1 − u).
-    Returns the refined increment and the number of matched points, or ``(None, n)`` when
-    fewer than ``min_points`` points match.
+    Rotation: the inverse-variance weighted mean of the paired normals' angle differences,
+    after dropping those beyond 3 robust sigmas of their weighted median. Translation: each
+    pair says ``n·t = d_k − d′`` (normal form, the scan-k+1 line rotated into frame k);
+    weighted least squares over the pairs plus ``prior_weight`` pulling ``t`` towards the
+    prior, which decides what the lines leave unobservable (parallel walls of a corridor).
+    Returns None with fewer than two pairs.
     """
-    nl = len(lines)
-    if nl == 0 or points.shape[0] == 0:
-        return None, 0
-    pose = np.asarray(start, dtype=float).copy()
-    prior = np.asarray(prior, dtype=float)
-    n = lines.normal
-    dvec = lines.direction
-    length = lines.length
-    n_used = 0
-    for _ in range(max(iterations, 1)):
-        c, s = np.cos(pose[2]), np.sin(pose[2])
-        px = pose[0] + c * points[:, 0] - s * points[:, 1]
-        py = pose[1] + s * points[:, 0] + c * points[:, 1]
-        r = px[:, None] * n[None, :, 0] + py[:, None] * n[None, :, 1] - lines.distance[None, :]
-        t = (px[:, None] - lines.start[None, :, 0]) * dvec[None, :, 0] + (
-            py[:, None] - lines.start[None, :, 1]
-        ) * dvec[None, :, 1]
-        ok = (np.abs(r) < gate) & (t > -margin) & (t < length[None, :] + margin)
-        ar = np.where(ok, np.abs(r), np.inf)
-        best = np.argmin(ar, axis=1)
-        rows = np.arange(points.shape[0])
-        have = np.isfinite(ar[rows, best])
-        n_used = int(have.sum())
-        if n_used < min_points:
-            return None, n_used
-        li = best[have]
-        e = r[rows[have], li]
-        nx, ny = n[li, 0], n[li, 1]
-        # d(T·q)/dθ = (−(py − y), px − x)
-        jt = nx * -(py[have] - pose[1]) + ny * (px[have] - pose[0])
-        # robust: drop what lies beyond 3 robust sigmas of the residuals (at least trim_floor)
-        tol = min(max(3.0 * 1.4826 * float(np.median(np.abs(e))), trim_floor), gate)
-        w = np.where(np.abs(e) <= tol, weights[have], 0.0)
-        J = np.stack([nx, ny, jt], axis=1)
-        H = (J * w[:, None]).T @ J
-        g = (J * w[:, None]).T @ e
-        dp = pose - prior
-        dp[2] = np.arctan2(np.sin(dp[2]), np.cos(dp[2]))
-        H = H + prior_weight * np.eye(3)
-        g = g + prior_weight * dp
-        try:
-            step = -np.linalg.solve(H, g)
-        except np.linalg.LinAlgError:
-            return None, n_used
-        pose = pose + step
-        pose[2] = np.arctan2(np.sin(pose[2]), np.cos(pose[2]))
-        if abs(step[0]) + abs(step[1]) < 1e-7 and abs(step[2]) < 1e-8:
+    m = len(pairs)
+    if m < 2:
+        return None
+    P = pairs.prev_index
+    C = pairs.curr_index
+    c, s = np.cos(start[2]), np.sin(start[2])
+    nc = curr.normal[C]
+    n_rot = np.stack([c * nc[:, 0] - s * nc[:, 1], s * nc[:, 0] + c * nc[:, 1]], axis=1)
+    npv = prev.normal[P]
+    sign = np.where(np.sum(npv * n_rot, axis=1) < 0, -1.0, 1.0)
+    n_rot = n_rot * sign[:, None]
+    d_curr = curr.distance[C] * sign
+    # rotation: angle from the rotated current normal to the previous normal
+    delta = np.arctan2(n_rot[:, 0] * npv[:, 1] - n_rot[:, 1] * npv[:, 0], np.sum(n_rot * npv, axis=1))
+    var_a = prev.angle_variance[P] + curr.angle_variance[C]
+    w_a = 1.0 / var_a
+    keep = _robust_keep(delta, w_a, trim_floor_angle)
+    if keep.sum() < 1:
+        return None
+    dtheta = float(np.sum(w_a[keep] * delta[keep]) / np.sum(w_a[keep]))
+    theta = start[2] + dtheta
+    # translation with that rotation
+    c, s = np.cos(theta), np.sin(theta)
+    n_k = np.stack([c * nc[:, 0] - s * nc[:, 1], s * nc[:, 0] + c * nc[:, 1]], axis=1) * sign[:, None]
+    normal = 0.5 * (n_k + npv)
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    rhs = prev.distance[P] - d_curr
+    w_d = 1.0 / (prev.distance_variance[P] + curr.distance_variance[C])
+    tp = np.asarray(prior[:2], dtype=float)
+    lam = prior_weight * float(np.max(w_d))
+    used = keep.copy()
+    t = tp
+    for _ in range(3):
+        W = w_d * used
+        A = (normal * W[:, None]).T @ normal + lam * np.eye(2)
+        b = (normal * W[:, None]).T @ rhs + lam * tp
+        t = np.linalg.solve(A, b)
+        resid = normal @ t - rhs
+        new_used = keep & _robust_keep(resid, w_d, trim_floor_distance, center=0.0)
+        if new_used.sum() < 1 or np.array_equal(new_used, used):
             break
-    return pose, n_used
+        used = new_used
+    return np.array([t[0], t[1], float(np.arctan2(np.sin(theta), np.cos(theta)))])
+
+
+def _robust_keep(values: FloatArray, weights: FloatArray, floor: float, center: float | None = None) -> NDArray[np.bool_]:
+    """Values within 3 robust sigmas (at least ``floor``) of their weighted median (or ``center``)."""
+    if center is None:
+        order = np.argsort(values)
+        cw = np.cumsum(weights[order])
+        center = float(values[order][np.searchsorted(cw, 0.5 * cw[-1])])
+    dev = np.abs(values - center)
+    tol = max(3.0 * 1.4826 * float(np.median(dev)), floor)
+    return dev <= tol

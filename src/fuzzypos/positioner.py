@@ -17,7 +17,7 @@ import numpy as np
 from .config import Config
 from .features import Features, FeaturePoints, Lines, extract_features
 from .geometry import Pose2D, compose, relative
-from .matching import estimate_increment, pair_features, refine_point_to_line
+from .matching import estimate_increment, increment_from_lines, pair_features, pair_lines
 from .scan import LaserScan
 
 __all__ = ["Estimate", "Positioner"]
@@ -87,19 +87,10 @@ class Positioner:
         else:
             prior = self._last_increment
         increment, n_pairs, reason = self._match(self._prev_points, points, prior)
-        m = self.config.matching
-        if m.refine_with_lines and self._prev_lines is not None:
-            start = prior if increment is None else increment
-            on_line = np.isin(features.segment, features.lines.segment)
-            weights = 1.0 - features.uncertainty[features.kept_index[on_line]]
-            refined, n_line = refine_point_to_line(
-                self._prev_lines, features.kept_points[on_line], weights, start, prior,
-                m.line_gate, m.line_iterations, m.line_prior_weight, m.line_min_points,
-                self.config.fusion.trim_floor,
-            )
+        if self.config.matching.match_lines and self._prev_lines is not None:
+            refined = self._match_lines(self._prev_lines, features.lines, increment, prior)
             if refined is not None:
-                increment = refined
-                reason = ""
+                increment, reason = refined, ""
         degraded = increment is None
         if increment is None:
             increment = prior
@@ -137,6 +128,28 @@ class Positioner:
                 break
             est, n_used = refined, n_refined
         return est, n_used, ""
+
+    def _match_lines(
+        self, prev: Lines, curr: Lines, start: np.ndarray | None, prior: np.ndarray
+    ) -> np.ndarray | None:
+        """Line-to-line matching from the point features' motion (or the prior), twice."""
+        m = self.config.matching
+        if start is None:
+            pose, gates = prior, (m.line_angle_gate_prior, m.line_distance_gate_prior)
+        else:
+            pose, gates = start, (m.line_angle_gate, m.line_distance_gate)
+        est = None
+        for _ in range(2):
+            pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
+            new = increment_from_lines(
+                prev, curr, pairs, pose, prior, m.line_prior_weight, m.line_trim_angle,
+                m.line_trim_distance,
+            )
+            if new is None:
+                break
+            est = pose = new
+            gates = (m.line_angle_gate, m.line_distance_gate)
+        return est
 
     def run(
         self,
