@@ -348,8 +348,9 @@ def test_paper_preset_differs_in_the_documented_ways() -> None:
         "matching.same_kind_only": (True, False),
         "matching.mutual": (True, False),
         "matching.use_break_points": (False, True),
-        # the paper pairs once
-        "matching.repair_iterations": (2, 0),
+        # line-to-line matching and unrefined-corner handling are ours
+        "matching.match_lines": (True, False),
+        "angular_points.pair_unrefined": (False, True),
         # eq. 23–24: the weighted mean of the two-pair solutions, no outlier rejection
         "fusion.method": ("least_squares", "weighted_mean"),
         "fusion.robust": (True, False),

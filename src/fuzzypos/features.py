@@ -14,6 +14,7 @@ per-cluster and per-segment statistics use ``np.bincount`` over labels.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
 
@@ -353,12 +354,16 @@ def angular_points(
     run_start = cand & ~(prev_cand & same_cluster_prev)
     run_id = np.cumsum(run_start) - 1
     ci = np.flatnonzero(cand)
-    order = np.lexsort((angle[ci], run_id[ci]))
-    ci_sorted = ci[order]
-    first = np.ones(ci_sorted.shape[0], bool)
-    first[1:] = run_id[ci_sorted[1:]] != run_id[ci_sorted[:-1]]
+    runs = run_id[ci]
+    a = angle[ci]
+    starts = np.flatnonzero(run_start[ci])
+    sharpest = np.minimum.reduceat(a, starts)[runs]
+    # the first point of each run that reaches the run's sharpest angle
+    hit = a == sharpest
+    before = np.cumsum(hit) - hit
+    first_hit = hit & (before == before[starts][runs])
     is_corner = np.zeros(n, bool)
-    is_corner[ci_sorted[first]] = True
+    is_corner[ci[first_hit]] = True
     return is_corner, angle
 
 
@@ -428,19 +433,16 @@ def fit_lines(
     used = segment >= 0
     if not used.any():
         return _empty_lines()
-    seg = segment[used]
-    p = points[used]
-    u = uncertainty[used]
-    nseg = int(seg.max()) + 1
+    seg = segment[used]  # non-decreasing: segments are runs of the sequence
+    px = points[used, 0]
+    py = points[used, 1]
+    nseg = int(seg[-1]) + 1
     count = np.bincount(seg, minlength=nseg).astype(float)
-    good = count >= cfg.lines.min_points
-    if not good.any():
-        return _empty_lines()
     safe = np.maximum(count, 1.0)
-    mx = np.bincount(seg, p[:, 0], nseg) / safe
-    my = np.bincount(seg, p[:, 1], nseg) / safe
-    dx = p[:, 0] - mx[seg]
-    dy = p[:, 1] - my[seg]
+    mx = np.bincount(seg, px, nseg) / safe
+    my = np.bincount(seg, py, nseg) / safe
+    dx = px - mx[seg]
+    dy = py - my[seg]
     sxx = np.bincount(seg, dx * dx, nseg)
     syy = np.bincount(seg, dy * dy, nseg)
     sxy = np.bincount(seg, dx * dy, nseg)
@@ -448,69 +450,55 @@ def fit_lines(
     phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
     nx, ny = -np.sin(phi), np.cos(phi)
     dist = nx * mx + ny * my
-    flip = dist < 0
-    nx = np.where(flip, -nx, nx)
-    ny = np.where(flip, -ny, ny)
-    dist = np.abs(dist)
-    # eq. 7–8 (SPEC fix: x·a + y·b + c) with a unit normal: d_i = |n·p_i − d|
-    resid = np.abs(nx[seg] * p[:, 0] + ny[seg] * p[:, 1] - dist[seg])
-    sigma = np.bincount(seg, resid, nseg) / safe
-    delta = np.bincount(seg, u, nseg) / safe  # eq. 6
-    # extreme points of each segment (first and last in scan order)
-    order_idx = np.arange(seg.shape[0])
-    first = np.full(nseg, -1)
-    last = np.full(nseg, -1)
-    np.maximum.at(last, seg, order_idx)
-    first_rev = np.full(nseg, seg.shape[0])
-    np.minimum.at(first_rev, seg, order_idx)
-    first = first_rev
-    ids = np.flatnonzero(good)
-    normal = np.stack([nx[ids], ny[ids]], axis=1)
-    d = dist[ids]
-    start = _project(p[first[ids]], normal, d)
-    end = _project(p[last[ids]], normal, d)
-    long_enough = np.linalg.norm(end - start, axis=1) >= cfg.lines.min_length
-    ids = ids[long_enough]
-    normal = normal[long_enough]
-    d = d[long_enough]
-    start = start[long_enough]
-    end = end[long_enough]
+    flip = np.where(dist < 0, -1.0, 1.0)
+    nx *= flip
+    ny *= flip
+    dist *= flip
+    # extreme points of each segment (first and last in sequence order), projected on its line
+    ids_all = np.arange(nseg)
+    first = np.minimum(np.searchsorted(seg, ids_all, "left"), seg.shape[0] - 1)
+    last = np.maximum(np.searchsorted(seg, ids_all, "right") - 1, 0)
+    off0 = nx * px[first] + ny * py[first] - dist
+    off1 = nx * px[last] + ny * py[last] - dist
+    sx, sy = px[first] - off0 * nx, py[first] - off0 * ny
+    ex, ey = px[last] - off1 * nx, py[last] - off1 * ny
+    keep = (count >= cfg.lines.min_points) & (np.hypot(ex - sx, ey - sy) >= cfg.lines.min_length)
+    ids = np.flatnonzero(keep)
     if ids.size == 0:
         return _empty_lines()
-    f_line = bases.lines(delta[ids], sigma[ids])  # eq. 9 / Table 2
+    # eq. 7–8 (SPEC fix: x·a + y·b + c) with a unit normal: d_i = |n·p_i − d|
+    resid = np.abs(nx[seg] * px + ny[seg] * py - dist[seg])
+    sigma = (np.bincount(seg, resid, nseg) / safe)[ids]
+    delta = (np.bincount(seg, uncertainty[used], nseg) / safe)[ids]  # eq. 6
+    f_line = bases.lines(delta, sigma)  # eq. 9 / Table 2
+    nx, ny, d, n_ids = nx[ids], ny[ids], dist[ids], count[ids]
     # least-squares variances: residual variance s² from the scatter's small eigenvalue, the
     # normal's angle var s²/Σt² (t along the line), the distance var s²/N + var_φ·(c·dir)²
     half_tr = 0.5 * (sxx[ids] + syy[ids])
     root = np.sqrt(0.25 * (sxx[ids] - syy[ids]) ** 2 + sxy[ids] ** 2)
     lam_min = np.maximum(half_tr - root, 0.0)
     lam_max = np.maximum(half_tr + root, 1e-12)
-    n_ids = count[ids]
     s2 = np.maximum(lam_min / np.maximum(n_ids - 2.0, 1.0), _MIN_LINE_NOISE**2)
     var_phi = s2 / lam_max
-    along = mx[ids] * normal[:, 1] - my[ids] * normal[:, 0]
+    along = mx[ids] * ny - my[ids] * nx
     var_d = s2 / n_ids + var_phi * along**2
-    seg_cluster = np.full(nseg, -1)
-    seg_cluster[seg] = cluster[used]
+    start = np.column_stack([sx[ids], sy[ids]])
+    end = np.column_stack([ex[ids], ey[ids]])
     return Lines(
-        normal=normal,
+        normal=np.column_stack([nx, ny]),
         distance=d,
         start=start,
         end=end,
         centre=0.5 * (start + end),
-        n_points=count[ids].astype(np.int64),
-        sigma=sigma[ids],
-        delta=delta[ids],
+        n_points=n_ids.astype(np.int64),
+        sigma=sigma,
+        delta=delta,
         uncertainty=f_line,
         segment=ids.astype(np.int64),
-        cluster=seg_cluster[ids].astype(np.int64),
+        cluster=cluster[used][first[ids]].astype(np.int64),
         angle_variance=var_phi,
         distance_variance=var_d,
     )
-
-
-def _project(p: FloatArray, normal: FloatArray, d: FloatArray) -> FloatArray:
-    off = np.sum(p * normal, axis=1) - d
-    return p - off[:, None] * normal
 
 
 def _empty_lines() -> Lines:
@@ -582,17 +570,22 @@ def virtual_angular_points(
     nl = len(lines)
     if nl < 2:
         return FeaturePoints.empty(), np.zeros((0, 2), dtype=np.int64), np.zeros(0)
-    i, j = np.triu_indices(nl, 1)
-    pts, sin_ang = intersect_lines(lines.normal[i], lines.distance[i], lines.normal[j], lines.distance[j])
-    keep = sin_ang >= np.sin(cfg.virtual_points.min_intersection_angle)
+    n = lines.normal
+    # |sin| of the angle between every two lines = |n_i × n_j|; keep i < j far enough apart
+    sin_ang = np.abs(n[:, 0:1] * n[:, 1] - n[:, 1:2] * n[:, 0])
+    ok = sin_ang >= math.sin(cfg.virtual_points.min_intersection_angle)
+    ok &= np.tri(nl, nl, -1, dtype=bool).T
     if exclude_pairs is not None and exclude_pairs.size:
-        code = i * nl + j
-        lo = np.minimum(exclude_pairs[:, 0], exclude_pairs[:, 1])
-        hi = np.maximum(exclude_pairs[:, 0], exclude_pairs[:, 1])
-        keep &= ~np.isin(code, lo * nl + hi)
-    i, j, pts = i[keep], j[keep], pts[keep]
+        ok[exclude_pairs[:, 0], exclude_pairs[:, 1]] = False
+        ok[exclude_pairs[:, 1], exclude_pairs[:, 0]] = False
+    i, j = np.nonzero(ok)
+    if i.size == 0:
+        return FeaturePoints.empty(), np.zeros((0, 2), dtype=np.int64), np.zeros(0)
+    pts, _ = intersect_lines(n[i], lines.distance[i], n[j], lines.distance[j])
+    c = lines.centre
     dv = 0.5 * (
-        np.linalg.norm(pts - lines.centre[i], axis=1) + np.linalg.norm(pts - lines.centre[j], axis=1)
+        np.hypot(pts[:, 0] - c[i, 0], pts[:, 1] - c[i, 1])
+        + np.hypot(pts[:, 0] - c[j, 0], pts[:, 1] - c[j, 1])
     )  # eq. 10
     near = dv <= cfg.virtual_points.max_distance
     i, j, pts, dv = i[near], j[near], pts[near], dv[near]
@@ -601,7 +594,7 @@ def virtual_angular_points(
     f = bases.virtual_points(lines.uncertainty[i], lines.uncertainty[j], dv)  # eq. 11–12
     ok = f <= cfg.virtual_points.max_uncertainty
     fp = FeaturePoints(pts[ok], f[ok], np.full(int(ok.sum()), VIRTUAL_ANGULAR_POINT, dtype=np.int8))
-    return fp, np.stack([i[ok], j[ok]], axis=1).astype(np.int64), dv[ok]
+    return fp, np.column_stack([i[ok], j[ok]]).astype(np.int64), dv[ok]
 
 
 # ---------------------------------------------------------------------------------------------

@@ -10,6 +10,7 @@ Conventions (SPEC): ``a ⊕ b`` composes, ``⊖a`` inverts; the odometry increme
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Iterator
 
@@ -129,10 +130,11 @@ class Pose2D:
                 fv = float(v)
             except (TypeError, ValueError):
                 raise ValueError(f"Pose2D.{name} must be a number, got {v!r}") from None
-            if not np.isfinite(fv):
+            if not math.isfinite(fv):
                 raise ValueError(f"Pose2D.{name} must be finite, got {fv}")
             object.__setattr__(self, name, fv)
-        object.__setattr__(self, "theta", float(wrap_angle(self.theta)))
+        if not -math.pi <= self.theta < math.pi:
+            object.__setattr__(self, "theta", float(wrap_angle(self.theta)))
 
     @classmethod
     def from_array(cls, arr: ArrayLike) -> "Pose2D":

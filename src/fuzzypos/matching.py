@@ -8,6 +8,7 @@ increment, ``⊖u_k · p`` (eq. 17 with SPEC's fix).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -280,16 +281,6 @@ class LinePairs:
         return int(self.prev_index.shape[0])
 
 
-def _lines_in_prev_frame(curr: Lines, pose: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Scan k+1's lines moved into frame k by ``pose``: normals, distances, start, end."""
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    n = np.stack([c * curr.normal[:, 0] - s * curr.normal[:, 1], s * curr.normal[:, 0] + c * curr.normal[:, 1]], axis=1)
-    d = curr.distance + n[:, 0] * pose[0] + n[:, 1] * pose[1]
-    start = transform_points(pose, curr.start)
-    end = transform_points(pose, curr.end)
-    return n, d, start, end
-
-
 def pair_lines(
     prev: Lines, curr: Lines, pose: FloatArray, angle_gate: float, distance_gate: float, overlap_margin: float
 ) -> LinePairs:
@@ -303,27 +294,37 @@ def pair_lines(
     if len(prev) == 0 or len(curr) == 0:
         z = np.zeros(0, dtype=np.int64)
         return LinePairs(z, z)
-    n, d, start, end = _lines_in_prev_frame(curr, pose)
-    dot = prev.normal @ n.T  # (P, C)
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    cn = curr.normal
+    nx = c * cn[:, 0] - s * cn[:, 1]
+    ny = s * cn[:, 0] + c * cn[:, 1]
+    d = curr.distance + nx * pose[0] + ny * pose[1]
+    pn = prev.normal
+    dot = pn[:, 0:1] * nx + pn[:, 1:2] * ny  # (P, C)
     sign = np.where(dot < 0, -1.0, 1.0)  # normals may point either way
-    ang = np.arccos(np.clip(np.abs(dot), 0.0, 1.0))
-    dd = np.abs(prev.distance[:, None] - sign * d[None, :])
-    # overlap along the prev line's direction
-    dirv = prev.direction
-    t0 = np.einsum("pk,pk->p", prev.start, dirv)
-    t1 = np.einsum("pk,pk->p", prev.end, dirv)
-    lo_p, hi_p = np.minimum(t0, t1), np.maximum(t0, t1)
-    u0 = dirv @ start.T
-    u1 = dirv @ end.T
-    lo_c, hi_c = np.minimum(u0, u1), np.maximum(u0, u1)
-    overlap = (np.minimum(hi_p[:, None], hi_c) - np.maximum(lo_p[:, None], lo_c)) > -overlap_margin
-    ok = (ang < angle_gate) & (dd < distance_gate) & overlap
-    cost = np.where(ok, ang / angle_gate + dd / distance_gate, np.inf)
+    ang = np.arccos(np.minimum(np.abs(dot), 1.0))
+    dd = np.abs(prev.distance[:, None] - sign * d)
+    # overlap along the prev line's direction (pn turned by −90°)
+    dx, dy = pn[:, 1:2], -pn[:, 0:1]
+    t0 = prev.start[:, 0:1] * dx + prev.start[:, 1:2] * dy
+    t1 = prev.end[:, 0:1] * dx + prev.end[:, 1:2] * dy
+    cs, ce = curr.start, curr.end
+    sx = pose[0] + c * cs[:, 0] - s * cs[:, 1]
+    sy = pose[1] + s * cs[:, 0] + c * cs[:, 1]
+    ex = pose[0] + c * ce[:, 0] - s * ce[:, 1]
+    ey = pose[1] + s * ce[:, 0] + c * ce[:, 1]
+    u0 = dx * sx + dy * sy
+    u1 = dx * ex + dy * ey
+    overlap = np.minimum(np.maximum(t0, t1), np.maximum(u0, u1)) - np.maximum(
+        np.minimum(t0, t1), np.minimum(u0, u1)
+    )
+    cost = ang * (1.0 / angle_gate) + dd * (1.0 / distance_gate)
+    cost[(ang >= angle_gate) | (dd >= distance_gate) | (overlap <= -overlap_margin)] = np.inf
     j = np.argmin(cost, axis=1)
     i = np.argmin(cost, axis=0)
     rows = np.arange(len(prev))
     good = np.isfinite(cost[rows, j]) & (i[j] == rows)
-    return LinePairs(rows[good].astype(np.int64), j[good].astype(np.int64))
+    return LinePairs(rows[good], j[good])
 
 
 def increment_from_lines(
@@ -339,63 +340,72 @@ def increment_from_lines(
     """Beyond the paper: the increment from paired lines (line-to-line matching).
 
     Rotation: the inverse-variance weighted mean of the paired normals' angle differences,
-    after dropping those beyond 3 robust sigmas of their weighted median. Translation: each
-    pair says ``n·t = d_k − d′`` (normal form, the scan-k+1 line rotated into frame k);
-    weighted least squares over the pairs plus ``prior_weight`` pulling ``t`` towards the
-    prior, which decides what the lines leave unobservable (parallel walls of a corridor).
-    Returns None with fewer than two pairs.
+    after dropping those beyond 3 robust sigmas of their median. Translation: each pair says
+    ``n·t = d_k − d′`` (normal form, the scan-k+1 line rotated into frame k); weighted least
+    squares over the pairs plus ``prior_weight`` (relative to the best-known line) pulling
+    ``t`` towards the prior's, which decides what the lines leave unobservable (the parallel
+    walls of a corridor). Pairs beyond 3 robust sigmas of the residuals are dropped and the fit
+    repeated once. Returns None with fewer than two pairs.
     """
-    m = len(pairs)
-    if m < 2:
+    if len(pairs) < 2:
         return None
     P = pairs.prev_index
     C = pairs.curr_index
-    c, s = np.cos(start[2]), np.sin(start[2])
-    nc = curr.normal[C]
-    n_rot = np.stack([c * nc[:, 0] - s * nc[:, 1], s * nc[:, 0] + c * nc[:, 1]], axis=1)
     npv = prev.normal[P]
-    sign = np.where(np.sum(npv * n_rot, axis=1) < 0, -1.0, 1.0)
-    n_rot = n_rot * sign[:, None]
-    d_curr = curr.distance[C] * sign
-    # rotation: angle from the rotated current normal to the previous normal
-    delta = np.arctan2(n_rot[:, 0] * npv[:, 1] - n_rot[:, 1] * npv[:, 0], np.sum(n_rot * npv, axis=1))
-    var_a = prev.angle_variance[P] + curr.angle_variance[C]
-    w_a = 1.0 / var_a
-    keep = _robust_keep(delta, w_a, trim_floor_angle)
-    if keep.sum() < 1:
-        return None
-    dtheta = float(np.sum(w_a[keep] * delta[keep]) / np.sum(w_a[keep]))
+    nc = curr.normal[C]
+    c, s = math.cos(start[2]), math.sin(start[2])
+    rx = c * nc[:, 0] - s * nc[:, 1]
+    ry = s * nc[:, 0] + c * nc[:, 1]
+    dot = rx * npv[:, 0] + ry * npv[:, 1]
+    sign = np.where(dot < 0, -1.0, 1.0)
+    # rotation: the angle from the rotated current normal to the previous one
+    delta = np.arctan2(sign * (rx * npv[:, 1] - ry * npv[:, 0]), sign * dot)
+    w_a = 1.0 / (prev.angle_variance[P] + curr.angle_variance[C])
+    keep = _robust_keep(delta, trim_floor_angle)
+    dtheta = float(np.dot(w_a[keep], delta[keep]) / w_a[keep].sum())
     theta = start[2] + dtheta
-    # translation with that rotation
-    c, s = np.cos(theta), np.sin(theta)
-    n_k = np.stack([c * nc[:, 0] - s * nc[:, 1], s * nc[:, 0] + c * nc[:, 1]], axis=1) * sign[:, None]
-    normal = 0.5 * (n_k + npv)
-    normal /= np.linalg.norm(normal, axis=1)[:, None]
-    rhs = prev.distance[P] - d_curr
+    # translation with that rotation: n·t = d_k − d′ with n the mean of the two normals
+    c, s = math.cos(theta), math.sin(theta)
+    nx = sign * (c * nc[:, 0] - s * nc[:, 1]) + npv[:, 0]
+    ny = sign * (s * nc[:, 0] + c * nc[:, 1]) + npv[:, 1]
+    norm = np.sqrt(nx * nx + ny * ny)
+    nx /= norm
+    ny /= norm
+    rhs = prev.distance[P] - sign * curr.distance[C]
     w_d = 1.0 / (prev.distance_variance[P] + curr.distance_variance[C])
-    tp = np.asarray(prior[:2], dtype=float)
-    lam = prior_weight * float(np.max(w_d))
-    used = keep.copy()
-    t = tp
-    for _ in range(3):
-        W = w_d * used
-        A = (normal * W[:, None]).T @ normal + lam * np.eye(2)
-        b = (normal * W[:, None]).T @ rhs + lam * tp
-        t = np.linalg.solve(A, b)
-        resid = normal @ t - rhs
-        new_used = keep & _robust_keep(resid, w_d, trim_floor_distance, center=0.0)
-        if new_used.sum() < 1 or np.array_equal(new_used, used):
+    lam = prior_weight * float(w_d.max())
+    tx, ty = float(prior[0]), float(prior[1])
+    used = keep
+    for attempt in range(2):
+        w = np.where(used, w_d, 0.0)
+        wx, wy = w * nx, w * ny
+        a11 = float(np.dot(wx, nx)) + lam
+        a12 = float(np.dot(wx, ny))
+        a22 = float(np.dot(wy, ny)) + lam
+        b1 = float(np.dot(wx, rhs)) + lam * float(prior[0])
+        b2 = float(np.dot(wy, rhs)) + lam * float(prior[1])
+        det = a11 * a22 - a12 * a12
+        if det <= 0.0:
+            return None
+        tx = (a22 * b1 - a12 * b2) / det
+        ty = (a11 * b2 - a12 * b1) / det
+        if attempt == 1:
             break
-        used = new_used
-    return np.array([t[0], t[1], float(np.arctan2(np.sin(theta), np.cos(theta)))])
+        refit = keep & _robust_keep(nx * tx + ny * ty - rhs, trim_floor_distance, center=0.0)
+        if refit.sum() < 1 or np.array_equal(refit, used):
+            break
+        used = refit
+    return np.array([tx, ty, math.atan2(math.sin(theta), math.cos(theta))])
 
 
-def _robust_keep(values: FloatArray, weights: FloatArray, floor: float, center: float | None = None) -> NDArray[np.bool_]:
-    """Values within 3 robust sigmas (at least ``floor``) of their weighted median (or ``center``)."""
+def _robust_keep(values: FloatArray, floor: float, center: float | None = None) -> NDArray[np.bool_]:
+    """Values within 3 robust sigmas (1.4826 × MAD, at least ``floor``) of their median (or
+    of ``center``)."""
+    v = np.sort(values)
+    mid = len(v) // 2
     if center is None:
-        order = np.argsort(values)
-        cw = np.cumsum(weights[order])
-        center = float(values[order][np.searchsorted(cw, 0.5 * cw[-1])])
+        center = float(v[mid]) if len(v) % 2 else 0.5 * float(v[mid - 1] + v[mid])
     dev = np.abs(values - center)
-    tol = max(3.0 * 1.4826 * float(np.median(dev)), floor)
-    return dev <= tol
+    dv = np.sort(dev)
+    mad = float(dv[mid]) if len(dv) % 2 else 0.5 * float(dv[mid - 1] + dv[mid])
+    return dev <= max(3.0 * 1.4826 * mad, floor)

@@ -132,7 +132,8 @@ class Positioner:
     def _match_lines(
         self, prev: Lines, curr: Lines, start: np.ndarray | None, prior: np.ndarray
     ) -> np.ndarray | None:
-        """Line-to-line matching from the point features' motion (or the prior), twice."""
+        """Line-to-line matching from the point features' motion (or the prior), and once more
+        from its own result where that moved enough to change the pairs."""
         m = self.config.matching
         if start is None:
             pose, gates = prior, (m.line_angle_gate_prior, m.line_distance_gate_prior)
@@ -147,7 +148,11 @@ class Positioner:
             )
             if new is None:
                 break
+            moved = np.abs(new - pose)
             est = pose = new
+            # pair again with the refined motion, unless it moved too little to change pairs
+            if moved[0] + moved[1] < 0.1 * m.line_distance_gate and moved[2] < 0.1 * m.line_angle_gate:
+                break
             gates = (m.line_angle_gate, m.line_distance_gate)
         return est
 
