@@ -276,6 +276,11 @@ class MatchingConfig:
         "with a tighter cut than 0.2°",
         default=math.radians(0.2),
     )
+    line_inlier_distance: float = _reason(
+        "a line pair must agree within 5 cm with the best translation two non-parallel pairs "
+        "fix (3 cm rejected good pairs of short noisy lines; an 8 cm false pair must go)",
+        default=0.05,
+    )
     line_trim_distance: float = _reason(
         "line pairs whose distance residual is beyond 3 robust sigmas are dropped, never with "
         "a tighter cut than 1 cm",
@@ -582,6 +587,7 @@ def _validate(cfg: Config) -> None:
         "matching.line_prior_weight": cfg.matching.line_prior_weight,
         "matching.line_trim_angle": cfg.matching.line_trim_angle,
         "matching.line_trim_distance": cfg.matching.line_trim_distance,
+        "matching.line_inlier_distance": cfg.matching.line_inlier_distance,
         "fusion.trim_floor": cfg.fusion.trim_floor,
     }
     for key, v in nonneg.items():

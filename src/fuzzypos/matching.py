@@ -336,6 +336,7 @@ def increment_from_lines(
     prior_weight: float,
     trim_floor_angle: float,
     trim_floor_distance: float,
+    inlier_distance: float,
 ) -> FloatArray | None:
     """Beyond the paper: the increment from paired lines (line-to-line matching).
 
@@ -344,8 +345,10 @@ def increment_from_lines(
     ``n·t = d_k − d′`` (normal form, the scan-k+1 line rotated into frame k); weighted least
     squares over the pairs plus ``prior_weight`` (relative to the best-known line) pulling
     ``t`` towards the prior's, which decides what the lines leave unobservable (the parallel
-    walls of a corridor). Pairs beyond 3 robust sigmas of the residuals are dropped and the fit
-    repeated once. Returns None with fewer than two pairs.
+    walls of a corridor). The pairs enter it only when consistent (within ``inlier_distance``)
+    with the best translation two of them fix (:func:`_translation_consensus`); pairs beyond 3
+    robust sigmas of the residuals are then dropped and the fit repeated once. Returns None
+    with fewer than two pairs.
     """
     if len(pairs) < 2:
         return None
@@ -373,9 +376,9 @@ def increment_from_lines(
     ny /= norm
     rhs = prev.distance[P] - sign * curr.distance[C]
     w_d = 1.0 / (prev.distance_variance[P] + curr.distance_variance[C])
+    used = keep & _translation_consensus(nx, ny, rhs, keep, inlier_distance)
     lam = prior_weight * float(w_d.max())
     tx, ty = float(prior[0]), float(prior[1])
-    used = keep
     for attempt in range(2):
         w = np.where(used, w_d, 0.0)
         wx, wy = w * nx, w * ny
@@ -391,11 +394,39 @@ def increment_from_lines(
         ty = (a11 * b2 - a12 * b1) / det
         if attempt == 1:
             break
-        refit = keep & _robust_keep(nx * tx + ny * ty - rhs, trim_floor_distance, center=0.0)
+        refit = used & _robust_keep(nx * tx + ny * ty - rhs, trim_floor_distance, center=0.0)
         if refit.sum() < 1 or np.array_equal(refit, used):
             break
         used = refit
     return np.array([tx, ty, math.atan2(math.sin(theta), math.cos(theta))])
+
+
+def _translation_consensus(
+    nx: FloatArray, ny: FloatArray, rhs: FloatArray, candidates: NDArray[np.bool_], tau: float
+) -> NDArray[np.bool_]:
+    """Line pairs consistent with the best translation that two non-parallel pairs fix.
+
+    Every two candidate pairs at least 20° apart give ``t`` exactly (``n·t = rhs`` twice);
+    the one with the smallest truncated squared residual over all pairs (MSAC, τ) wins and its
+    pairs within τ are the inliers. With no such two (parallel walls) every candidate is kept.
+    """
+    idx = np.flatnonzero(candidates)
+    if idx.size < 3:
+        return candidates
+    a, b = np.triu_indices(idx.size, 1)
+    i, j = idx[a], idx[b]
+    det = nx[i] * ny[j] - ny[i] * nx[j]
+    ok = np.abs(det) > 0.342  # sin 20°
+    if not ok.any():
+        return candidates
+    i, j, det = i[ok], j[ok], det[ok]
+    tx = (rhs[i] * ny[j] - ny[i] * rhs[j]) / det
+    ty = (nx[i] * rhs[j] - rhs[i] * nx[j]) / det
+    r = np.abs(tx[:, None] * nx[idx] + ty[:, None] * ny[idx] - rhs[idx])
+    best = int(np.argmin(np.minimum(r * r, tau * tau).sum(axis=1)))
+    out = np.zeros_like(candidates)
+    out[idx] = r[best] < tau
+    return out
 
 
 def _robust_keep(values: FloatArray, floor: float, center: float | None = None) -> NDArray[np.bool_]:

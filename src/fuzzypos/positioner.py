@@ -10,7 +10,7 @@ empty or all-invalid scan is not an error but such a degraded estimate.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Iterator
+from typing import Iterable, Iterator, Sized
 
 import numpy as np
 
@@ -21,6 +21,8 @@ from .matching import estimate_increment, increment_from_lines, pair_features, p
 from .scan import LaserScan
 
 __all__ = ["Estimate", "Positioner"]
+
+_END = object()
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,7 +146,7 @@ class Positioner:
             pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
             new = increment_from_lines(
                 prev, curr, pairs, pose, prior, m.line_prior_weight, m.line_trim_angle,
-                m.line_trim_distance,
+                m.line_trim_distance, m.line_inlier_distance,
             )
             if new is None:
                 break
@@ -163,6 +165,11 @@ class Positioner:
         keep_features: bool = False,
     ) -> list[Estimate]:
         """Process a sequence; ``odoms`` (same length, entries may be None) is optional."""
+        if odoms is not None and isinstance(scans, Sized) and isinstance(odoms, Sized):
+            if len(odoms) != len(scans):
+                raise ValueError(
+                    f"odoms has {len(odoms)} poses for {len(scans)} scans: give one per scan"
+                )
         return list(self.iter_run(scans, odoms, keep_features))
 
     def iter_run(
@@ -187,3 +194,5 @@ class Positioner:
                     est.reason,
                 )
             yield est
+        if odom_iter is not None and next(odom_iter, _END) is not _END:
+            raise ValueError("odoms has more poses than there were scans: give one per scan")
