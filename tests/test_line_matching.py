@@ -61,7 +61,7 @@ def solve(prev: Lines, curr: Lines, start: np.ndarray, prior: np.ndarray | None 
           gates: tuple[float, float] = (math.radians(8), 0.5)) -> np.ndarray | None:
     prior = start if prior is None else prior
     pairs = M.pair_lines(prev, curr, start, gates[0], gates[1], 0.5)
-    return M.increment_from_lines(prev, curr, pairs, start, prior, 1e-6, TRIM_ANGLE, TRIM_DIST, 0.05)
+    return M.increment_from_lines(prev, curr, pairs, start, prior, 0.05, TRIM_ANGLE, TRIM_DIST, 0.05)
 
 
 @settings(derandomize=True, deadline=None, max_examples=60)
@@ -71,13 +71,14 @@ def solve(prev: Lines, curr: Lines, start: np.ndarray, prior: np.ndarray | None 
 )
 def test_exact_lines_give_the_exact_increment(x, y, th_deg, ex, ey, eth_deg) -> None:
     """Noise-free lines, a start off by up to 7 cm and 5°: the increment is exact (but for the
-    prior's pull of 1e-6 of the best line's weight: under a micrometre here)."""
+    prior's pull, a 5 cm-sigma measurement against lines a thousand times surer: under a
+    hundredth of a millimetre here)."""
     truth = np.array([x, y, math.radians(th_deg)])
     start = compose(truth, np.array([ex, ey, math.radians(eth_deg)]))
     est = solve(ROOM, seen_from(ROOM, truth), start)
     assert est is not None
     err = relative(truth, est)
-    assert math.hypot(err[0], err[1]) < 1e-6 and abs(err[2]) < 1e-9
+    assert math.hypot(err[0], err[1]) < 1e-5 and abs(err[2]) < 1e-9
 
 
 def test_pairs_are_the_same_physical_lines() -> None:

@@ -266,10 +266,11 @@ class MatchingConfig:
     line_overlap_margin: float = _reason(
         "paired lines must overlap along their direction, give or take 0.5 m", default=0.5
     )
-    line_prior_weight: float = _reason(
-        "weight of the prior translation in the line fit, relative to the best-known line: "
-        "1e-6, so it only decides directions the lines leave unobservable",
-        default=1e-6,
+    line_prior_sigma: float = _reason(
+        "the prior translation counts in the line fit as a measurement with a 5 cm standard "
+        "deviation: lines that fix a direction overrule it by orders of magnitude, but along a "
+        "corridor (walls parallel, or nearly so) the prior decides",
+        default=0.05,
     )
     line_trim_angle: float = _reason(
         "line pairs whose rotation is beyond 3 robust sigmas of the median are dropped, never "
@@ -571,6 +572,7 @@ def _validate(cfg: Config) -> None:
         "matching.line_angle_gate_prior": cfg.matching.line_angle_gate_prior,
         "matching.line_distance_gate": cfg.matching.line_distance_gate,
         "matching.line_distance_gate_prior": cfg.matching.line_distance_gate_prior,
+        "matching.line_prior_sigma": cfg.matching.line_prior_sigma,
         "virtual_points.max_distance": cfg.virtual_points.max_distance,
     }
     for key, v in positive.items():
@@ -584,7 +586,6 @@ def _validate(cfg: Config) -> None:
         "angular_points.neighbour_distance": cfg.angular_points.neighbour_distance,
         "fusion.inlier_distance": cfg.fusion.inlier_distance,
         "matching.line_overlap_margin": cfg.matching.line_overlap_margin,
-        "matching.line_prior_weight": cfg.matching.line_prior_weight,
         "matching.line_trim_angle": cfg.matching.line_trim_angle,
         "matching.line_trim_distance": cfg.matching.line_trim_distance,
         "matching.line_inlier_distance": cfg.matching.line_inlier_distance,

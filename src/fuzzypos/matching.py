@@ -333,7 +333,7 @@ def increment_from_lines(
     pairs: LinePairs,
     start: FloatArray,
     prior: FloatArray,
-    prior_weight: float,
+    prior_sigma: float,
     trim_floor_angle: float,
     trim_floor_distance: float,
     inlier_distance: float,
@@ -343,9 +343,9 @@ def increment_from_lines(
     Rotation: the inverse-variance weighted mean of the paired normals' angle differences,
     after dropping those beyond 3 robust sigmas of their median. Translation: each pair says
     ``n·t = d_k − d′`` (normal form, the scan-k+1 line rotated into frame k); weighted least
-    squares over the pairs plus ``prior_weight`` (relative to the best-known line) pulling
-    ``t`` towards the prior's, which decides what the lines leave unobservable (the parallel
-    walls of a corridor). The pairs enter it only when consistent (within ``inlier_distance``)
+    squares (inverse variances) over the pairs plus the prior's translation as one more
+    measurement with standard deviation ``prior_sigma``, which decides what the lines leave
+    unobservable (the parallel walls of a corridor). The pairs enter it only when consistent (within ``inlier_distance``)
     with the best translation two of them fix (:func:`_translation_consensus`); pairs beyond 3
     robust sigmas of the residuals are then dropped and the fit repeated once. Returns None
     with fewer than two pairs.
@@ -377,7 +377,7 @@ def increment_from_lines(
     rhs = prev.distance[P] - sign * curr.distance[C]
     w_d = 1.0 / (prev.distance_variance[P] + curr.distance_variance[C])
     used = keep & _translation_consensus(nx, ny, rhs, keep, inlier_distance)
-    lam = prior_weight * float(w_d.max())
+    lam = 1.0 / (prior_sigma * prior_sigma)
     tx, ty = float(prior[0]), float(prior[1])
     for attempt in range(2):
         w = np.where(used, w_d, 0.0)

@@ -145,7 +145,7 @@ class Positioner:
         for _ in range(2):
             pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
             new = increment_from_lines(
-                prev, curr, pairs, pose, prior, m.line_prior_weight, m.line_trim_angle,
+                prev, curr, pairs, pose, prior, m.line_prior_sigma, m.line_trim_angle,
                 m.line_trim_distance, m.line_inlier_distance,
             )
             if new is None:
