@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from .config import Config, FuzzyConfig
 from .fuzzy import RuleBases
-from .geometry import transform_points
+from .geometry import stack_columns, transform_points
 from .scan import LaserScan
 
 FloatArray = NDArray[np.float64]
@@ -55,6 +55,14 @@ _MIN_LINE_NOISE = 0.001  # m: floor of a line's residual spread, so noise-free l
 ANGULAR_POINT = 1
 VIRTUAL_ANGULAR_POINT = 2
 KIND_NAMES = ("break point", "angular point", "virtual angular point")
+
+
+@lru_cache(maxsize=128)
+def _strict_upper(n: int) -> BoolArray:
+    """The (n, n) mask of i < j (cached)."""
+    m = np.triu(np.ones((n, n), dtype=bool), 1)
+    m.flags.writeable = False
+    return m
 
 
 @lru_cache(maxsize=16)
@@ -122,7 +130,7 @@ class Lines:
     @property
     def direction(self) -> FloatArray:
         """Unit direction along each line (the normal turned by −90°)."""
-        return np.stack([self.normal[:, 1], -self.normal[:, 0]], axis=1)
+        return stack_columns(self.normal[:, 1], -self.normal[:, 0])
 
     @property
     def length(self) -> FloatArray:
@@ -482,10 +490,10 @@ def fit_lines(
     var_phi = s2 / lam_max
     along = mx[ids] * ny - my[ids] * nx
     var_d = s2 / n_ids + var_phi * along**2
-    start = np.column_stack([sx[ids], sy[ids]])
-    end = np.column_stack([ex[ids], ey[ids]])
+    start = stack_columns(sx[ids], sy[ids])
+    end = stack_columns(ex[ids], ey[ids])
     return Lines(
-        normal=np.column_stack([nx, ny]),
+        normal=stack_columns(nx, ny),
         distance=d,
         start=start,
         end=end,
@@ -517,7 +525,7 @@ def intersect_lines(
     safe = np.where(np.abs(det) > 1e-12, det, 1.0)
     x = (d1 * n2[:, 1] - d2 * n1[:, 1]) / safe
     y = (n1[:, 0] * d2 - n2[:, 0] * d1) / safe
-    return np.stack([x, y], axis=1), np.abs(det)
+    return stack_columns(x, y), np.abs(det)
 
 
 def join_at_corners(
@@ -574,7 +582,7 @@ def virtual_angular_points(
     # |sin| of the angle between every two lines = |n_i × n_j|; keep i < j far enough apart
     sin_ang = np.abs(n[:, 0:1] * n[:, 1] - n[:, 1:2] * n[:, 0])
     ok = sin_ang >= math.sin(cfg.virtual_points.min_intersection_angle)
-    ok &= np.tri(nl, nl, -1, dtype=bool).T
+    ok &= _strict_upper(nl)
     if exclude_pairs is not None and exclude_pairs.size:
         ok[exclude_pairs[:, 0], exclude_pairs[:, 1]] = False
         ok[exclude_pairs[:, 1], exclude_pairs[:, 0]] = False
@@ -594,7 +602,7 @@ def virtual_angular_points(
     f = bases.virtual_points(lines.uncertainty[i], lines.uncertainty[j], dv)  # eq. 11–12
     ok = f <= cfg.virtual_points.max_uncertainty
     fp = FeaturePoints(pts[ok], f[ok], np.full(int(ok.sum()), VIRTUAL_ANGULAR_POINT, dtype=np.int8))
-    return fp, np.column_stack([i[ok], j[ok]]).astype(np.int64), dv[ok]
+    return fp, stack_columns(i[ok], j[ok]).astype(np.int64), dv[ok]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -611,7 +619,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
         beam_index = beam_index[::-1]  # process counter-clockwise, so eq. 3's i+1 is the same neighbour
     ranges = np.asarray(scan.ranges)[beam_index]
     angles = scan.angles[beam_index]
-    p_sensor = np.stack([ranges * np.cos(angles), ranges * np.sin(angles)], axis=1)
+    p_sensor = stack_columns(ranges * np.cos(angles), ranges * np.sin(angles))
     sp = scan.sensor_pose
     if sp.x == 0.0 and sp.y == 0.0 and sp.theta == 0.0:
         points = p_sensor
@@ -767,4 +775,4 @@ def _corner_line_pairs(lines: Lines, seg_before: IntArray, seg_after: IntArray) 
         return np.zeros((0, 2), dtype=np.int64)
     a, b = _lines_around_corners(lines, seg_before, seg_after)
     ok = (a >= 0) & (b >= 0)
-    return np.stack([a[ok], b[ok]], axis=1).astype(np.int64)
+    return stack_columns(a[ok], b[ok]).astype(np.int64)

@@ -59,6 +59,20 @@ def _slopes(sets: ArrayLike) -> FloatArray:
     return np.stack([left_eff, 1.0 / rise_w, right_eff, 1.0 / fall_w, np.full_like(peak, lo), np.full_like(peak, hi)])
 
 
+def _partition_peaks(sets: FloatArray) -> FloatArray | None:
+    """The peaks of triangles that form a partition of unity (each foot at the neighbouring
+    peak, shoulders at the ends), else None."""
+    s = np.asarray(sets, dtype=float)
+    peaks = s[:, 1]
+    if len(peaks) < 2 or np.any(np.diff(peaks) <= 0):
+        return None
+    left = np.concatenate([[peaks[0]], peaks[:-1]])
+    right = np.concatenate([peaks[1:], [peaks[-1]]])
+    if np.array_equal(s[:, 0], left) and np.array_equal(s[:, 2], right):
+        return peaks.copy()
+    return None
+
+
 def _memberships(x: FloatArray, slopes: FloatArray | tuple[FloatArray, ...]) -> FloatArray:
     left, inv_rise, right, inv_fall, lo, hi = slopes
     # np.minimum/np.maximum rather than np.clip: the same result at a fraction of the overhead
@@ -105,6 +119,15 @@ class RuleBase:
         object.__setattr__(self, "_centres", self.output_centres[self.consequents.reshape(-1)])
         object.__setattr__(self, "_centre_lo", float(self.output_centres.min()))
         object.__setattr__(self, "_centre_hi", float(self.output_centres.max()))
+        # With two inputs whose sets are partitions of unity (each triangle's feet at its
+        # neighbours' peaks), eq. 4's centre average is exactly the bilinear interpolation of
+        # the consequent centres on the grid of peaks, which np.interp does in few steps.
+        grids = [_partition_peaks(s) for s in self.input_sets]
+        fast = self.mode == "product" and len(grids) == 2 and all(g is not None for g in grids)
+        object.__setattr__(self, "_grids", tuple(grids) if fast else None)
+        table = self.output_centres[self.consequents]
+        object.__setattr__(self, "_columns", tuple(table[:, j].copy() for j in range(table.shape[1])))
+        object.__setattr__(self, "_units", tuple(np.eye(table.shape[1])))
 
     @property
     def n_rules(self) -> int:
@@ -130,6 +153,8 @@ class RuleBase:
 
     def __call__(self, *inputs: ArrayLike) -> FloatArray:
         """The crisp output for each input tuple, shape ``(n,)``."""
+        if self._grids is not None:  # type: ignore[attr-defined]
+            return self._interpolate(inputs)
         w = self.firing_strengths(*inputs)
         cons = self.consequents.reshape(-1)
         if self.mode == "product":
@@ -140,6 +165,22 @@ class RuleBase:
             # a weighted average lies between the centres; rounding can overshoot by an ulp
             return np.minimum(np.maximum(out, self._centre_lo), self._centre_hi)  # type: ignore[attr-defined]
         return self._mamdani(w, cons)
+
+    def _interpolate(self, inputs: tuple[ArrayLike, ...]) -> FloatArray:
+        """Eq. 4 for two inputs whose sets are partitions of unity: Σ_j μ_j(x_2) ·
+        interp(x_1; peaks, ȳ_·j), each membership a linear interpolation too (np.interp
+        clamps to the range's ends as the memberships do). Equal to eq. 4 to rounding."""
+        if len(inputs) != 2:
+            raise FuzzyError(f"{self.name} takes 2 inputs, got {len(inputs)}")
+        x1 = np.asarray(inputs[0], dtype=float).ravel()
+        x2 = np.asarray(inputs[1], dtype=float).ravel()
+        if x1.shape != x2.shape:
+            raise FuzzyError(f"{self.name}: inputs have different lengths {[x1.shape[0], x2.shape[0]]}")
+        g1, g2 = self._grids  # type: ignore[attr-defined]
+        out = np.zeros(x1.shape[0])
+        for col, unit in zip(self._columns, self._units):  # type: ignore[attr-defined]
+            out += np.interp(x1, g1, col) * np.interp(x2, g2, unit)
+        return np.minimum(np.maximum(out, self._centre_lo), self._centre_hi)  # type: ignore[attr-defined]
 
     def _mamdani(self, w: FloatArray, cons: NDArray[np.int64]) -> FloatArray:
         n_out = len(self.output_sets)

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .config import FusionConfig
 from .features import FeaturePoints, Lines
-from .geometry import circular_mean, inverse, transform_points
+from .geometry import circular_mean, inverse, stack_columns, transform_points
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -35,6 +36,15 @@ __all__ = [
     "pair_lines",
     "increment_from_lines",
 ]
+
+
+@lru_cache(maxsize=256)
+def _index_pairs(m: int) -> tuple[IntArray, IntArray]:
+    """All ``(i, j)`` with ``i < j < m`` (np.triu_indices, cached: it is slow to build)."""
+    i, j = np.triu_indices(m, 1)
+    i.flags.writeable = False
+    j.flags.writeable = False
+    return i, j
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,7 +102,7 @@ def pair_features(
         curr_index=j.astype(np.int64),
         prev=prev.xy[i],
         curr=curr.xy[j],
-        uncertainty=np.stack([prev.uncertainty[i], curr.uncertainty[j]], axis=1),
+        uncertainty=stack_columns(prev.uncertainty[i], curr.uncertainty[j]),
     )
 
 
@@ -119,7 +129,7 @@ def poses_from_two_pairs(
     qm = 0.5 * (q1 + q2)
     a = pm[:, 0] - (ct * qm[:, 0] - st * qm[:, 1])
     b = pm[:, 1] - (st * qm[:, 0] + ct * qm[:, 1])
-    return np.stack([a, b, theta], axis=1), valid
+    return stack_columns(a, b, theta), valid
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,7 +153,7 @@ def two_pair_solutions(
     m = len(pairs)
     if m < 2:
         return TwoPairSolutions(np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
-    i, j = np.triu_indices(m, 1)
+    i, j = _index_pairs(m)
     if i.size > max_solutions:
         pick = np.random.default_rng(rng_seed).choice(i.size, max_solutions, replace=False)
         pick.sort()
@@ -413,7 +423,7 @@ def _translation_consensus(
     idx = np.flatnonzero(candidates)
     if idx.size < 3:
         return candidates
-    a, b = np.triu_indices(idx.size, 1)
+    a, b = _index_pairs(idx.size)
     i, j = idx[a], idx[b]
     det = nx[i] * ny[j] - ny[i] * nx[j]
     ok = np.abs(det) > 0.342  # sin 20°
