@@ -685,3 +685,25 @@ def test_rule_base_rejects_an_unknown_mode() -> None:
             output_centres=rb.output_centres,
             mode="sugeno",
         )
+
+
+def test_empty_inputs_give_empty_outputs() -> None:
+    for mode in ("product", "mamdani"):
+        bases = RuleBases.from_config(FuzzyConfig(inference=mode))
+        for rb in (bases.points, bases.lines, bases.virtual_points):
+            out = rb(*([np.zeros(0)] * len(rb.input_sets)))
+            assert out.shape == (0,)
+
+
+def test_bilinear_shortcut_equals_the_rule_sum() -> None:
+    """Two inputs with partitions of unity take the interpolation shortcut; it must give eq. 4."""
+    bases = RuleBases.from_config(FuzzyConfig())
+    rng = np.random.default_rng(11)
+    for rb, hi in ((bases.points, (9.0, 1.7)), (bases.lines, (1.1, 0.06))):
+        assert rb._grids is not None  # the shortcut is taken
+        x1, x2 = rng.uniform(-0.5, hi[0], 500), rng.uniform(-0.1, hi[1], 500)
+        w = rb.firing_strengths(x1, x2)
+        np.testing.assert_allclose(rb(x1, x2), (w @ rb._centres) / w.sum(axis=1), rtol=0, atol=1e-14)
+    # sets that are not a partition of unity go the general way
+    odd = FuzzyConfig(distance_sets=((0.0, 0.0, 3.0), (0.0, 2.0, 4.0), (2.0, 4.0, 6.0), (4.0, 6.0, 8.0), (6.0, 8.0, 8.0)))
+    assert RuleBases.from_config(odd).points._grids is None

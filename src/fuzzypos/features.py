@@ -532,25 +532,25 @@ def join_at_corners(
     lines: Lines,
     corner_segment_before: IntArray,
     corner_segment_after: IntArray,
-    bases: RuleBases,
     cfg: Config,
-) -> tuple[Lines, FloatArray, FloatArray, BoolArray]:
+) -> tuple[Lines, FloatArray, BoolArray, IntArray, IntArray, FloatArray]:
     """§3.5 b): where two lines meet at an angular point, their shared endpoint is their
-    intersection. Returns the updated lines and, per angular point, the intersection, its
-    uncertainty (eq. 10–12 with the two lines) and whether it exists."""
+    intersection. Returns the updated lines and, per angular point, the intersection and
+    whether it exists; and for the joined ones the two line indices and d_v (eq. 10), from
+    which the caller grades them as virtual angular points (eq. 11–12)."""
     m = corner_segment_before.shape[0]
     xy = np.full((m, 2), np.nan)
-    unc = np.full(m, np.nan)
     ok = np.zeros(m, bool)
+    none = np.zeros(0, dtype=np.int64)
     if m == 0 or len(lines) < 2:
-        return lines, xy, unc, ok
+        return lines, xy, ok, none, none, np.zeros(0)
     a, b = _lines_around_corners(lines, corner_segment_before, corner_segment_after)
     have = (a >= 0) & (b >= 0)
     if not have.any():
-        return lines, xy, unc, ok
+        return lines, xy, ok, none, none, np.zeros(0)
     ia, ib = a[have], b[have]
     pts, sin_ang = intersect_lines(lines.normal[ia], lines.distance[ia], lines.normal[ib], lines.distance[ib])
-    good = sin_ang >= np.sin(cfg.virtual_points.min_intersection_angle)
+    good = sin_ang >= math.sin(cfg.virtual_points.min_intersection_angle)
     hv = np.flatnonzero(have)[good]
     ia, ib, pts = ia[good], ib[good], pts[good]
     start = lines.start.copy()
@@ -558,11 +558,55 @@ def join_at_corners(
     end[ia] = pts
     start[ib] = pts
     centre = 0.5 * (start + end)
-    dv = 0.5 * (np.linalg.norm(pts - centre[ia], axis=1) + np.linalg.norm(pts - centre[ib], axis=1))
+    dv = _mean_distance_to_centres(pts, centre[ia], centre[ib])
     xy[hv] = pts
-    unc[hv] = bases.virtual_points(lines.uncertainty[ia], lines.uncertainty[ib], dv) if hv.size else unc[hv]
     ok[hv] = True
-    return replace(lines, start=start, end=end, centre=centre), xy, unc, ok
+    return replace(lines, start=start, end=end, centre=centre), xy, ok, ia, ib, dv
+
+
+def _mean_distance_to_centres(pts: FloatArray, c1: FloatArray, c2: FloatArray) -> FloatArray:
+    """Eq. 10: d_v, the mean distance from each point to the centres of its two lines."""
+    return 0.5 * (
+        np.hypot(pts[:, 0] - c1[:, 0], pts[:, 1] - c1[:, 1])
+        + np.hypot(pts[:, 0] - c2[:, 0], pts[:, 1] - c2[:, 1])
+    )
+
+
+def virtual_candidates(
+    lines: Lines, cfg: Config, exclude_pairs: IntArray | None = None
+) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
+    """§3.6: the intersections of every two lines at least the minimum angle apart, not farther
+    than the maximum distance from their lines (d_v, eq. 10), without the pairs in
+    ``exclude_pairs`` (lines that meet at a real angular point: that intersection is the
+    angular point). Returns ``(points, line i, line j, d_v)``."""
+    nl = len(lines)
+    none = np.zeros(0, dtype=np.int64)
+    if nl < 2:
+        return np.zeros((0, 2)), none, none, np.zeros(0)
+    n = lines.normal
+    # |sin| of the angle between every two lines = |n_i × n_j|; keep i < j far enough apart
+    sin_ang = np.abs(n[:, 0:1] * n[:, 1] - n[:, 1:2] * n[:, 0])
+    ok = sin_ang >= math.sin(cfg.virtual_points.min_intersection_angle)
+    ok &= _strict_upper(nl)
+    if exclude_pairs is not None and exclude_pairs.size:
+        ok[exclude_pairs[:, 0], exclude_pairs[:, 1]] = False
+        ok[exclude_pairs[:, 1], exclude_pairs[:, 0]] = False
+    i, j = np.nonzero(ok)
+    if i.size == 0:
+        return np.zeros((0, 2)), none, none, np.zeros(0)
+    pts, _ = intersect_lines(n[i], lines.distance[i], n[j], lines.distance[j])
+    dv = _mean_distance_to_centres(pts, lines.centre[i], lines.centre[j])
+    near = dv <= cfg.virtual_points.max_distance
+    return pts[near], i[near], j[near], dv[near]
+
+
+def _keep_certain(
+    pts: FloatArray, i: IntArray, j: IntArray, dv: FloatArray, f: FloatArray, cfg: Config
+) -> tuple[FeaturePoints, IntArray, FloatArray]:
+    """§3.6: virtual angular points more uncertain than the threshold are removed."""
+    ok = f <= cfg.virtual_points.max_uncertainty
+    fp = FeaturePoints(pts[ok], f[ok], np.full(int(ok.sum()), VIRTUAL_ANGULAR_POINT, dtype=np.int8))
+    return fp, stack_columns(i[ok], j[ok]).astype(np.int64), dv[ok]
 
 
 def virtual_angular_points(
@@ -575,34 +619,11 @@ def virtual_angular_points(
     at a real angular point: that intersection is the angular point, not a second feature.
     Returns the points, their line index pairs and their d_v.
     """
-    nl = len(lines)
-    if nl < 2:
-        return FeaturePoints.empty(), np.zeros((0, 2), dtype=np.int64), np.zeros(0)
-    n = lines.normal
-    # |sin| of the angle between every two lines = |n_i × n_j|; keep i < j far enough apart
-    sin_ang = np.abs(n[:, 0:1] * n[:, 1] - n[:, 1:2] * n[:, 0])
-    ok = sin_ang >= math.sin(cfg.virtual_points.min_intersection_angle)
-    ok &= _strict_upper(nl)
-    if exclude_pairs is not None and exclude_pairs.size:
-        ok[exclude_pairs[:, 0], exclude_pairs[:, 1]] = False
-        ok[exclude_pairs[:, 1], exclude_pairs[:, 0]] = False
-    i, j = np.nonzero(ok)
-    if i.size == 0:
-        return FeaturePoints.empty(), np.zeros((0, 2), dtype=np.int64), np.zeros(0)
-    pts, _ = intersect_lines(n[i], lines.distance[i], n[j], lines.distance[j])
-    c = lines.centre
-    dv = 0.5 * (
-        np.hypot(pts[:, 0] - c[i, 0], pts[:, 1] - c[i, 1])
-        + np.hypot(pts[:, 0] - c[j, 0], pts[:, 1] - c[j, 1])
-    )  # eq. 10
-    near = dv <= cfg.virtual_points.max_distance
-    i, j, pts, dv = i[near], j[near], pts[near], dv[near]
+    pts, i, j, dv = virtual_candidates(lines, cfg, exclude_pairs)
     if i.size == 0:
         return FeaturePoints.empty(), np.zeros((0, 2), dtype=np.int64), np.zeros(0)
     f = bases.virtual_points(lines.uncertainty[i], lines.uncertainty[j], dv)  # eq. 11–12
-    ok = f <= cfg.virtual_points.max_uncertainty
-    fp = FeaturePoints(pts[ok], f[ok], np.full(int(ok.sum()), VIRTUAL_ANGULAR_POINT, dtype=np.int8))
-    return fp, stack_columns(i[ok], j[ok]).astype(np.int64), dv[ok]
+    return _keep_certain(pts, i, j, dv, f, cfg)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -676,7 +697,23 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     # the lines on either side of each angular point (circularly, for the ring's seam)
     seg_before = raw_seg[(corner_idx - 1) % max(n_kept, 1)]
     seg_after = raw_seg[(corner_idx + 1) % max(n_kept, 1)]
-    lines, corner_xy, corner_unc, joined = join_at_corners(lines, seg_before, seg_after, bases, cfg)
+    lines, corner_xy, joined, corner_a, corner_b, corner_dv = join_at_corners(
+        lines, seg_before, seg_after, cfg
+    )
+    # 7. virtual angular points (§3.6), without the ones that are real angular points; one
+    # fuzzy evaluation (eq. 10–12) grades them and the joined real corners together
+    exclude = _corner_line_pairs(lines, seg_before, seg_after)
+    v_pts, v_i, v_j, v_dv = virtual_candidates(lines, cfg, exclude)
+    graded = bases.virtual_points(
+        lines.uncertainty[np.concatenate([corner_a, v_i])],
+        lines.uncertainty[np.concatenate([corner_b, v_j])],
+        np.concatenate([corner_dv, v_dv]),
+    )
+    corner_unc = np.full(joined.shape[0], np.nan)
+    corner_unc[joined] = graded[: corner_a.shape[0]]
+    virtual, virtual_lines, _dv = _keep_certain(
+        v_pts, v_i, v_j, v_dv, graded[corner_a.shape[0]:], cfg
+    )
 
     # angular points: sampled (the paper) or refined to their lines' intersection (SPEC step 5)
     ang_xy = kp[corner_idx]
@@ -691,9 +728,6 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
             pairable = near
     angular = FeaturePoints(ang_xy, ang_u, np.full(corner_idx.size, ANGULAR_POINT, dtype=np.int8))
 
-    # 7. virtual angular points (§3.6), without the ones that are real angular points
-    exclude = _corner_line_pairs(lines, seg_before, seg_after)
-    virtual, virtual_lines, _dv = virtual_angular_points(lines, bases, cfg, exclude)
 
     # break points as features: not at field-of-view edges, only in kept clusters
     bp_mask = is_break & ~fov_edge & (cluster >= 0)

@@ -146,9 +146,9 @@ class RuleBase:
         for a, sl in zip(arrays[1:], slopes[1:]):
             mu = _memberships(a, sl)
             if self.mode == "product":
-                w = (w[:, :, None] * mu[:, None, :]).reshape(n, -1)
+                w = (w[:, :, None] * mu[:, None, :]).reshape(n, w.shape[1] * mu.shape[1])
             else:
-                w = np.minimum(w[:, :, None], mu[:, None, :]).reshape(n, -1)
+                w = np.minimum(w[:, :, None], mu[:, None, :]).reshape(n, w.shape[1] * mu.shape[1])
         return w
 
     def __call__(self, *inputs: ArrayLike) -> FloatArray:
@@ -167,9 +167,10 @@ class RuleBase:
         return self._mamdani(w, cons)
 
     def _interpolate(self, inputs: tuple[ArrayLike, ...]) -> FloatArray:
-        """Eq. 4 for two inputs whose sets are partitions of unity: Σ_j μ_j(x_2) ·
-        interp(x_1; peaks, ȳ_·j), each membership a linear interpolation too (np.interp
-        clamps to the range's ends as the memberships do). Equal to eq. 4 to rounding."""
+        """Eq. 4 for two inputs whose sets are partitions of unity: then the centre average is
+        exactly the bilinear interpolation of the consequent centres on the grid of peaks,
+        Σ_j μ_j(x_2) · interp(x_1; peaks, ȳ_·j), each μ_j one np.interp too (which clamps to
+        the range's ends as the memberships do). Equal to eq. 4 to rounding."""
         if len(inputs) != 2:
             raise FuzzyError(f"{self.name} takes 2 inputs, got {len(inputs)}")
         x1 = np.asarray(inputs[0], dtype=float).ravel()

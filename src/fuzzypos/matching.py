@@ -232,7 +232,7 @@ def consensus_inliers(pairs: Pairs, solutions: TwoPairSolutions, inlier_distance
 def _trim(pairs: Pairs, pose: FloatArray, floor: float, ceiling: float) -> NDArray[np.bool_]:
     """Pairs whose residual is within 3 robust standard deviations (between floor and ceiling)."""
     r = _residuals(pose, pairs)
-    tol = min(max(3.0 * 1.4826 * float(np.median(r)), floor), ceiling)
+    tol = min(max(3.0 * 1.4826 * _median(r), floor), ceiling)
     return r <= tol
 
 
@@ -439,14 +439,17 @@ def _translation_consensus(
     return out
 
 
+def _median(values: FloatArray) -> float:
+    """The median of a short 1-D array (np.median's generality costs more than the sort)."""
+    v = np.sort(values)
+    mid = v.shape[0] // 2
+    return float(v[mid]) if v.shape[0] % 2 else 0.5 * float(v[mid - 1] + v[mid])
+
+
 def _robust_keep(values: FloatArray, floor: float, center: float | None = None) -> NDArray[np.bool_]:
     """Values within 3 robust sigmas (1.4826 × MAD, at least ``floor``) of their median (or
     of ``center``)."""
-    v = np.sort(values)
-    mid = len(v) // 2
     if center is None:
-        center = float(v[mid]) if len(v) % 2 else 0.5 * float(v[mid - 1] + v[mid])
+        center = _median(values)
     dev = np.abs(values - center)
-    dv = np.sort(dev)
-    mad = float(dv[mid]) if len(dv) % 2 else 0.5 * float(dv[mid - 1] + dv[mid])
-    return dev <= max(3.0 * 1.4826 * mad, floor)
+    return dev <= max(3.0 * 1.4826 * _median(dev), floor)
