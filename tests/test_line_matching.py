@@ -14,7 +14,6 @@ from fuzzypos.features import Lines
 from fuzzypos.geometry import compose, inverse, relative
 
 TRIM_ANGLE = math.radians(0.2)
-TRIM_DIST = 0.01
 
 
 def make_lines(normal_angles: list[float], distances: list[float], half_length: float = 1.5,
@@ -61,7 +60,7 @@ def solve(prev: Lines, curr: Lines, start: np.ndarray, prior: np.ndarray | None 
           gates: tuple[float, float] = (math.radians(8), 0.5)) -> np.ndarray | None:
     prior = start if prior is None else prior
     pairs = M.pair_lines(prev, curr, start, gates[0], gates[1], 0.5)
-    return M.increment_from_lines(prev, curr, pairs, start, prior, 0.05, TRIM_ANGLE, TRIM_DIST, 0.05)
+    return M.increment_from_lines(prev, curr, pairs, start, prior, 0.05, TRIM_ANGLE, 0.05)
 
 
 @settings(derandomize=True, deadline=None, max_examples=60)

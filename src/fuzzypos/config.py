@@ -282,11 +282,6 @@ class MatchingConfig:
         "fix (3 cm rejected good pairs of short noisy lines; an 8 cm false pair must go)",
         default=0.05,
     )
-    line_trim_distance: float = _reason(
-        "line pairs whose distance residual is beyond 3 robust sigmas are dropped, never with "
-        "a tighter cut than 1 cm",
-        default=0.01,
-    )
 
 
 @dataclass(frozen=True)
@@ -587,7 +582,6 @@ def _validate(cfg: Config) -> None:
         "fusion.inlier_distance": cfg.fusion.inlier_distance,
         "matching.line_overlap_margin": cfg.matching.line_overlap_margin,
         "matching.line_trim_angle": cfg.matching.line_trim_angle,
-        "matching.line_trim_distance": cfg.matching.line_trim_distance,
         "matching.line_inlier_distance": cfg.matching.line_inlier_distance,
         "fusion.trim_floor": cfg.fusion.trim_floor,
     }

@@ -134,7 +134,12 @@ class Lines:
 
     @property
     def length(self) -> FloatArray:
-        return np.linalg.norm(self.end - self.start, axis=1)
+        return np.hypot(self.end[:, 0] - self.start[:, 0], self.end[:, 1] - self.start[:, 1])
+
+    @property
+    def normal_angle(self) -> FloatArray:
+        """The angle of each line's normal, atan2(n_y, n_x)."""
+        return np.arctan2(self.normal[:, 1], self.normal[:, 0])
 
 
 @dataclass(frozen=True, eq=False)

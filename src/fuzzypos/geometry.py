@@ -124,6 +124,12 @@ def transform_points(pose: ArrayLike, points: ArrayLike) -> FloatArray:
     """
     pose = _as_poses(pose)
     pts = _as_points(points)
+    if pose.ndim == 1 and pts.ndim == 2:  # one pose, a list of points: the hot path
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        out = np.empty_like(pts)
+        out[:, 0] = pose[0] + c * pts[:, 0] - s * pts[:, 1]
+        out[:, 1] = pose[1] + s * pts[:, 0] + c * pts[:, 1]
+        return out
     c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
     tx, ty = pose[..., 0], pose[..., 1]
     x = tx + c * pts[..., 0] - s * pts[..., 1]
@@ -162,6 +168,15 @@ class Pose2D:
             object.__setattr__(self, name, fv)
         if not -math.pi <= self.theta < math.pi:
             object.__setattr__(self, "theta", float(wrap_angle(self.theta)))
+
+    @classmethod
+    def _trusted(cls, x: float, y: float, theta: float) -> "Pose2D":
+        """Build from finite floats with ``theta`` already wrapped (no checks: internal use)."""
+        p = object.__new__(cls)
+        object.__setattr__(p, "x", x)
+        object.__setattr__(p, "y", y)
+        object.__setattr__(p, "theta", theta)
+        return p
 
     @classmethod
     def from_array(cls, arr: ArrayLike) -> "Pose2D":

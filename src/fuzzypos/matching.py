@@ -38,6 +38,9 @@ __all__ = [
 ]
 
 
+_HALF_PI = 0.5 * math.pi
+
+
 @lru_cache(maxsize=256)
 def _index_pairs(m: int) -> tuple[IntArray, IntArray]:
     """All ``(i, j)`` with ``i < j < m`` (np.triu_indices, cached: it is slow to build)."""
@@ -297,39 +300,28 @@ def pair_lines(
     """Pair lines of scan k with lines of scan k+1 moved into frame k by ``pose``.
 
     Two lines pair when their directions differ by less than ``angle_gate``, their normal
-    distances by less than ``distance_gate``, and their extents overlap (give or take
-    ``overlap_margin``) along the line; each line keeps its best match, and only mutual best
-    matches count.
+    distances by less than ``distance_gate``, and their segments overlap along the line (the
+    distance between their centres along it is at most their mean length plus
+    ``overlap_margin``); each line keeps its best match, and only mutual best matches count.
     """
     if len(prev) == 0 or len(curr) == 0:
         z = np.zeros(0, dtype=np.int64)
         return LinePairs(z, z)
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    cn = curr.normal
-    nx = c * cn[:, 0] - s * cn[:, 1]
-    ny = s * cn[:, 0] + c * cn[:, 1]
-    d = curr.distance + nx * pose[0] + ny * pose[1]
-    pn = prev.normal
-    dot = pn[:, 0:1] * nx + pn[:, 1:2] * ny  # (P, C)
-    sign = np.where(dot < 0, -1.0, 1.0)  # normals may point either way
-    ang = np.arccos(np.minimum(np.abs(dot), 1.0))
+    ac = curr.normal_angle + pose[2]  # the current normals' angles in frame k
+    raw = prev.normal_angle[:, None] - ac  # (P, C)
+    ang = np.abs((raw + _HALF_PI) % math.pi - _HALF_PI)  # normals may point either way
+    sign = np.where(np.cos(raw) < 0, -1.0, 1.0)
+    d = curr.distance + np.cos(ac) * pose[0] + np.sin(ac) * pose[1]
     dd = np.abs(prev.distance[:, None] - sign * d)
-    # overlap along the prev line's direction (pn turned by −90°)
-    dx, dy = pn[:, 1:2], -pn[:, 0:1]
-    t0 = prev.start[:, 0:1] * dx + prev.start[:, 1:2] * dy
-    t1 = prev.end[:, 0:1] * dx + prev.end[:, 1:2] * dy
-    cs, ce = curr.start, curr.end
-    sx = pose[0] + c * cs[:, 0] - s * cs[:, 1]
-    sy = pose[1] + s * cs[:, 0] + c * cs[:, 1]
-    ex = pose[0] + c * ce[:, 0] - s * ce[:, 1]
-    ey = pose[1] + s * ce[:, 0] + c * ce[:, 1]
-    u0 = dx * sx + dy * sy
-    u1 = dx * ex + dy * ey
-    overlap = np.minimum(np.maximum(t0, t1), np.maximum(u0, u1)) - np.maximum(
-        np.minimum(t0, t1), np.minimum(u0, u1)
-    )
+    # centre of each current segment in frame k, and its offset along each previous line
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    cx = pose[0] + c * curr.centre[:, 0] - s * curr.centre[:, 1]
+    cy = pose[1] + s * curr.centre[:, 0] + c * curr.centre[:, 1]
+    pn = prev.normal
+    along = pn[:, 1:2] * (cx - prev.centre[:, 0:1]) - pn[:, 0:1] * (cy - prev.centre[:, 1:2])
+    reach = 0.5 * (prev.length[:, None] + curr.length) + overlap_margin
     cost = ang * (1.0 / angle_gate) + dd * (1.0 / distance_gate)
-    cost[(ang >= angle_gate) | (dd >= distance_gate) | (overlap <= -overlap_margin)] = np.inf
+    cost[(ang >= angle_gate) | (dd >= distance_gate) | (np.abs(along) > reach)] = np.inf
     j = np.argmin(cost, axis=1)
     i = np.argmin(cost, axis=0)
     rows = np.arange(len(prev))
@@ -345,69 +337,46 @@ def increment_from_lines(
     prior: FloatArray,
     prior_sigma: float,
     trim_floor_angle: float,
-    trim_floor_distance: float,
     inlier_distance: float,
 ) -> FloatArray | None:
     """Beyond the paper: the increment from paired lines (line-to-line matching).
 
     Rotation: the inverse-variance weighted mean of the paired normals' angle differences,
-    after dropping those beyond 3 robust sigmas of their median. Translation: each pair says
-    ``n·t = d_k − d′`` (normal form, the scan-k+1 line rotated into frame k); weighted least
-    squares (inverse variances) over the pairs plus the prior's translation as one more
-    measurement with standard deviation ``prior_sigma``, which decides what the lines leave
-    unobservable (the parallel walls of a corridor). The pairs enter it only when consistent (within ``inlier_distance``)
-    with the best translation two of them fix (:func:`_translation_consensus`); pairs beyond 3
-    robust sigmas of the residuals are then dropped and the fit repeated once. Returns None
-    with fewer than two pairs.
+    after dropping those beyond 3 robust sigmas (at least ``trim_floor_angle``) of their
+    median. Translation: each pair says ``n·t = d_k − d′`` (normal form, ``n`` the scan-k
+    line's normal); the pairs consistent (within ``inlier_distance``) with the best
+    translation two of them fix (:func:`_translation_consensus`) enter a weighted least-squares
+    fit (inverse variances) together with the prior's translation as one more measurement of
+    standard deviation ``prior_sigma``, which decides what the lines leave unobservable (the
+    parallel walls of a corridor). Returns None with fewer than two pairs.
     """
     if len(pairs) < 2:
         return None
     P = pairs.prev_index
     C = pairs.curr_index
-    npv = prev.normal[P]
-    nc = curr.normal[C]
-    c, s = math.cos(start[2]), math.sin(start[2])
-    rx = c * nc[:, 0] - s * nc[:, 1]
-    ry = s * nc[:, 0] + c * nc[:, 1]
-    dot = rx * npv[:, 0] + ry * npv[:, 1]
-    sign = np.where(dot < 0, -1.0, 1.0)
-    # rotation: the angle from the rotated current normal to the previous one
-    delta = np.arctan2(sign * (rx * npv[:, 1] - ry * npv[:, 0]), sign * dot)
+    raw = prev.normal_angle[P] - curr.normal_angle[C] - start[2]
+    delta = (raw + _HALF_PI) % math.pi - _HALF_PI  # rotation left after ``start``
+    sign = np.where(np.cos(raw - delta) < 0, -1.0, 1.0)  # opposite normals: flip d′
     w_a = 1.0 / (prev.angle_variance[P] + curr.angle_variance[C])
     keep = _robust_keep(delta, trim_floor_angle)
-    dtheta = float(np.dot(w_a[keep], delta[keep]) / w_a[keep].sum())
-    theta = start[2] + dtheta
-    # translation with that rotation: n·t = d_k − d′ with n the mean of the two normals
-    c, s = math.cos(theta), math.sin(theta)
-    nx = sign * (c * nc[:, 0] - s * nc[:, 1]) + npv[:, 0]
-    ny = sign * (s * nc[:, 0] + c * nc[:, 1]) + npv[:, 1]
-    norm = np.sqrt(nx * nx + ny * ny)
-    nx /= norm
-    ny /= norm
+    theta = float(start[2] + np.dot(w_a[keep], delta[keep]) / w_a[keep].sum())
+    # n: the mean of the previous normal and the current one rotated by θ (both lines agree)
+    half = 0.5 * (prev.normal_angle[P] + curr.normal_angle[C] + theta + (raw - delta))
+    nx = np.cos(half)
+    ny = np.sin(half)
     rhs = prev.distance[P] - sign * curr.distance[C]
-    w_d = 1.0 / (prev.distance_variance[P] + curr.distance_variance[C])
     used = keep & _translation_consensus(nx, ny, rhs, keep, inlier_distance)
+    w = np.where(used, 1.0 / (prev.distance_variance[P] + curr.distance_variance[C]), 0.0)
     lam = 1.0 / (prior_sigma * prior_sigma)
-    tx, ty = float(prior[0]), float(prior[1])
-    for attempt in range(2):
-        w = np.where(used, w_d, 0.0)
-        wx, wy = w * nx, w * ny
-        a11 = float(np.dot(wx, nx)) + lam
-        a12 = float(np.dot(wx, ny))
-        a22 = float(np.dot(wy, ny)) + lam
-        b1 = float(np.dot(wx, rhs)) + lam * float(prior[0])
-        b2 = float(np.dot(wy, rhs)) + lam * float(prior[1])
-        det = a11 * a22 - a12 * a12
-        if det <= 0.0:
-            return None
-        tx = (a22 * b1 - a12 * b2) / det
-        ty = (a11 * b2 - a12 * b1) / det
-        if attempt == 1:
-            break
-        refit = used & _robust_keep(nx * tx + ny * ty - rhs, trim_floor_distance, center=0.0)
-        if refit.sum() < 1 or np.array_equal(refit, used):
-            break
-        used = refit
+    wx, wy = w * nx, w * ny
+    a11 = float(np.dot(wx, nx)) + lam
+    a12 = float(np.dot(wx, ny))
+    a22 = float(np.dot(wy, ny)) + lam
+    b1 = float(np.dot(wx, rhs)) + lam * float(prior[0])
+    b2 = float(np.dot(wy, rhs)) + lam * float(prior[1])
+    det = a11 * a22 - a12 * a12
+    tx = (a22 * b1 - a12 * b2) / det
+    ty = (a11 * b2 - a12 * b1) / det
     return np.array([tx, ty, math.atan2(math.sin(theta), math.cos(theta))])
 
 

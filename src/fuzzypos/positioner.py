@@ -9,6 +9,7 @@ empty or all-invalid scan is not an error but such a degraded estimate.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Iterable, Iterator, Sized
 
@@ -23,6 +24,14 @@ from .scan import LaserScan
 __all__ = ["Estimate", "Positioner"]
 
 _END = object()
+
+
+def _pose(a: np.ndarray) -> Pose2D:
+    """A Pose2D from a pose array the pipeline computed (finite, angle wrapped by compose)."""
+    x, y, th = float(a[0]), float(a[1]), float(a[2])
+    if not (math.isfinite(x) and math.isfinite(y) and -math.pi <= th < math.pi):
+        return Pose2D(x, y, th)  # validates and wraps
+    return Pose2D._trusted(x, y, th)
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,9 +112,9 @@ class Positioner:
         self._prev_odom = odom
         return Estimate(
             stamp=scan.stamp,
-            pose=Pose2D.from_array(self._pose),
-            increment=Pose2D.from_array(increment),
-            prior=Pose2D.from_array(prior),
+            pose=_pose(self._pose),
+            increment=_pose(increment),
+            prior=_pose(prior),
             n_pairs=n_pairs,
             degraded=degraded,
             features=features,
@@ -146,7 +155,7 @@ class Positioner:
             pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
             new = increment_from_lines(
                 prev, curr, pairs, pose, prior, m.line_prior_sigma, m.line_trim_angle,
-                m.line_trim_distance, m.line_inlier_distance,
+                m.line_inlier_distance,
             )
             if new is None:
                 break
