@@ -15,8 +15,8 @@ per-cluster and per-segment statistics use ``np.bincount`` over labels.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
-from functools import lru_cache
+from dataclasses import dataclass, field, replace
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -132,11 +132,11 @@ class Lines:
         """Unit direction along each line (the normal turned by −90°)."""
         return stack_columns(self.normal[:, 1], -self.normal[:, 0])
 
-    @property
+    @cached_property
     def length(self) -> FloatArray:
         return np.hypot(self.end[:, 0] - self.start[:, 0], self.end[:, 1] - self.start[:, 1])
 
-    @property
+    @cached_property
     def normal_angle(self) -> FloatArray:
         """The angle of each line's normal, atan2(n_y, n_x)."""
         return np.arctan2(self.normal[:, 1], self.normal[:, 0])
@@ -173,11 +173,39 @@ class Features:
     is_angular_point: BoolArray
     segment: IntArray
     lines: Lines
-    angular_points: FeaturePoints
-    virtual_points: FeaturePoints
-    virtual_lines: IntArray
-    break_points: FeaturePoints
-    points_of_interest: FeaturePoints
+    _corners: "_CornerContext" = field(repr=False)
+
+    # The point features are computed on first use (a positioner that pairs lines needs them
+    # only where the lines give no motion): angular and virtual angular points, their fuzzy
+    # grades (eq. 10–12) and the merged points of interest.
+    @cached_property
+    def _point_features(self) -> tuple[FeaturePoints, FeaturePoints, IntArray, FeaturePoints, FeaturePoints]:
+        return _point_features(self._corners)
+
+    @property
+    def angular_points(self) -> FeaturePoints:
+        """Real angular points (§3.4), refined to their lines' intersection where configured."""
+        return self._point_features[0]
+
+    @property
+    def virtual_points(self) -> FeaturePoints:
+        """Virtual angular points (§3.6) that passed the uncertainty threshold."""
+        return self._point_features[1]
+
+    @property
+    def virtual_lines(self) -> IntArray:
+        """The indices (k, 2) into ``lines`` of each virtual angular point's two lines."""
+        return self._point_features[2]
+
+    @property
+    def break_points(self) -> FeaturePoints:
+        """Break points (eq. 13) of kept clusters, without the field-of-view edges."""
+        return self._point_features[3]
+
+    @property
+    def points_of_interest(self) -> FeaturePoints:
+        """The feature points used for pairing (§3.7), duplicates merged."""
+        return self._point_features[4]
 
     @property
     def n_valid(self) -> int:
@@ -381,17 +409,22 @@ def angular_points(
 
 
 def segments(
-    cluster: IntArray, is_corner: BoolArray, corner_exclusion: int, ring: bool = False
+    cluster: IntArray,
+    is_corner: BoolArray,
+    corner_exclusion: int,
+    ring: bool = False,
+    raw: IntArray | None = None,
 ) -> IntArray:
     """Cut clusters at angular points into segments (§3.5). Returns a segment id per point.
 
-    Ids are global and consecutive (see :func:`raw_segment_ids`). Points within
-    ``corner_exclusion`` of an angular point (circularly when the points form a ``ring``),
-    the angular point itself, and points of dropped clusters get −1 (no line).
+    Ids are global and consecutive (see :func:`raw_segment_ids`, whose result may be passed as
+    ``raw``). Points within ``corner_exclusion`` of an angular point (circularly when the
+    points form a ``ring``), the angular point itself, and points of dropped clusters get −1
+    (no line).
     """
     if cluster.shape[0] == 0:
         return np.zeros(0, dtype=np.int64)
-    seg = raw_segment_ids(cluster, is_corner)
+    seg = raw_segment_ids(cluster, is_corner) if raw is None else raw
     excluded = is_corner.copy()
     for s in range(1, corner_exclusion + 1):
         if ring:
@@ -400,7 +433,7 @@ def segments(
             excluded[s:] |= is_corner[:-s]
             excluded[:-s] |= is_corner[s:]
     excluded |= cluster < 0
-    return np.where(excluded, -1, seg).astype(np.int64)
+    return np.where(excluded, -1, seg)
 
 
 def _sharpest_ring_corner(points: FloatArray, cfg: Config) -> tuple[int, bool]:
@@ -694,10 +727,10 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
         is_corner[0] = True  # the seam of a gapless ring sits on its sharpest corner
 
     # 6. lines (§3.5, eq. 5–9)
-    segment = segments(cluster, is_corner, cfg.lines.corner_exclusion, ring=ring_corner)
+    raw_seg = raw_segment_ids(cluster, is_corner) if kp.shape[0] else np.zeros(0, dtype=np.int64)
+    segment = segments(cluster, is_corner, cfg.lines.corner_exclusion, ring=ring_corner, raw=raw_seg)
     lines = fit_lines(kp, ku, segment, cluster, bases, cfg)
     corner_idx = np.flatnonzero(is_corner)
-    raw_seg = raw_segment_ids(cluster, is_corner) if kp.shape[0] else np.zeros(0, dtype=np.int64)
     n_kept = kp.shape[0]
     # the lines on either side of each angular point (circularly, for the ring's seam)
     seg_before = raw_seg[(corner_idx - 1) % max(n_kept, 1)]
@@ -705,39 +738,92 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     lines, corner_xy, joined, corner_a, corner_b, corner_dv = join_at_corners(
         lines, seg_before, seg_after, cfg
     )
-    # 7. virtual angular points (§3.6), without the ones that are real angular points; one
-    # fuzzy evaluation (eq. 10–12) grades them and the joined real corners together
-    exclude = _corner_line_pairs(lines, seg_before, seg_after)
-    v_pts, v_i, v_j, v_dv = virtual_candidates(lines, cfg, exclude)
-    graded = bases.virtual_points(
-        lines.uncertainty[np.concatenate([corner_a, v_i])],
-        lines.uncertainty[np.concatenate([corner_b, v_j])],
-        np.concatenate([corner_dv, v_dv]),
+    context = _CornerContext(
+        cfg=cfg, bases=bases, lines=lines, kept_points=kp, kept_uncertainty=ku, kept_ranges=kr,
+        angle_increment=inc, corner_index=corner_idx, corner_xy=corner_xy, joined=joined,
+        corner_a=corner_a, corner_b=corner_b, corner_dv=corner_dv, seg_before=seg_before,
+        seg_after=seg_after, break_mask=is_break & ~fov_edge & (cluster >= 0),
     )
-    corner_unc = np.full(joined.shape[0], np.nan)
-    corner_unc[joined] = graded[: corner_a.shape[0]]
-    virtual, virtual_lines, _dv = _keep_certain(
-        v_pts, v_i, v_j, v_dv, graded[corner_a.shape[0]:], cfg
+    return Features(
+        stamp=scan.stamp,
+        beam_index=beam_index,
+        points=points,
+        ranges=ranges,
+        detection_angle=beta,
+        uncertainty=u,
+        kept=kept,
+        kept_index=kept_index,
+        is_break_point=is_break,
+        is_field_of_view_edge=fov_edge,
+        cluster=cluster,
+        is_angular_point=is_corner,
+        segment=segment,
+        lines=lines,
+        _corners=context,
     )
 
+
+@dataclass(frozen=True, eq=False)
+class _CornerContext:
+    """What the point features of one scan are computed from, on first use."""
+
+    cfg: Config
+    bases: RuleBases
+    lines: Lines
+    kept_points: FloatArray
+    kept_uncertainty: FloatArray
+    kept_ranges: FloatArray
+    angle_increment: float
+    corner_index: IntArray
+    corner_xy: FloatArray
+    joined: BoolArray
+    corner_a: IntArray
+    corner_b: IntArray
+    corner_dv: FloatArray
+    seg_before: IntArray
+    seg_after: IntArray
+    break_mask: BoolArray
+
+
+def _point_features(
+    c: _CornerContext,
+) -> tuple[FeaturePoints, FeaturePoints, IntArray, FeaturePoints, FeaturePoints]:
+    """Angular points, virtual angular points (with their line pairs), break points and the
+    merged points of interest of one scan (§3.2, §3.4, §3.6)."""
+    cfg, lines = c.cfg, c.lines
+    # 7. virtual angular points (§3.6), without the ones that are real angular points; one
+    # fuzzy evaluation (eq. 10–12) grades them and the joined real corners together
+    exclude = _corner_line_pairs(lines, c.seg_before, c.seg_after)
+    v_pts, v_i, v_j, v_dv = virtual_candidates(lines, cfg, exclude)
+    n_corners = c.corner_a.shape[0]
+    graded = c.bases.virtual_points(
+        lines.uncertainty[np.concatenate([c.corner_a, v_i])],
+        lines.uncertainty[np.concatenate([c.corner_b, v_j])],
+        np.concatenate([c.corner_dv, v_dv]),
+    )
+    virtual, virtual_lines, _dv = _keep_certain(v_pts, v_i, v_j, v_dv, graded[n_corners:], cfg)
+
     # angular points: sampled (the paper) or refined to their lines' intersection (SPEC step 5)
-    ang_xy = kp[corner_idx]
-    ang_u = ku[corner_idx]
-    pairable = np.ones(corner_idx.size, bool)
-    if cfg.angular_points.refine and corner_idx.size:
-        spacing = np.abs(inc) * kr[corner_idx]
-        near = joined & (np.linalg.norm(np.nan_to_num(corner_xy) - ang_xy, axis=1) <= 3.0 * spacing + 0.05)
-        ang_xy = np.where(near[:, None], corner_xy, ang_xy)
+    idx = c.corner_index
+    ang_xy = c.kept_points[idx]
+    ang_u = c.kept_uncertainty[idx]
+    pairable = np.ones(idx.size, bool)
+    if cfg.angular_points.refine and idx.size:
+        corner_unc = np.full(c.joined.shape[0], np.nan)
+        corner_unc[c.joined] = graded[:n_corners]
+        spacing = abs(c.angle_increment) * c.kept_ranges[idx]
+        gap = np.nan_to_num(c.corner_xy) - ang_xy
+        near = c.joined & (np.hypot(gap[:, 0], gap[:, 1]) <= 3.0 * spacing + 0.05)
+        ang_xy = np.where(near[:, None], c.corner_xy, ang_xy)
         ang_u = np.where(near, corner_unc, ang_u)
         if not cfg.angular_points.pair_unrefined:
             pairable = near
-    angular = FeaturePoints(ang_xy, ang_u, np.full(corner_idx.size, ANGULAR_POINT, dtype=np.int8))
-
+    angular = FeaturePoints(ang_xy, ang_u, np.full(idx.size, ANGULAR_POINT, dtype=np.int8))
 
     # break points as features: not at field-of-view edges, only in kept clusters
-    bp_mask = is_break & ~fov_edge & (cluster >= 0)
+    bp = c.break_mask
     breaks = FeaturePoints(
-        kp[bp_mask], ku[bp_mask], np.full(int(bp_mask.sum()), BREAK_POINT, dtype=np.int8)
+        c.kept_points[bp], c.kept_uncertainty[bp], np.full(int(bp.sum()), BREAK_POINT, dtype=np.int8)
     )
     m = cfg.matching
     parts = []
@@ -755,27 +841,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
         ),
         cfg.virtual_points.merge_distance,
     )
-    return Features(
-        stamp=scan.stamp,
-        beam_index=beam_index,
-        points=points,
-        ranges=ranges,
-        detection_angle=beta,
-        uncertainty=u,
-        kept=kept,
-        kept_index=kept_index,
-        is_break_point=is_break,
-        is_field_of_view_edge=fov_edge,
-        cluster=cluster,
-        is_angular_point=is_corner,
-        segment=segment,
-        lines=lines,
-        angular_points=angular,
-        virtual_points=virtual,
-        virtual_lines=virtual_lines,
-        break_points=breaks,
-        points_of_interest=poi,
-    )
+    return angular, virtual, virtual_lines, breaks, poi
 
 
 def merge_duplicates(points: FeaturePoints, radius: float) -> FeaturePoints:

@@ -41,8 +41,9 @@ class Estimate:
     ``pose``: the robot's pose in the trajectory frame (which starts at the first scan's
     odometry pose, or the origin). ``increment``: the pose of this scan in the frame of the
     previous one (the identity for the first scan). ``prior``: the increment pairing started
-    from. ``n_pairs``: the pairs the increment rests on. ``degraded``: True where the estimate
-    fell back to the prior. ``features``: this scan's features (None unless kept).
+    from. ``n_pairs``: the pairs the increment rests on (line pairs where line-to-line matching
+    gave it, feature-point pairs where the paper's pairing did). ``degraded``: True where the
+    estimate fell back to the prior. ``features``: this scan's features (None unless kept).
     """
 
     stamp: float
@@ -63,7 +64,7 @@ class Positioner:
         self.reset()
 
     def reset(self) -> None:
-        self._prev_points: FeaturePoints | None = None
+        self._prev_features: Features | None = None
         self._prev_lines: Lines | None = None
         self._prev_odom: Pose2D | None = None
         self._pose: np.ndarray | None = None
@@ -82,32 +83,38 @@ class Positioner:
             raise TypeError(f"odom must be a Pose2D or None, got {type(odom).__name__}")
         cfg = self.config
         features = extract_features(scan, cfg)
-        points = features.points_of_interest
 
         if self._pose is None:  # the first scan: its odometry pose, or the origin
             start = odom.as_array() if odom is not None else np.zeros(3)
             self._pose = start
-            self._prev_points = points
+            self._prev_features = features
             self._prev_lines = features.lines
             self._prev_odom = odom
             zero = Pose2D()
-            return Estimate(scan.stamp, Pose2D.from_array(start), zero, zero, len(points), False, features)
+            return Estimate(scan.stamp, Pose2D.from_array(start), zero, zero, 0, False, features)
 
         if odom is not None and self._prev_odom is not None:
             prior = relative(self._prev_odom.as_array(), odom.as_array())
         else:
             prior = self._last_increment
-        increment, n_pairs, reason = self._match(self._prev_points, points, prior)
-        if self.config.matching.match_lines and self._prev_lines is not None:
-            refined = self._match_lines(self._prev_lines, features.lines, increment, prior)
-            if refined is not None:
-                increment, reason = refined, ""
+        m = self.config.matching
+        increment = None
+        n_pairs, reason = 0, ""
+        if m.match_lines and m.lines_first and self._prev_lines is not None:
+            increment, n_pairs = self._match_lines(self._prev_lines, features.lines, None, prior)
+        if increment is None:  # the paper's point features (and lines from their motion)
+            prev_points = None if self._prev_features is None else self._prev_features.points_of_interest
+            increment, n_pairs, reason = self._match(prev_points, features.points_of_interest, prior)
+            if m.match_lines and self._prev_lines is not None:
+                refined, n_lines = self._match_lines(self._prev_lines, features.lines, increment, prior)
+                if refined is not None:
+                    increment, n_pairs, reason = refined, n_lines, ""
         degraded = increment is None
         if increment is None:
             increment = prior
         self._pose = compose(self._pose, increment)
         self._last_increment = np.asarray(increment, dtype=float)
-        self._prev_points = points
+        self._prev_features = features
         self._prev_lines = features.lines
         self._prev_odom = odom
         return Estimate(
@@ -142,15 +149,16 @@ class Positioner:
 
     def _match_lines(
         self, prev: Lines, curr: Lines, start: np.ndarray | None, prior: np.ndarray
-    ) -> np.ndarray | None:
+    ) -> tuple[np.ndarray | None, int]:
         """Line-to-line matching from the point features' motion (or the prior), and once more
-        from its own result where that moved enough to change the pairs."""
+        from its own result where that moved enough to change the pairs. Returns the increment
+        (None where the lines give none) and the number of line pairs."""
         m = self.config.matching
         if start is None:
             pose, gates = prior, (m.line_angle_gate_prior, m.line_distance_gate_prior)
         else:
             pose, gates = start, (m.line_angle_gate, m.line_distance_gate)
-        est = None
+        est, n_pairs = None, 0
         for _ in range(2):
             pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
             new = increment_from_lines(
@@ -161,11 +169,12 @@ class Positioner:
                 break
             moved = np.abs(new - pose)
             est = pose = new
+            n_pairs = len(pairs)
             # pair again with the refined motion, unless it moved too little to change pairs
             if moved[0] + moved[1] < 0.1 * m.line_distance_gate and moved[2] < 0.1 * m.line_angle_gate:
                 break
             gates = (m.line_angle_gate, m.line_distance_gate)
-        return est
+        return est, n_pairs
 
     def run(
         self,
