@@ -57,6 +57,12 @@ VIRTUAL_ANGULAR_POINT = 2
 KIND_NAMES = ("break point", "angular point", "virtual angular point")
 
 
+def _running_count(mask: BoolArray) -> IntArray:
+    """``np.cumsum`` of a boolean mask as int64 (the ufunc on an int array is several times
+    faster than np.cumsum on booleans)."""
+    return np.add.accumulate(mask.astype(np.int64))
+
+
 @lru_cache(maxsize=128)
 def _strict_upper(n: int) -> BoolArray:
     """The (n, n) mask of i < j (cached)."""
@@ -91,7 +97,7 @@ class FeaturePoints:
         return int(self.xy.shape[0])
 
     def select(self, mask: BoolArray) -> "FeaturePoints":
-        return FeaturePoints(self.xy[mask], self.uncertainty[mask], self.kind[mask])
+        return FeaturePoints(self.xy.compress(mask, axis=0), self.uncertainty[mask], self.kind[mask])
 
     @classmethod
     def empty(cls) -> "FeaturePoints":
@@ -213,7 +219,7 @@ class Features:
 
     @property
     def kept_points(self) -> FloatArray:
-        return self.points[self.kept_index]
+        return self.points.take(self.kept_index, axis=0)
 
     @property
     def n_clusters(self) -> int:
@@ -332,10 +338,10 @@ def clusters(split: BoolArray, min_points: int) -> IntArray:
     starts = np.empty(n, bool)
     starts[0] = True
     starts[1:] = split[:-1]
-    label = np.cumsum(starts) - 1
+    label = _running_count(starts) - 1
     size = np.bincount(label)
     ok = size >= min_points
-    new_id = np.cumsum(ok) - 1
+    new_id = _running_count(ok) - 1
     return np.where(ok[label], new_id[label], -1).astype(np.int64)
 
 
@@ -354,13 +360,12 @@ def angular_points(
     of a run of consecutive candidates the sharpest wins.
     """
     n = points.shape[0]
-    angle = np.full(n, np.pi)
     if n == 0:
-        return np.zeros(0, bool), angle
+        return np.zeros(0, bool), np.zeros(0)
     ap = cfg.angular_points
     with np.errstate(divide="ignore"):
         wanted = np.ceil(ap.neighbour_distance / np.maximum(step_spacing, 1e-9))
-    k = np.clip(wanted, ap.neighbour_step, 4 * ap.neighbour_step).astype(np.int64)
+    k = np.minimum(np.maximum(wanted, ap.neighbour_step), 4 * ap.neighbour_step).astype(np.int64)
     idx = np.arange(n)
     # the k-step neighbours, but never past the cluster's ends: a corner one or two points
     # before a cluster end is still a corner (else its line swallows the stray point)
@@ -373,8 +378,8 @@ def angular_points(
     end = np.minimum.accumulate(np.where(last, idx, n - 1)[::-1])[::-1]
     lo = np.maximum(idx - k, start)
     hi = np.minimum(idx + k, end)
-    a = points[lo] - points
-    b = points[hi] - points
+    a = points.take(lo, axis=0) - points
+    b = points.take(hi, axis=0) - points
     min_arm = 0.5 * ap.neighbour_distance
     inside = (
         (cluster >= 0)
@@ -393,15 +398,15 @@ def angular_points(
     prev_cand = np.concatenate([[False], cand[:-1]])
     same_cluster_prev = np.concatenate([[False], cluster[1:] == cluster[:-1]])
     run_start = cand & ~(prev_cand & same_cluster_prev)
-    run_id = np.cumsum(run_start) - 1
-    ci = np.flatnonzero(cand)
+    run_id = _running_count(run_start) - 1
+    ci = cand.nonzero()[0]
     runs = run_id[ci]
     a = angle[ci]
-    starts = np.flatnonzero(run_start[ci])
+    starts = run_start[ci].nonzero()[0]
     sharpest = np.minimum.reduceat(a, starts)[runs]
     # the first point of each run that reaches the run's sharpest angle
     hit = a == sharpest
-    before = np.cumsum(hit) - hit
+    before = _running_count(hit) - hit
     first_hit = hit & (before == before[starts][runs])
     is_corner = np.zeros(n, bool)
     is_corner[ci[first_hit]] = True
@@ -459,7 +464,7 @@ def raw_segment_ids(cluster: IntArray, is_corner: BoolArray) -> IntArray:
     new_cluster[1:] = cluster[1:] != cluster[:-1]
     after_corner = np.zeros(n, bool)
     after_corner[1:] = is_corner[:-1] & ~new_cluster[1:]
-    return np.cumsum(new_cluster | after_corner) - 1
+    return _running_count(new_cluster | after_corner) - 1
 
 
 def fit_lines(
@@ -480,8 +485,8 @@ def fit_lines(
     if not used.any():
         return _empty_lines()
     seg = segment[used]  # non-decreasing: segments are runs of the sequence
-    px = points[used, 0]
-    py = points[used, 1]
+    p = points.compress(used, axis=0)
+    px, py = p[:, 0], p[:, 1]
     nseg = int(seg[-1]) + 1
     count = np.bincount(seg, minlength=nseg).astype(float)
     safe = np.maximum(count, 1.0)
@@ -492,47 +497,45 @@ def fit_lines(
     sxx = np.bincount(seg, dx * dx, nseg)
     syy = np.bincount(seg, dy * dy, nseg)
     sxy = np.bincount(seg, dx * dy, nseg)
-    # principal direction φ of the scatter; the normal is perpendicular to it
+    # principal direction φ of the scatter; the normal is perpendicular to it, pointing away
+    # from the robot (d ≥ 0)
     phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
-    nx, ny = -np.sin(phi), np.cos(phi)
-    dist = nx * mx + ny * my
+    normal = stack_columns(-np.sin(phi), np.cos(phi))
+    dist = normal[:, 0] * mx + normal[:, 1] * my
     flip = np.where(dist < 0, -1.0, 1.0)
-    nx *= flip
-    ny *= flip
+    normal *= flip[:, None]
     dist *= flip
     # extreme points of each segment (first and last in sequence order), projected on its line
     ids_all = np.arange(nseg)
     first = np.minimum(np.searchsorted(seg, ids_all, "left"), seg.shape[0] - 1)
     last = np.maximum(np.searchsorted(seg, ids_all, "right") - 1, 0)
-    off0 = nx * px[first] + ny * py[first] - dist
-    off1 = nx * px[last] + ny * py[last] - dist
-    sx, sy = px[first] - off0 * nx, py[first] - off0 * ny
-    ex, ey = px[last] - off1 * nx, py[last] - off1 * ny
-    keep = (count >= cfg.lines.min_points) & (np.hypot(ex - sx, ey - sy) >= cfg.lines.min_length)
-    ids = np.flatnonzero(keep)
+    p0, p1 = p.take(first, axis=0), p.take(last, axis=0)
+    start = p0 - ((p0 * normal).sum(axis=1) - dist)[:, None] * normal
+    end = p1 - ((p1 * normal).sum(axis=1) - dist)[:, None] * normal
+    span = end - start
+    keep = (count >= cfg.lines.min_points) & ((span * span).sum(axis=1) >= cfg.lines.min_length**2)
+    ids = keep.nonzero()[0]
     if ids.size == 0:
         return _empty_lines()
     # eq. 7–8 (SPEC fix: x·a + y·b + c) with a unit normal: d_i = |n·p_i − d|
-    resid = np.abs(nx[seg] * px + ny[seg] * py - dist[seg])
+    nseg_pt = normal.take(seg, axis=0)
+    resid = np.abs(nseg_pt[:, 0] * px + nseg_pt[:, 1] * py - dist[seg])
     sigma = (np.bincount(seg, resid, nseg) / safe)[ids]
     delta = (np.bincount(seg, uncertainty[used], nseg) / safe)[ids]  # eq. 6
     f_line = bases.lines(delta, sigma)  # eq. 9 / Table 2
-    nx, ny, d, n_ids = nx[ids], ny[ids], dist[ids], count[ids]
-    # least-squares variances: residual variance s² from the scatter's small eigenvalue, the
-    # normal's angle var s²/Σt² (t along the line), the distance var s²/N + var_φ·(c·dir)²
-    half_tr = 0.5 * (sxx[ids] + syy[ids])
-    root = np.sqrt(0.25 * (sxx[ids] - syy[ids]) ** 2 + sxy[ids] ** 2)
-    lam_min = np.maximum(half_tr - root, 0.0)
-    lam_max = np.maximum(half_tr + root, 1e-12)
-    s2 = np.maximum(lam_min / np.maximum(n_ids - 2.0, 1.0), _MIN_LINE_NOISE**2)
-    var_phi = s2 / lam_max
-    along = mx[ids] * ny - my[ids] * nx
-    var_d = s2 / n_ids + var_phi * along**2
-    start = stack_columns(sx[ids], sy[ids])
-    end = stack_columns(ex[ids], ey[ids])
+    # least-squares variances: residual variance s² = Σr²/(N−2) (at least 1 mm²), the
+    # normal's angle var s²/Σt² (t along the line; Σt² is the scatter's trace less Σr²) and
+    # the distance var s²/N + var_φ·(c·dir)² (c the centroid)
+    n_ids = count[ids]
+    r2 = np.bincount(seg, resid * resid, nseg)[ids]
+    s2 = np.maximum(r2 / np.maximum(n_ids - 2.0, 1.0), _MIN_LINE_NOISE**2)
+    var_phi = s2 / np.maximum(sxx[ids] + syy[ids] - r2, 1e-12)
+    normal = normal.take(ids, axis=0)
+    along = mx[ids] * normal[:, 1] - my[ids] * normal[:, 0]
+    start, end = start.take(ids, axis=0), end.take(ids, axis=0)
     return Lines(
-        normal=stack_columns(nx, ny),
-        distance=d,
+        normal=normal,
+        distance=dist[ids],
         start=start,
         end=end,
         centre=0.5 * (start + end),
@@ -540,10 +543,10 @@ def fit_lines(
         sigma=sigma,
         delta=delta,
         uncertainty=f_line,
-        segment=ids.astype(np.int64),
-        cluster=cluster[used][first[ids]].astype(np.int64),
+        segment=ids,
+        cluster=cluster[used][first[ids]],
         angle_variance=var_phi,
-        distance_variance=var_d,
+        distance_variance=s2 / n_ids + var_phi * along * along,
     )
 
 
@@ -589,7 +592,7 @@ def join_at_corners(
     ia, ib = a[have], b[have]
     pts, sin_ang = intersect_lines(lines.normal[ia], lines.distance[ia], lines.normal[ib], lines.distance[ib])
     good = sin_ang >= math.sin(cfg.virtual_points.min_intersection_angle)
-    hv = np.flatnonzero(have)[good]
+    hv = have.nonzero()[0][good]
     ia, ib, pts = ia[good], ib[good], pts[good]
     start = lines.start.copy()
     end = lines.end.copy()
@@ -673,7 +676,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     bases = rule_bases(cfg.fuzzy)
     closed = bool(scan.is_full_circle)
     valid = scan.valid
-    beam_index = np.flatnonzero(valid)
+    beam_index = valid.nonzero()[0]
     if scan.angle_increment < 0:
         beam_index = beam_index[::-1]  # process counter-clockwise, so eq. 3's i+1 is the same neighbour
     ranges = np.asarray(scan.ranges)[beam_index]
@@ -694,8 +697,8 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
 
     # 3. filtering (§3.1)
     kept = filter_points(beta, cfg.filtering.detection_angle_threshold)
-    kept_index = np.flatnonzero(kept)
-    kp = points[kept_index]
+    kept_index = kept.nonzero()[0]
+    kp = points.take(kept_index, axis=0)
     ku = u[kept_index]
     kr = ranges[kept_index]
 
@@ -707,7 +710,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
         # a 360° scan wraps around (the paper's "indices additive modulo m"): start the
         # sequence after a gap, or, with no gap at all, at the sharpest corner of the ring
         if split.any():
-            first = int(np.flatnonzero(split)[0]) + 1
+            first = int(split.nonzero()[0][0]) + 1
         else:
             first, ring_corner = _sharpest_ring_corner(kp, cfg)
         order = np.roll(np.arange(kept_index.size), -first)
@@ -730,7 +733,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     raw_seg = raw_segment_ids(cluster, is_corner) if kp.shape[0] else np.zeros(0, dtype=np.int64)
     segment = segments(cluster, is_corner, cfg.lines.corner_exclusion, ring=ring_corner, raw=raw_seg)
     lines = fit_lines(kp, ku, segment, cluster, bases, cfg)
-    corner_idx = np.flatnonzero(is_corner)
+    corner_idx = is_corner.nonzero()[0]
     n_kept = kp.shape[0]
     # the lines on either side of each angular point (circularly, for the ring's seam)
     seg_before = raw_seg[(corner_idx - 1) % max(n_kept, 1)]
@@ -805,7 +808,7 @@ def _point_features(
 
     # angular points: sampled (the paper) or refined to their lines' intersection (SPEC step 5)
     idx = c.corner_index
-    ang_xy = c.kept_points[idx]
+    ang_xy = c.kept_points.take(idx, axis=0)
     ang_u = c.kept_uncertainty[idx]
     pairable = np.ones(idx.size, bool)
     if cfg.angular_points.refine and idx.size:
@@ -823,7 +826,7 @@ def _point_features(
     # break points as features: not at field-of-view edges, only in kept clusters
     bp = c.break_mask
     breaks = FeaturePoints(
-        c.kept_points[bp], c.kept_uncertainty[bp], np.full(int(bp.sum()), BREAK_POINT, dtype=np.int8)
+        c.kept_points.compress(bp, axis=0), c.kept_uncertainty[bp], np.full(int(bp.sum()), BREAK_POINT, dtype=np.int8)
     )
     m = cfg.matching
     parts = []

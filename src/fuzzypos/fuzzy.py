@@ -178,6 +178,8 @@ class RuleBase:
         if x1.shape != x2.shape:
             raise FuzzyError(f"{self.name}: inputs have different lengths {[x1.shape[0], x2.shape[0]]}")
         g1, g2 = self._grids  # type: ignore[attr-defined]
+        if x1.shape[0] == 0:
+            return np.zeros(0)
         out = np.zeros(x1.shape[0])
         for col, unit in zip(self._columns, self._units):  # type: ignore[attr-defined]
             out += np.interp(x1, g1, col) * np.interp(x2, g2, unit)

@@ -94,11 +94,11 @@ def pair_features(
         within &= prev.kind[:, None] == curr.kind[None, :]
     row_count = within.sum(axis=1)
     ok = row_count == 1
-    j = np.argmax(within, axis=1)
+    j = within.argmax(axis=1)
     if mutual:
         col_count = within.sum(axis=0)
         ok &= col_count[j] == 1
-    i = np.flatnonzero(ok)
+    i = ok.nonzero()[0]
     j = j[ok]
     return Pairs(
         prev_index=i.astype(np.int64),
@@ -228,7 +228,7 @@ def consensus_inliers(pairs: Pairs, solutions: TwoPairSolutions, inlier_distance
     r = _residuals(solutions.poses, pairs)
     tau2 = inlier_distance * inlier_distance
     score = np.minimum(r * r, tau2).sum(axis=1)
-    best = int(np.argmin(score))
+    best = int(score.argmin())
     return r[best] < inlier_distance
 
 
@@ -322,8 +322,8 @@ def pair_lines(
     reach = 0.5 * (prev.length[:, None] + curr.length) + overlap_margin
     cost = ang * (1.0 / angle_gate) + dd * (1.0 / distance_gate)
     cost[(ang >= angle_gate) | (dd >= distance_gate) | (np.abs(along) > reach)] = np.inf
-    j = np.argmin(cost, axis=1)
-    i = np.argmin(cost, axis=0)
+    j = cost.argmin(axis=1)
+    i = cost.argmin(axis=0)
     rows = np.arange(len(prev))
     good = np.isfinite(cost[rows, j]) & (i[j] == rows)
     return LinePairs(rows[good], j[good])
@@ -389,7 +389,7 @@ def _translation_consensus(
     the one with the smallest truncated squared residual over all pairs (MSAC, τ) wins and its
     pairs within τ are the inliers. With no such two (parallel walls) every candidate is kept.
     """
-    idx = np.flatnonzero(candidates)
+    idx = candidates.nonzero()[0]
     if idx.size < 3:
         return candidates
     a, b = _index_pairs(idx.size)
@@ -402,7 +402,7 @@ def _translation_consensus(
     tx = (rhs[i] * ny[j] - ny[i] * rhs[j]) / det
     ty = (nx[i] * rhs[j] - rhs[i] * nx[j]) / det
     r = np.abs(tx[:, None] * nx[idx] + ty[:, None] * ny[idx] - rhs[idx])
-    best = int(np.argmin(np.minimum(r * r, tau * tau).sum(axis=1)))
+    best = int(np.minimum(r * r, tau * tau).sum(axis=1).argmin())
     out = np.zeros_like(candidates)
     out[idx] = r[best] < tau
     return out
