@@ -31,7 +31,7 @@ from fuzzypos.sim import ScannerModel, arc_path, drifting_odometry, office, simu
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--scans", type=int, default=200)
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
     world = office()
     truth = arc_path(Pose2D(-8.0, 0.0, 0.0), args.scans, step=0.05, turn_deg=0.0)

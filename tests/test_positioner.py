@@ -46,42 +46,18 @@ TRIAL_SEED = 20240601
 NOISE_SEED = 7
 
 
-@dataclass(frozen=True)
-class Trial:
-    start: np.ndarray  # world pose of scan 0
-    end: np.ndarray  # world pose of scan 1
-    increment: np.ndarray  # true increment: ⊖start ⊕ end
-    odometry: np.ndarray  # odometry increment: the true one composed with an error
-
-
 @lru_cache(maxsize=None)
-def motion_trials(noise: float) -> tuple[Trial, ...]:
+def motion_trials(noise: float) -> tuple[sim.MotionTrial, ...]:
     """``N_TRIALS`` random rigid motions (|t| <= 0.5 m, |θ| <= 20°) from random start poses in
     the free central area (|x| <= 1.5, |y| <= 1, any heading) of ``furnished_room(0)``.
 
     Only motions where BOTH poses see at least two corners are kept:
     ``sim.visible_corners(world, pose, scanner)`` must have >= 2 rows for the start and the end
-    pose (that is how these tests make sure the two poses see two corners). The odometry
-    increment is the true increment composed with an error uniform within ±7 cm per axis
-    (so at most 10 cm) and ±5°.
+    pose (that is how these tests make sure the two poses see two corners;
+    :func:`fuzzypos.sim.random_motions` does it). The odometry increment is the true increment
+    composed with an error uniform within ±7 cm per axis (so at most 10 cm) and ±5°.
     """
-    sc = scanner(noise)
-    rng = np.random.default_rng(TRIAL_SEED)
-    trials: list[Trial] = []
-    for _ in range(50 * N_TRIALS):
-        if len(trials) == N_TRIALS:
-            break
-        start = np.array([rng.uniform(-1.5, 1.5), rng.uniform(-1.0, 1.0), rng.uniform(-math.pi, math.pi)])
-        t = 0.5 * math.sqrt(rng.uniform())  # uniform over the disc of radius 0.5 m
-        phi = rng.uniform(-math.pi, math.pi)
-        inc = np.array([t * math.cos(phi), t * math.sin(phi), math.radians(rng.uniform(-20.0, 20.0))])
-        err = np.array([rng.uniform(-0.07, 0.07), rng.uniform(-0.07, 0.07), math.radians(rng.uniform(-5.0, 5.0))])
-        end = compose(start, inc)
-        if len(sim.visible_corners(WORLD, start, sc)) < 2 or len(sim.visible_corners(WORLD, end, sc)) < 2:
-            continue
-        trials.append(Trial(start, end, inc, compose(inc, err)))
-    assert len(trials) == N_TRIALS, "too few motions where both poses see two corners"
-    return tuple(trials)
+    return tuple(sim.random_motions(WORLD, scanner(noise), N_TRIALS, TRIAL_SEED))
 
 
 @dataclass(frozen=True)

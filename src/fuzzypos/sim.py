@@ -46,6 +46,8 @@ __all__ = [
     "circle_polygon",
     "arc_path",
     "drifting_odometry",
+    "MotionTrial",
+    "random_motions",
 ]
 
 #: Hits nearer than this along the ray are ignored (no self-hits on the surface a ray starts on).
@@ -824,3 +826,55 @@ def drifting_odometry(
         u[2] += math.radians(rng.normal(0.0, noise_std[1]))
         odo.append(compose(odo[-1], u))
     return [Pose2D.from_array(p) for p in odo]
+
+
+@dataclass(frozen=True, eq=False)
+class MotionTrial:
+    """One simulated motion: the world poses of two scans, the true increment between them
+    (``⊖start ⊕ end``) and an odometry increment (the true one composed with an error)."""
+
+    start: FloatArray
+    end: FloatArray
+    increment: FloatArray
+    odometry: FloatArray
+
+
+def random_motions(
+    world: World,
+    scanner: ScannerModel,
+    n: int,
+    seed: int,
+    area: tuple[float, float] = (1.5, 1.0),
+    max_translation: float = 0.5,
+    max_rotation_deg: float = 20.0,
+    odometry_error: tuple[float, float] = (0.07, 5.0),
+    min_corners: int = 2,
+) -> list[MotionTrial]:
+    """``n`` random rigid motions (|t| ≤ ``max_translation``, uniform over the disc; |θ| ≤
+    ``max_rotation_deg``) from random start poses in ``|x| ≤ area[0], |y| ≤ area[1]`` (any
+    heading), keeping only those where both poses see at least ``min_corners`` corners
+    (:func:`visible_corners`). The odometry increment is the true one composed with an error
+    uniform within ±``odometry_error[0]`` metres per axis and ±``odometry_error[1]`` degrees.
+    """
+    rng = np.random.default_rng(seed)
+    trials: list[MotionTrial] = []
+    for _ in range(50 * n):
+        if len(trials) == n:
+            break
+        start = np.array([rng.uniform(-area[0], area[0]), rng.uniform(-area[1], area[1]),
+                          rng.uniform(-math.pi, math.pi)])
+        t = max_translation * math.sqrt(rng.uniform())
+        phi = rng.uniform(-math.pi, math.pi)
+        inc = np.array([t * math.cos(phi), t * math.sin(phi),
+                        math.radians(rng.uniform(-max_rotation_deg, max_rotation_deg))])
+        ex, ey = odometry_error[0], odometry_error[0]
+        err = np.array([rng.uniform(-ex, ex), rng.uniform(-ey, ey),
+                        math.radians(rng.uniform(-odometry_error[1], odometry_error[1]))])
+        end = compose(start, inc)
+        if (len(visible_corners(world, start, scanner)) < min_corners
+                or len(visible_corners(world, end, scanner)) < min_corners):
+            continue
+        trials.append(MotionTrial(start, end, inc, compose(inc, err)))
+    if len(trials) < n:
+        raise SimError(f"random_motions: only {len(trials)} of {n} motions see {min_corners} corners")
+    return trials
