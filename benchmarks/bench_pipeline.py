@@ -6,8 +6,9 @@ motion, so ``update`` can be faster than the full extraction).
 
 Simulated office (``fuzzypos.sim.office``), a robot driving down the corridor, 180-beam and
 360-beam 180° scans with 1 cm range noise. Run with ``make bench`` or
-``python benchmarks/bench_pipeline.py [--scans N] [--repeat R]``; figures are the best of R
-repeats (least disturbed by the rest of the machine).
+``python benchmarks/bench_pipeline.py [--scans N] [--repeat R]``. Each figure is the best of R
+passes over the scans (default 15): the fastest pass is what the code costs, slower ones are
+the rest of the machine (on a shared 2-core virtual machine single passes vary by ±30 %).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from fuzzypos.sim import ScannerModel, arc_path, drifting_odometry, office, simu
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--scans", type=int, default=200)
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--repeat", type=int, default=15)
     args = ap.parse_args()
     world = office()
     truth = arc_path(Pose2D(-8.0, 0.0, 0.0), args.scans, step=0.05, turn_deg=0.0)

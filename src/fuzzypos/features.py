@@ -284,8 +284,8 @@ def break_points(
     inner = step if closed else np.where(np.isfinite(step), step, np.nan)  # no step past the end
     before = _shift_prev(inner, closed, np.nan)
     after = _shift_next(inner, closed, np.nan)
-    with np.errstate(invalid="ignore"):
-        differ = (step - before > gap_difference) | (step - after > gap_difference)
+    # (nan marks a missing neighbour; inf − nan is nan and compares False, without a warning)
+    differ = (step - before > gap_difference) | (step - after > gap_difference)
     split = (step > thresholds) & differ & np.isfinite(step)
     if not closed:
         split[-1] = True  # the end of the field of view
@@ -363,8 +363,7 @@ def angular_points(
     if n == 0:
         return np.zeros(0, bool), np.zeros(0)
     ap = cfg.angular_points
-    with np.errstate(divide="ignore"):
-        wanted = np.ceil(ap.neighbour_distance / np.maximum(step_spacing, 1e-9))
+    wanted = np.ceil(ap.neighbour_distance / np.maximum(step_spacing, 1e-9))
     k = np.minimum(np.maximum(wanted, ap.neighbour_step), 4 * ap.neighbour_step).astype(np.int64)
     idx = np.arange(n)
     # the k-step neighbours, but never past the cluster's ends: a corner one or two points

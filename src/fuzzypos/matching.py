@@ -310,7 +310,7 @@ def pair_lines(
     ac = curr.normal_angle + pose[2]  # the current normals' angles in frame k
     raw = prev.normal_angle[:, None] - ac  # (P, C)
     ang = np.abs((raw + _HALF_PI) % math.pi - _HALF_PI)  # normals may point either way
-    sign = np.where(np.cos(raw) < 0, -1.0, 1.0)
+    sign = np.copysign(1.0, np.cos(raw))
     d = curr.distance + np.cos(ac) * pose[0] + np.sin(ac) * pose[1]
     dd = np.abs(prev.distance[:, None] - sign * d)
     # centre of each current segment in frame k, and its offset along each previous line
@@ -325,7 +325,7 @@ def pair_lines(
     j = cost.argmin(axis=1)
     i = cost.argmin(axis=0)
     rows = np.arange(len(prev))
-    good = np.isfinite(cost[rows, j]) & (i[j] == rows)
+    good = (cost.min(axis=1) < np.inf) & (i[j] == rows)
     return LinePairs(rows[good], j[good])
 
 
@@ -356,7 +356,7 @@ def increment_from_lines(
     C = pairs.curr_index
     raw = prev.normal_angle[P] - curr.normal_angle[C] - start[2]
     delta = (raw + _HALF_PI) % math.pi - _HALF_PI  # rotation left after ``start``
-    sign = np.where(np.cos(raw - delta) < 0, -1.0, 1.0)  # opposite normals: flip d′
+    sign = np.copysign(1.0, np.cos(raw - delta))  # opposite normals: flip d′
     w_a = 1.0 / (prev.angle_variance[P] + curr.angle_variance[C])
     keep = _robust_keep(delta, trim_floor_angle)
     theta = float(start[2] + np.dot(w_a[keep], delta[keep]) / w_a[keep].sum())
