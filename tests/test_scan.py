@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -47,7 +48,7 @@ def test_ranges_are_a_read_only_copy():
 
 def test_frozen():
     s = LaserScan([1.0], 0.0, 0.1)
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError):
         s.angle_min = 1.0  # type: ignore[misc]
 
 

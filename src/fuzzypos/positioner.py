@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Iterator, Sized
+from typing import Iterable, Iterator, Sized, cast
 
 import numpy as np
 
@@ -65,7 +65,6 @@ class Positioner:
 
     def reset(self) -> None:
         self._prev_features: Features | None = None
-        self._prev_lines: Lines | None = None
         self._prev_odom: Pose2D | None = None
         self._pose: np.ndarray | None = None
         self._last_increment = np.zeros(3)
@@ -88,7 +87,6 @@ class Positioner:
             start = odom.as_array() if odom is not None else np.zeros(3)
             self._pose = start
             self._prev_features = features
-            self._prev_lines = features.lines
             self._prev_odom = odom
             zero = Pose2D()
             return Estimate(scan.stamp, Pose2D.from_array(start), zero, zero, 0, False, features)
@@ -98,15 +96,16 @@ class Positioner:
         else:
             prior = self._last_increment
         m = self.config.matching
+        prev = cast(Features, self._prev_features)  # set with the first scan
         increment = None
         n_pairs, reason = 0, ""
-        if m.match_lines and m.lines_first and self._prev_lines is not None:
-            increment, n_pairs = self._match_lines(self._prev_lines, features.lines, None, prior)
+        lines_tried = m.match_lines and m.lines_first
+        if lines_tried:
+            increment, n_pairs = self._match_lines(prev.lines, features.lines, None, prior)
         if increment is None:  # the paper's point features (and lines from their motion)
-            prev_points = None if self._prev_features is None else self._prev_features.points_of_interest
-            increment, n_pairs, reason = self._match(prev_points, features.points_of_interest, prior)
-            if m.match_lines and self._prev_lines is not None:
-                refined, n_lines = self._match_lines(self._prev_lines, features.lines, increment, prior)
+            increment, n_pairs, reason = self._match(prev.points_of_interest, features.points_of_interest, prior)
+            if m.match_lines and (increment is not None or not lines_tried):
+                refined, n_lines = self._match_lines(prev.lines, features.lines, increment, prior)
                 if refined is not None:
                     increment, n_pairs, reason = refined, n_lines, ""
         degraded = increment is None
@@ -115,7 +114,6 @@ class Positioner:
         self._pose = compose(self._pose, increment)
         self._last_increment = np.asarray(increment, dtype=float)
         self._prev_features = features
-        self._prev_lines = features.lines
         self._prev_odom = odom
         return Estimate(
             stamp=scan.stamp,
@@ -129,11 +127,13 @@ class Positioner:
         )
 
     def _match(
-        self, prev: FeaturePoints | None, curr: FeaturePoints, prior: np.ndarray
+        self, prev: FeaturePoints, curr: FeaturePoints, prior: np.ndarray
     ) -> tuple[np.ndarray | None, int, str]:
+        """The paper's way (§3.7, §4): pair the feature points with the prior, the pose from
+        every two pairs, fusion; re-paired with the refined motion where configured."""
         cfg = self.config
         m = cfg.matching
-        if prev is None or len(prev) < m.min_pairs or len(curr) < m.min_pairs:
+        if len(prev) < m.min_pairs or len(curr) < m.min_pairs:
             return None, 0, "too few features"
         pairs = pair_features(prev, curr, prior, m.pairing_distance, m.same_kind_only, m.mutual)
         est, n_used = estimate_increment(pairs, cfg.fusion, m.min_pair_separation, m.min_pairs)
