@@ -29,6 +29,12 @@ def scanner(noise: float = 0.0) -> sim.ScannerModel:
 
 
 def config(name: str) -> Config:
+    """``default``, a preset, or a variant of the default: ``points-first`` (the paper's
+    point pairing first, lines refining its motion) or ``points-only`` (no line matching)."""
+    if name == "points-first":
+        return Config().with_overrides({"matching": {"lines_first": False}})
+    if name == "points-only":
+        return Config().with_overrides({"matching": {"match_lines": False}})
     return Config() if name == "default" else Config.preset(name)
 
 
@@ -129,6 +135,28 @@ def test_default_recovers_every_motion(noise: float, max_trans: float, max_rot_d
     assert not e.degraded.any(), summary(e)
     assert e.trans.max() < max_trans, summary(e)
     assert e.rot.max() < max_rot_deg, summary(e)
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.01])
+def test_points_first_meets_the_same_targets(noise: float) -> None:
+    """With the paper's point pairing first and line matching refining its motion, the
+    targets hold too (the path the default takes where the lines give no motion)."""
+    e = motion_errors("points-first", noise)
+    limit = (0.001, 0.05) if noise == 0 else (0.02, 0.5)
+    assert not e.degraded.any(), summary(e)
+    assert e.trans.max() < limit[0] and e.rot.max() < limit[1], summary(e)
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.01])
+def test_point_refinements_beat_the_paper_preset(noise: float) -> None:
+    """Without line matching, the point features with our refinements (refined corners, no
+    break points, consensus, least squares) beat the paper's way and odometry on average.
+    Measured means: noise-free 4.4 mm / 0.36°, 1 cm noise 24.5 mm / 0.66° (paper 32.6 mm and
+    35.7 mm; odometry 50.7 mm / 2.90°)."""
+    e = motion_errors("points-only", noise)
+    paper = motion_errors("paper", noise)
+    assert e.trans.mean() < paper.trans.mean() < e.odo_trans.mean(), summary(e)
+    assert e.rot.mean() < e.odo_rot.mean(), summary(e)
 
 
 @pytest.mark.parametrize("noise", [0.0, 0.01])
