@@ -1,0 +1,583 @@
+"""fuzzypos.io: CARMEN logs (write, stream back, errors) and TUM trajectories."""
+
+from __future__ import annotations
+
+import gzip
+import itertools
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from fuzzypos.geometry import Pose2D
+from fuzzypos.io import (
+    CarmenFormatError,
+    CarmenReader,
+    CarmenRecord,
+    LogFormatError,
+    TumFormatError,
+    carmen_beam_geometry,
+    read_carmen,
+    read_tum,
+    write_carmen,
+    write_tum,
+)
+from fuzzypos.scan import LaserScan
+
+ACES = Path("/work/shared/data/aces/aces.clf.gz")
+DEG = math.pi / 180.0
+
+
+# -- helpers -------------------------------------------------------------------------------
+def make_scan(n=180, *, stamp=0.0, range_max=8.0, seed=0, convention="auto", fov=180.0, **kw):
+    a0, inc = carmen_beam_geometry(n, fov, convention)
+    rng = np.random.default_rng(seed)
+    ranges = (
+        rng.uniform(0.05, range_max - 0.01, n)
+        if math.isfinite(range_max)
+        else rng.uniform(0.05, 30.0, n)
+    )
+    return LaserScan(ranges, a0, inc, range_max=range_max, stamp=stamp, **kw)
+
+
+def _num(v):
+    """A field as text: numbers at full precision, strings as they are (to break lines)."""
+    return v if isinstance(v, str) else repr(float(v))
+
+
+def flaser(ranges, odom=(0.0, 0.0, 0.0), stamp=1.0, xyt=None, host="h"):
+    xyt = odom if xyt is None else xyt
+    r = " ".join(str(v) for v in ranges)
+    p = " ".join(_num(v) for v in xyt)
+    o = " ".join(_num(v) for v in odom)
+    return f"FLASER {len(ranges)} {r} {p} {o} {_num(stamp)} {host} {_num(stamp)}"
+
+
+def truepos(pose, odom=(0.0, 0.0, 0.0), stamp=1.0):
+    p = " ".join(_num(v) for v in pose)
+    o = " ".join(_num(v) for v in odom)
+    return f"TRUEPOS {p} {o} {_num(stamp)} h {_num(stamp)}"
+
+
+def write_lines(path: Path, lines, newline_at_end=True):
+    text = "\n".join(lines) + ("\n" if newline_at_end else "")
+    path.write_text(text)
+    return path
+
+
+R5 = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]  # 6 beams: "resolution" convention (even)
+
+
+# -- beam geometry -------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "n, first_deg, last_deg",
+    [(180, -90.0, 89.0), (181, -90.0, 90.0), (360, -90.0, 89.5), (361, -90.0, 90.0)],
+)
+def test_beam_geometry_conventions(n, first_deg, last_deg):
+    a0, inc = carmen_beam_geometry(n)
+    assert a0 == pytest.approx(first_deg * DEG, abs=1e-12)
+    assert a0 + (n - 1) * inc == pytest.approx(last_deg * DEG, abs=1e-12)
+
+
+def test_beam_geometry_explicit_conventions_and_errors():
+    a0, inc = carmen_beam_geometry(180, convention="span")
+    assert a0 + 179 * inc == pytest.approx(math.pi / 2, abs=1e-12)
+    a0, inc = carmen_beam_geometry(181, convention="resolution")
+    assert inc == pytest.approx(math.pi / 181)
+    a0, inc = carmen_beam_geometry(360, field_of_view_deg=360.0)
+    assert a0 == pytest.approx(-math.pi) and inc == pytest.approx(DEG)
+    with pytest.raises(ValueError, match="convention"):
+        carmen_beam_geometry(180, convention="sideways")
+    with pytest.raises(ValueError, match="field_of_view_deg"):
+        carmen_beam_geometry(180, field_of_view_deg=0.0)
+    with pytest.raises(ValueError, match="beam count"):
+        carmen_beam_geometry(1)
+
+
+# -- write -> read round trip --------------------------------------------------------------
+OFFSET = Pose2D(0.25, 0.0, 0.0)
+
+
+def _records(n=180, count=6, with_truth=True, sensor_pose=OFFSET, **kw):
+    recs = []
+    stamps = [100.0, 100.1, 100.05, 100.3, 1e9 + 0.123456789, 1e9 + 0.1234568]  # goes back
+    for k in range(count):
+        scan = make_scan(n, stamp=stamps[k % len(stamps)], seed=k, sensor_pose=sensor_pose, **kw)
+        r = np.array(scan.ranges)
+        r[[3, 10, 11]] = [np.nan, 0.0, np.inf]  # invalid readings
+        r[20] = scan.range_max  # "no return"
+        r[21] = scan.range_max + 5.0
+        r[22] = 1.23456789  # more digits than the file keeps
+        scan = scan.with_ranges(r)
+        odom = Pose2D(1.0 / 3.0 + k, -2.0 / 7.0 * k, -math.pi + 0.1 * k)
+        truth = (
+            Pose2D(odom.x + 0.01, odom.y - 0.02, math.pi / 7) if with_truth and k % 2 == 0 else None
+        )
+        recs.append(CarmenRecord(scan, odom, truth))
+    return recs
+
+
+def _assert_same(got, want):
+    assert len(got) == len(want)
+    for g, w in zip(got, want):
+        assert g.scan.n_beams == w.scan.n_beams
+        assert g.scan.angle_min == pytest.approx(w.scan.angle_min, abs=1e-12)
+        assert g.scan.angle_increment == pytest.approx(w.scan.angle_increment, abs=1e-12)
+        np.testing.assert_array_equal(g.scan.valid, w.scan.valid)
+        np.testing.assert_allclose(
+            g.scan.ranges[w.scan.valid], w.scan.ranges[w.scan.valid], atol=1e-3, rtol=0
+        )
+        assert g.scan.stamp == w.scan.stamp
+        assert g.scan.sensor_pose == w.scan.sensor_pose
+        assert g.odometry == w.odometry
+        assert g.truth == w.truth
+
+
+@pytest.mark.parametrize("n", [180, 181, 360, 361])
+def test_round_trip(tmp_path, n):
+    recs = _records(n)
+    path = tmp_path / "sim.clf"
+    assert write_carmen(path, recs) == len(recs)
+    got = list(read_carmen(path))
+    _assert_same(got, recs)
+    assert all(g.scan.range_max == 8.0 for g in got)
+    assert [g.scan.stamp for g in got] == [r.scan.stamp for r in recs]  # backwards kept
+    assert [g.truth is not None for g in got] == [True, False, True, False, True, False]
+
+
+def test_round_trip_file_layout(tmp_path):
+    path = tmp_path / "sim.clf"
+    write_carmen(path, _records(count=2), hostname="robo", header_comment="run 7\nseed 3")
+    lines = path.read_text().splitlines()
+    header = [ln for ln in lines if ln.startswith("#")]
+    assert any("fuzzypos" in ln for ln in header)
+    assert "# run 7" in header and "# seed 3" in header
+    body = [ln.split() for ln in lines if not ln.startswith("#")]
+    assert [t[0] for t in body] == ["PARAM", "PARAM", "FLASER", "TRUEPOS", "FLASER"]
+    assert body[0][:3] == ["PARAM", "robot_frontlaser_offset", "0.25"]
+    assert body[1][:3] == ["PARAM", "robot_front_laser_max", "8.0"]
+    fl = body[2]
+    assert fl[1] == "180" and len(fl) == 180 + 11
+    assert fl[2 + 180 : 2 + 183] == fl[2 + 183 : 2 + 186]  # x y θ repeat the odometry
+    assert fl[-2] == "robo" and fl[-1] == fl[-3]
+    assert fl[2 + 3] == "8.0" and fl[2 + 10] == "8.0"  # invalid readings written as range_max
+    assert len(body[3]) == 10
+
+
+def test_round_trip_infinite_range_max_and_no_offset(tmp_path):
+    recs = _records(count=3, range_max=math.inf, sensor_pose=Pose2D())
+    path = tmp_path / "sim.clf"
+    write_carmen(path, recs)
+    text = path.read_text()
+    assert not any(ln.startswith("PARAM") for ln in text.splitlines())
+    got = list(read_carmen(path, max_range=math.inf))
+    _assert_same(got, recs)
+
+
+def test_round_trip_gzip_output_and_span_convention(tmp_path):
+    recs = _records(180, count=3, convention="span")
+    path = tmp_path / "sim.clf.gz"
+    write_carmen(path, recs, convention="span")
+    assert path.read_bytes()[:2] == b"\x1f\x8b"
+    _assert_same(list(read_carmen(path, convention="span")), recs)
+
+
+@given(
+    x=st.floats(-1e6, 1e6),
+    y=st.floats(-1e6, 1e6),
+    theta=st.floats(-math.pi, math.pi, exclude_max=True),
+    stamp=st.floats(-1e10, 1e10),
+)
+def test_poses_and_stamps_exact(tmp_path_factory, x, y, theta, stamp):
+    path = tmp_path_factory.mktemp("h") / "p.clf"
+    scan = make_scan(180, stamp=stamp)
+    rec = CarmenRecord(scan, Pose2D(x, y, theta), Pose2D(y, x, theta))
+    write_carmen(path, [rec])
+    (got,) = read_carmen(path)
+    assert got.odometry == rec.odometry and got.truth == rec.truth and got.scan.stamp == stamp
+
+
+# -- writer refuses what FLASER cannot say --------------------------------------------------
+def test_writer_rejects_geometry_off_convention(tmp_path):
+    path = tmp_path / "bad.clf"
+    a0, inc = carmen_beam_geometry(180, convention="span")  # -90..+90 with 180 beams
+    scan = LaserScan(np.ones(180), a0, inc)
+    with pytest.raises(ValueError, match="does not fit FLASER"):
+        write_carmen(path, [CarmenRecord(scan, Pose2D())])
+    assert not path.exists() and list(tmp_path.iterdir()) == []  # nothing left behind
+    flipped = LaserScan(np.ones(180), math.pi / 2, -DEG)  # upside-down mount
+    with pytest.raises(ValueError, match="does not fit FLASER"):
+        write_carmen(path, [CarmenRecord(flipped, Pose2D())])
+
+
+def test_writer_rejects_sensor_pose_and_mixed_lasers(tmp_path):
+    path = tmp_path / "bad.clf"
+    side = make_scan(sensor_pose=Pose2D(0.1, 0.2, 0.0))
+    with pytest.raises(ValueError, match="forward laser offset"):
+        write_carmen(path, [CarmenRecord(side, Pose2D())])
+    a, b = make_scan(range_max=8.0), make_scan(range_max=10.0)
+    with pytest.raises(ValueError, match="range_max"):
+        write_carmen(path, [CarmenRecord(a, Pose2D()), CarmenRecord(b, Pose2D())])
+    with pytest.raises(ValueError, match="hostname"):
+        write_carmen(path, [CarmenRecord(a, Pose2D())], hostname="two words")
+    assert not path.exists()
+
+
+def test_writer_keeps_an_existing_file_on_error(tmp_path):
+    path = tmp_path / "log.clf"
+    write_carmen(path, _records(count=1))
+    before = path.read_bytes()
+
+    def recs():
+        yield from _records(count=2)
+        raise RuntimeError("simulation died")
+
+    with pytest.raises(RuntimeError):
+        write_carmen(path, recs())
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.clf"]
+
+
+# -- reader: formats and skipping ----------------------------------------------------------
+def test_gzip_detected_by_magic_not_name(tmp_path):
+    recs = _records(count=3)
+    plain = tmp_path / "a.clf"
+    write_carmen(plain, recs)
+    packed = tmp_path / "b.log"  # no .gz in the name
+    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    _assert_same(list(read_carmen(packed)), recs)
+    misnamed = tmp_path / "c.clf.gz"  # .gz name, plain content
+    misnamed.write_bytes(plain.read_bytes())
+    _assert_same(list(read_carmen(misnamed)), recs)
+
+
+def test_comments_blank_lines_and_unknown_messages_skipped(tmp_path):
+    lines = [
+        "# CARMEN Logfile",
+        "#no space comment",
+        "",
+        "   ",
+        "PARAM robot_length 0.5 0.0 h 0.0",
+        "PARAM lonely",
+        "SYNC tag 0.5 h 0.5",
+        "ODOM 1 2 3 0 0 0 0.9 h 0.9",
+        flaser(R5, odom=(1.0, 2.0, 0.5), stamp=1.0),
+        "NEFF 12 0.5 h 1.05",
+        "RLASER 3 1 2 3 0 0 0 0 0 0 1.1 h 1.1",
+        "ROBOTLASER1 garbage that we do not read yet",
+        "whatever else",
+        "\t" + flaser(R5, odom=(1.5, 2.0, 0.5), stamp=2.0) + "   ",
+    ]
+    path = write_lines(tmp_path / "log.clf", lines)
+    rd = CarmenReader(path)
+    recs = list(rd.records())
+    assert [r.scan.stamp for r in recs] == [1.0, 2.0]
+    assert recs[1].odometry == Pose2D(1.5, 2.0, 0.5)
+    assert rd.bad_lines == 0 and rd.lines == len(lines)
+    assert rd.params["robot_length"] == "0.5"
+
+
+def test_odometry_from_odom_fields_never_xyt(tmp_path):
+    line = flaser(R5, odom=(1.0, 2.0, 0.3), xyt=(9.0, 9.0, -1.0), stamp=5.5)
+    (rec,) = read_carmen(write_lines(tmp_path / "log.clf", [line]))
+    assert rec.odometry == Pose2D(1.0, 2.0, 0.3)
+    assert rec.scan.stamp == 5.5
+    assert rec.truth is None
+
+
+def test_truepos_attaches_to_preceding_flaser(tmp_path):
+    lines = [
+        truepos((7.0, 7.0, 0.0)),  # before any FLASER: ignored
+        flaser(R5, stamp=1.0),
+        "ODOM 1 2 3 0 0 0 0.9 h 0.9",
+        truepos((1.0, 2.0, 0.1)),
+        truepos((5.0, 5.0, 0.5)),  # a second one: the first after the FLASER wins
+        flaser(R5, stamp=2.0),
+        flaser(R5, stamp=3.0),
+        truepos((3.0, 4.0, -0.2)),
+    ]
+    recs = list(read_carmen(write_lines(tmp_path / "log.clf", lines)))
+    assert [r.truth for r in recs] == [Pose2D(1.0, 2.0, 0.1), None, Pose2D(3.0, 4.0, -0.2)]
+
+
+def test_param_frontlaser_offset_sets_sensor_pose(tmp_path):
+    lines = [
+        flaser(R5, stamp=1.0),
+        "PARAM robot_frontlaser_offset 0.3 0.0 h 0.0",
+        flaser(R5, stamp=2.0),
+    ]
+    recs = list(read_carmen(write_lines(tmp_path / "log.clf", lines)))
+    assert recs[0].scan.sensor_pose == Pose2D() and recs[1].scan.sensor_pose == Pose2D(0.3, 0, 0)
+
+
+def test_all_invalid_scan_is_fine(tmp_path):
+    lines = [flaser([0.0] * 6), flaser([50.0] * 6, stamp=2.0), flaser(["nan"] * 6, stamp=3.0)]
+    recs = list(read_carmen(write_lines(tmp_path / "log.clf", lines)))
+    assert len(recs) == 3 and all(not r.scan.valid.any() for r in recs)
+
+
+def test_timestamps_going_backwards_keep_file_order(tmp_path):
+    stamps = [10.0, 9.1, 9.5, 3.0, 11.0]
+    lines = [flaser(R5, stamp=s) for s in stamps]
+    recs = list(read_carmen(write_lines(tmp_path / "log.clf", lines)))
+    assert [r.scan.stamp for r in recs] == stamps
+
+
+def test_fov_parameter_sets_angles(tmp_path):
+    path = write_lines(tmp_path / "log.clf", [flaser([1.0] * 361)])
+    (rec,) = read_carmen(path, field_of_view_deg=360.0, convention="resolution")
+    assert rec.scan.angle_min == pytest.approx(-math.pi)
+    assert rec.scan.angle_increment == pytest.approx(2 * math.pi / 361)
+
+
+# -- maximum range -------------------------------------------------------------------------
+def test_max_range_learned_from_repeated_maximum(tmp_path):
+    lines = [
+        flaser([1.0, 30.0, 2.0, 3.0, 4.0, 5.0], stamp=1.0),  # lone max, nothing learned: inf
+        flaser([1.0, 50.0, 2.0, 50.0, 4.0, 5.0], stamp=2.0),  # 50 repeats: the no-return value
+        flaser([1.0, 50.0, 2.0, 3.0, 4.0, 5.0], stamp=3.0),  # a lone 50 is no return too
+        flaser([1.0, 27.0, 27.0, 3.0, 4.0, 5.0], stamp=4.0),  # repeated 27 < 50 stays valid
+        flaser([1.0, 60.0, 2.0, 3.0, 4.0, 5.0], stamp=5.0),  # above 50, alone: valid, inf
+    ]
+    rd = CarmenReader(write_lines(tmp_path / "log.clf", lines))
+    recs = list(rd.records())
+    assert [r.scan.range_max for r in recs] == [math.inf, 50.0, 50.0, 50.0, math.inf]
+    assert [int(r.scan.valid.sum()) for r in recs] == [6, 4, 5, 6, 6]
+    assert rd.no_return_value == 50.0
+
+
+def test_max_range_argument_and_param(tmp_path):
+    lines = [flaser([1.0, 30.0, 2.0, 3.0, 4.0, 5.0])]
+    path = write_lines(tmp_path / "log.clf", lines)
+    (rec,) = read_carmen(path, max_range=4.0)
+    assert rec.scan.range_max == 4.0 and int(rec.scan.valid.sum()) == 3
+    path = write_lines(tmp_path / "p.clf", ["PARAM robot_front_laser_max 5.0 0 h 0", *lines])
+    (rec,) = read_carmen(path)
+    assert rec.scan.range_max == 5.0 and int(rec.scan.valid.sum()) == 4
+    (rec,) = read_carmen(path, max_range=math.inf)  # the argument wins
+    assert int(rec.scan.valid.sum()) == 6
+    with pytest.raises(ValueError, match="max_range"):
+        read_carmen(path, max_range=0.0)
+
+
+# -- malformed lines -----------------------------------------------------------------------
+GOOD = flaser(R5, stamp=1.0)
+BAD_LINES = [
+    (GOOD.replace("FLASER 6 1.0", "FLASER 6", 1), "FLASER: expected 6 ranges, got 5"),
+    (GOOD.replace("FLASER 6", "FLASER 7", 1), "FLASER: expected 7 ranges, got 6"),
+    (GOOD.replace("FLASER 6", "FLASER six", 1), "beam count is not an integer: 'six'"),
+    (GOOD.replace("FLASER 6", "FLASER 1", 1), "beam count must be >= 2"),
+    ("FLASER", "missing the beam count"),
+    (GOOD.replace(" 3.0 ", " 3.o ", 1), "FLASER: range 3 of 6 is not a number: '3.o'"),
+    (flaser(R5, odom=(float("nan"), 0.0, 0.0)), "odom_x must be finite"),
+    (flaser(R5, odom=(0.0, 0.0, float("inf"))), "odom_θ must be finite"),
+    (flaser(R5, xyt=("abc", 0, 0)), "FLASER: x is not a number"),
+    (flaser(R5, stamp="x1"), "ipc_timestamp is not a number"),
+    (flaser(R5, stamp="nan"), "ipc_timestamp must be finite"),
+    (truepos((1.0, 2.0, 3.0)).rsplit(" ", 1)[0], "TRUEPOS: expected 10 fields"),
+    (truepos((1.0, float("nan"), 3.0)), "TRUEPOS: true_y must be finite"),
+    ("PARAM robot_frontlaser_offset abc 0 h 0", "robot_frontlaser_offset is not a number"),
+    ("PARAM robot_front_laser_max -3 0 h 0", "robot_front_laser_max must be > 0"),
+    ("PARAM robot_front_laser_max", "missing its value"),
+]
+
+
+@pytest.mark.parametrize("bad, what", BAD_LINES)
+def test_malformed_line_raises_with_file_line_and_what(tmp_path, bad, what):
+    path = write_lines(tmp_path / "broken.clf", ["# header", GOOD, bad, GOOD])
+    with pytest.raises(CarmenFormatError) as info:
+        list(read_carmen(path))
+    err = info.value
+    msg = str(err)
+    assert msg.startswith(f"{path}:3: ")
+    assert "broken.clf" in msg and what in msg
+    assert err.line == 3 and err.path == str(path) and what in err.reason
+    assert isinstance(err, ValueError) and isinstance(err, LogFormatError)
+
+
+def test_format_errors_pickle():
+    import pickle
+
+    err = pickle.loads(pickle.dumps(CarmenFormatError("log.clf", 17, "FLASER: bad")))
+    assert isinstance(err, CarmenFormatError) and str(err) == "log.clf:17: FLASER: bad"
+    assert err.line == 17 and err.reason == "FLASER: bad"
+
+
+def test_error_message_example_form(tmp_path):
+    lines = ["#"] * 16 + [flaser([1.0] * 179).replace("FLASER 179", "FLASER 180", 1)]
+    path = write_lines(tmp_path / "log.clf", lines)
+    with pytest.raises(
+        CarmenFormatError, match=r"log\.clf:17: FLASER: expected 180 ranges, got 179"
+    ):
+        list(read_carmen(path))
+
+
+def test_skip_bad_lines_counts(tmp_path):
+    bad = [b for b, _ in BAD_LINES[:5]]
+    lines = [GOOD, bad[0], flaser(R5, stamp=2.0), BAD_LINES[13][0], truepos((1, 2, 3), stamp=2.0)]
+    lines += [bad[1], bad[2], flaser(R5, stamp=3.0), BAD_LINES[12][0]]
+    path = write_lines(tmp_path / "log.clf", lines)
+    rd = CarmenReader(path, skip_bad_lines=True)
+    recs = list(rd)
+    assert [r.scan.stamp for r in recs] == [1.0, 2.0, 3.0]
+    assert recs[1].truth == Pose2D(1, 2, 3) and recs[2].truth is None
+    assert rd.bad_lines == 5
+    assert [e.line for e in rd.errors] == [2, 4, 6, 7, 9]
+    assert not rd.truncated
+    # the reader restarts cleanly
+    assert len(list(rd.records())) == 3 and rd.bad_lines == 5
+    # read_carmen passes the option through
+    assert len(list(read_carmen(path, skip_bad_lines=True))) == 3
+
+
+def test_truepos_after_skipped_flaser_attaches_to_nothing(tmp_path):
+    lines = [GOOD, BAD_LINES[0][0], truepos((1.0, 2.0, 3.0)), flaser(R5, stamp=2.0)]
+    rd = CarmenReader(write_lines(tmp_path / "log.clf", lines), skip_bad_lines=True)
+    recs = list(rd)
+    assert [r.truth for r in recs] == [None, None] and rd.bad_lines == 1
+
+
+def test_missing_file_fails_at_once(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        read_carmen(tmp_path / "nope.clf")
+
+
+def test_truncated_last_line_warns_not_raises(tmp_path):
+    cut = flaser(R5, stamp=3.0)[:40]
+    lines = [GOOD, flaser(R5, stamp=2.0), truepos((1, 1, 1), stamp=2.0), cut]
+    path = write_lines(tmp_path / "cut.clf", lines, newline_at_end=False)
+    rd = CarmenReader(path)
+    with pytest.warns(RuntimeWarning, match=r"cut\.clf.*truncated last line 4"):
+        recs = list(rd)
+    assert [r.scan.stamp for r in recs] == [1.0, 2.0] and rd.truncated and rd.bad_lines == 0
+    assert recs[1].truth == Pose2D(1, 1, 1)
+
+
+def test_complete_last_line_without_newline_is_read(tmp_path):
+    path = write_lines(tmp_path / "log.clf", [GOOD, flaser(R5, stamp=2.0)], newline_at_end=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        recs = list(read_carmen(path))
+    assert [r.scan.stamp for r in recs] == [1.0, 2.0]
+
+
+def test_malformed_line_with_newline_at_end_still_raises(tmp_path):
+    path = write_lines(tmp_path / "log.clf", [GOOD, GOOD[:40]])
+    with pytest.raises(CarmenFormatError, match=r"log\.clf:2:"):
+        list(read_carmen(path))
+
+
+def test_truncated_gzip_stream_warns(tmp_path):
+    plain = "\n".join(flaser([float(k % 7 + 1)] * 180, stamp=float(k)) for k in range(400)) + "\n"
+    data = gzip.compress(plain.encode())
+    path = tmp_path / "cut.clf.gz"
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.warns(RuntimeWarning, match=r"cut\.clf\.gz"):
+        recs = list(read_carmen(path))
+    assert 0 < len(recs) < 400
+    assert [r.scan.stamp for r in recs] == [float(k) for k in range(len(recs))]
+
+
+def test_streaming_yields_before_the_end(tmp_path):
+    lines = [flaser(R5, stamp=float(k)) for k in range(3)] + ["FLASER broken"]
+    it = read_carmen(write_lines(tmp_path / "log.clf", lines))
+    assert next(it).scan.stamp == 0.0 and next(it).scan.stamp == 1.0
+    with pytest.raises(CarmenFormatError):
+        next(it)
+
+
+# -- TUM -----------------------------------------------------------------------------------
+def test_tum_round_trip(tmp_path):
+    rng = np.random.default_rng(1)
+    n = 200
+    stamps = np.concatenate([[1.3e9 + 0.000123, 1.3e9 + 0.000124], rng.uniform(0, 1e4, n - 2)])
+    thetas = np.concatenate(
+        [
+            [-math.pi, math.pi - 1e-15, 0.0, -0.0, 1e-300, math.pi / 2],
+            rng.uniform(-math.pi, math.pi, n - 6),
+        ]
+    )
+    poses = np.column_stack([rng.normal(0, 100, n), rng.normal(0, 1e-3, n), thetas])
+    path = tmp_path / "traj.tum"
+    write_tum(path, stamps, poses, header_comment="t x y z qx qy qz qw")
+    t2, p2 = read_tum(path)
+    np.testing.assert_array_equal(t2, stamps)
+    np.testing.assert_array_equal(p2[:, :2], poses[:, :2])
+    dtheta = np.angle(np.exp(1j * (p2[:, 2] - thetas)))
+    assert np.max(np.abs(dtheta)) < 1e-12
+    assert np.all((p2[:, 2] >= -math.pi) & (p2[:, 2] < math.pi))
+    first = next(ln for ln in path.read_text().splitlines() if not ln.startswith("#")).split()
+    assert len(first) == 8 and float(first[3]) == 0.0
+    # what evo's reader does: numpy loadtxt with '#' comments
+    arr = np.loadtxt(path, comments="#")
+    assert arr.shape == (n, 8)
+    np.testing.assert_allclose(arr[:, 6] ** 2 + arr[:, 7] ** 2, 1.0, atol=1e-15)
+
+
+def test_tum_accepts_pose2d_sequence_and_empty(tmp_path):
+    path = tmp_path / "t.tum"
+    write_tum(path, [1.0, 2.0], [Pose2D(1, 2, 0.5), Pose2D(3, 4, -3.0)])
+    t, p = read_tum(path)
+    assert t.tolist() == [1.0, 2.0]
+    np.testing.assert_allclose(p, [[1, 2, 0.5], [3, 4, -3.0]], atol=1e-12)
+    write_tum(path, [], np.zeros((0, 3)))
+    t, p = read_tum(path)
+    assert t.shape == (0,) and p.shape == (0, 3)
+    with pytest.raises(ValueError, match="2 stamps for 1 poses"):
+        write_tum(path, [1.0, 2.0], [[0.0, 0.0, 0.0]])
+    with pytest.raises(ValueError, match="finite"):
+        write_tum(path, [1.0], [[0.0, math.nan, 0.0]])
+
+
+def test_tum_reads_general_quaternions_and_comments(tmp_path):
+    q = [0.0, 0.0, math.sin(0.35), math.cos(0.35)]
+    text = "# evo-style header\n\n1.5 1 2 0.7 {} {} {} {}\n  \n".format(*q)
+    path = tmp_path / "t.tum"
+    path.write_text(text)
+    t, p = read_tum(path)
+    assert t.tolist() == [1.5] and p[0, :2].tolist() == [1.0, 2.0]
+    assert p[0, 2] == pytest.approx(0.7, abs=1e-12)
+    gz = tmp_path / "t.bin"
+    gz.write_bytes(gzip.compress(text.encode()))
+    assert read_tum(gz)[0].tolist() == [1.5]
+
+
+@pytest.mark.parametrize(
+    "line, what",
+    [
+        ("1 2 3 0 0 0 0 1 9", "expected 8 fields (t x y z qx qy qz qw), got 9"),
+        ("1 2 3 0 0 0 0", "expected 8 fields (t x y z qx qy qz qw), got 7"),
+        ("1 2 y 0 0 0 0 1", "y is not a number: 'y'"),
+        ("nan 2 3 0 0 0 0 1", "t must be finite"),
+        ("1 2 3 0 0 0 0 inf", "qw must be finite"),
+        ("1 2 3 0 0 0 0.5 0.5", "not a unit quaternion"),
+        ("1 2 3 0 0 0 0 0", "not a unit quaternion"),
+    ],
+)
+def test_tum_errors(tmp_path, line, what):
+    path = tmp_path / "bad.tum"
+    path.write_text(f"# header\n1 0 0 0 0 0 0 1\n{line}\n")
+    with pytest.raises(TumFormatError) as info:
+        read_tum(path)
+    msg = str(info.value)
+    assert msg.startswith(f"{path}:3: ") and "bad.tum" in msg and what in msg
+    assert info.value.line == 3 and isinstance(info.value, ValueError)
+
+
+# -- the shared log ------------------------------------------------------------------------
+@pytest.mark.skipif(not ACES.exists(), reason=f"shared data {ACES} is absent")
+def test_reads_aces_log_head():
+    it = read_carmen(ACES)
+    recs = list(itertools.islice(it, 200))
+    it.close()
+    assert len(recs) == 200
+    assert all(r.scan.n_beams == 180 for r in recs)
+    assert all(math.isfinite(r.scan.stamp) for r in recs)
+    assert recs[0].scan.angle_min == pytest.approx(-math.pi / 2)
+    assert recs[0].scan.angle_increment == pytest.approx(DEG)
+    assert all(r.scan.range_max == 50.0 for r in recs)  # its "no return" value, learned
+    assert all(r.truth is None for r in recs)
