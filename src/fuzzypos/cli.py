@@ -143,5 +143,41 @@ def config(
     typer.echo(cfg.to_toml())
 
 
+@app.command("plot-scan")
+def plot_scan(
+    log: Path = typer.Argument(..., help="a CARMEN log (plain or gzipped)"),
+    index: int = typer.Option(..., "--index", "-n", help="the scan to plot, 0-based"),
+    out: Optional[Path] = typer.Option(None, help="folder for the figures (default: plots/<log>-scan<N>/)"),
+    preset: str = typer.Option("default", help="base configuration: default or paper"),
+    config_file: Optional[Path] = typer.Option(None, "--config", help="TOML file overriding keys"),
+) -> None:
+    """Draw the paper's Figs. 13–18 (filtering … virtual angular points) for one scan of a log."""
+    from .features import extract_features
+    from .io import read_carmen
+    from .plot import plot_feature_figures
+
+    cfg = _load_config(preset, config_file)
+    if index < 0:
+        _fail(f"--index must be 0 or more, got {index}")
+    try:
+        record, count = None, 0
+        for rec in read_carmen(log):
+            if count == index:
+                record = rec
+                break
+            count += 1
+        if record is None:
+            _fail(f"{log}: has no scan {index} (it has {count} scans)")
+            return
+        features = extract_features(record.scan, cfg)
+        folder = out if out is not None else Path("plots") / f"{log.name}-scan{index}"
+        written = plot_feature_figures(features, folder, index)
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+        return
+    for number, path in sorted(written.items()):
+        console.print(f"Fig. {number}: {path}")
+
+
 def main() -> None:  # pragma: no cover - console entry point
     app()
