@@ -28,6 +28,7 @@ ANGLES_DEG = {
     ("filtering", "detection_angle_threshold"): 22.5,
     ("angular_points", "interior_angle_threshold"): 135.0,
     ("virtual_points", "min_intersection_angle"): 30.0,
+    ("matching", "keyframe_angle"): 30.0,
     ("matching", "line_angle_gate"): 3.0,
     ("matching", "line_angle_gate_prior"): 8.0,
     ("matching", "line_trim_angle"): 0.2,

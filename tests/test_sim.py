@@ -152,7 +152,7 @@ def test_cast_rays_shapes_and_chunking(monkeypatch: pytest.MonkeyPatch) -> None:
     dirs = rng.uniform(-math.pi, math.pi, 500)
     full = cast_rays(world, origins, dirs, 20.0)
     assert full.shape == (500,)
-    monkeypatch.setattr(sim, "_CHUNK_ELEMENTS", 100)  # chunks of 2 beams
+    monkeypatch.setattr(sim.raycast, "_CHUNK_ELEMENTS", 100)  # chunks of 2 beams
     np.testing.assert_array_equal(cast_rays(world, origins, dirs, 20.0), full)
     # a single origin broadcasts over the directions, a segment array works as a world
     one = cast_rays(world.segments, origins[0], dirs, 20.0)

@@ -64,10 +64,13 @@ class Positioner:
         self.reset()
 
     def reset(self) -> None:
-        self._prev_features: Features | None = None
-        self._prev_odom: Pose2D | None = None
         self._pose: np.ndarray | None = None
+        self._prev_odom: Pose2D | None = None
         self._last_increment = np.zeros(3)
+        # the keyframe: the scan the next ones are matched against, its pose and odometry
+        self._key_features: Features | None = None
+        self._key_pose = np.zeros(3)
+        self._key_odom: Pose2D | None = None
 
     @property
     def pose(self) -> Pose2D | None:
@@ -80,23 +83,64 @@ class Positioner:
             raise TypeError(f"update() needs a LaserScan, got {type(scan).__name__}")
         if odom is not None and not isinstance(odom, Pose2D):
             raise TypeError(f"odom must be a Pose2D or None, got {type(odom).__name__}")
-        cfg = self.config
-        features = extract_features(scan, cfg)
+        features = extract_features(scan, self.config)
 
         if self._pose is None:  # the first scan: its odometry pose, or the origin
             start = odom.as_array() if odom is not None else np.zeros(3)
             self._pose = start
-            self._prev_features = features
             self._prev_odom = odom
+            self._set_keyframe(features, start, odom)
             zero = Pose2D()
             return Estimate(scan.stamp, Pose2D.from_array(start), zero, zero, 0, False, features)
 
+        # the prior for this scan's motion: the odometry increment, else the last increment
         if odom is not None and self._prev_odom is not None:
             prior = relative(self._prev_odom.as_array(), odom.as_array())
         else:
             prior = self._last_increment
+        # the same prior from the keyframe: what was estimated up to the previous scan, then it
+        key_prior = compose(relative(self._key_pose, self._pose), prior)
+        from_key, n_pairs, reason = self._motion(cast(Features, self._key_features), features, key_prior)
+        degraded = from_key is None
+        if from_key is None:  # fall back to the prior, and start afresh from this scan
+            increment = np.asarray(prior, dtype=float)
+            pose = compose(self._pose, increment)
+        else:
+            pose = compose(self._key_pose, from_key)
+            increment = relative(self._pose, pose)
         m = self.config.matching
-        prev = cast(Features, self._prev_features)  # set with the first scan
+        if (
+            degraded
+            or math.hypot(from_key[0], from_key[1]) >= m.keyframe_distance
+            or abs(from_key[2]) >= m.keyframe_angle
+        ):
+            self._set_keyframe(features, pose, odom)
+        self._pose = pose
+        self._last_increment = increment
+        self._prev_odom = odom
+        return Estimate(
+            stamp=scan.stamp,
+            pose=_pose(pose),
+            increment=_pose(increment),
+            prior=_pose(prior),
+            n_pairs=n_pairs,
+            degraded=degraded,
+            features=features,
+            reason=reason,
+        )
+
+    def _set_keyframe(self, features: Features, pose: np.ndarray, odom: Pose2D | None) -> None:
+        self._key_features = features
+        self._key_pose = pose
+        self._key_odom = odom
+
+    def _motion(
+        self, prev: Features, features: Features, prior: np.ndarray
+    ) -> tuple[np.ndarray | None, int, str]:
+        """The motion from ``prev`` to ``features``: line matching from the prior first (where
+        configured), else the paper's point pairing (refined by line matching). None where
+        nothing gives a motion."""
+        m = self.config.matching
         increment = None
         n_pairs, reason = 0, ""
         lines_tried = m.match_lines and m.lines_first
@@ -108,23 +152,7 @@ class Positioner:
                 refined, n_lines = self._match_lines(prev.lines, features.lines, increment, prior)
                 if refined is not None:
                     increment, n_pairs, reason = refined, n_lines, ""
-        degraded = increment is None
-        if increment is None:
-            increment = prior
-        self._pose = compose(self._pose, increment)
-        self._last_increment = np.asarray(increment, dtype=float)
-        self._prev_features = features
-        self._prev_odom = odom
-        return Estimate(
-            stamp=scan.stamp,
-            pose=_pose(self._pose),
-            increment=_pose(increment),
-            prior=_pose(prior),
-            n_pairs=n_pairs,
-            degraded=degraded,
-            features=features,
-            reason=reason,
-        )
+        return increment, n_pairs, reason
 
     def _match(
         self, prev: FeaturePoints, curr: FeaturePoints, prior: np.ndarray
@@ -161,6 +189,8 @@ class Positioner:
         est, n_pairs = None, 0
         for _ in range(2):
             pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
+            if len(pairs) < m.line_min_pairs:
+                break
             new = increment_from_lines(
                 prev, curr, pairs, pose, prior, m.line_prior_sigma, m.line_trim_angle,
                 m.line_inlier_distance,
