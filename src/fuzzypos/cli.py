@@ -6,13 +6,10 @@ code 2; nothing here does work the library could do.
 
 from __future__ import annotations
 
-import math
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import Progress
@@ -20,9 +17,6 @@ from rich.table import Table
 
 from . import __version__
 from .config import Config, ConfigError
-from .geometry import Pose2D, relative
-from .positioner import Positioner
-from .sim import ScannerModel, arc_path, drifting_odometry, furnished_room, simulate_scans
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Fuzzy-based positioning from 2D laser scans and odometry.")
 console = Console()
@@ -59,73 +53,90 @@ def _read_toml(path: Path) -> dict:
         raise ConfigError(f"{path}: invalid TOML: {exc}") from None
 
 
-@dataclass(frozen=True)
-class _Errors:
-    final: float
-    mean: float
-    max: float
-    mean_heading_deg: float
-    degraded: int
+@app.command()
+def demo(
+    out: Path = typer.Option(Path("demo-output"), help="folder for the figures and summary.json"),
+    seed: int = typer.Option(0, help="random seed of the simulation"),
+    laps: float = typer.Option(2.0, help="laps of the 4 m circle"),
+) -> None:
+    """The paper's experiment, simulated: a robot drives a circle in a gym on a slippery floor
+    (the truth is a spiral, odometry believes in the circle); positions it with the default
+    configuration and the paper preset; writes the paper's Figs. 13–20 and summary.json."""
+    from .demo import DemoSettings, run_demo
 
+    settings = DemoSettings(seed=seed, laps=laps)
+    try:
+        with Progress(console=console, transient=True) as progress:
+            tasks: dict[str, object] = {}
 
-def _errors(truth: list[Pose2D], est: list[Pose2D], degraded: int) -> _Errors:
-    t = np.array([p.as_array() for p in truth])
-    e = np.array([p.as_array() for p in est])
-    d = np.hypot(*(t[:, :2] - e[:, :2]).T)
-    dh = np.abs(np.degrees(np.angle(np.exp(1j * (t[:, 2] - e[:, 2])))))
-    return _Errors(float(d[-1]), float(d.mean()), float(d.max()), float(dh.mean()), degraded)
+            def report(name: str, k: int, n: int) -> None:
+                if name not in tasks:
+                    tasks[name] = progress.add_task(f"{name:>8}", total=n)
+                progress.update(tasks[name], completed=k)  # type: ignore[arg-type]
+
+            t0 = time.perf_counter()
+            result = run_demo(out, settings, progress=report)
+            seconds = time.perf_counter() - t0
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+        return
+    summary = result.summary
+    console.print(
+        f"fuzzypos {__version__} demo: {summary['scans']} scans, {summary['distance_travelled_m']:.1f} m "
+        f"along the true path ({result.run.path.name} in the {result.run.world.name}, seed {seed}); "
+        f"{seconds:.1f} s"
+    )
+    table = Table(title="position error against the simulated truth")
+    for col in ("", "final (m)", "mean (m)", "max (m)", "mean heading (°)", "degraded"):
+        table.add_column(col, justify="right")
+    for name in ("odometry", "paper", "default"):
+        e = result.errors[name]
+        table.add_row(
+            name, f"{e.final_position_error_m:.3f}", f"{e.mean_position_error_m:.3f}",
+            f"{e.max_position_error_m:.3f}", f"{e.mean_heading_error_deg:.2f}", str(e.scans_degraded),
+        )
+    console.print(table)
+    console.print(f"figures and summary.json in {out}/")
 
 
 @app.command()
-def demo(
-    scans: int = typer.Option(150, help="number of scans to simulate"),
-    seed: int = typer.Option(0, help="random seed (noise and odometry)"),
-    noise: float = typer.Option(0.01, help="range noise standard deviation, metres"),
+def simulate(
+    out: Path = typer.Option(..., "--out", "-o", help="the CARMEN log to write (.gz: gzipped)"),
+    tum: Optional[Path] = typer.Option(None, help="also write the true trajectory as TUM"),
+    world: str = typer.Option("gym", help="gym, office, furnished_room, rectangular_room, or a world file"),
+    path: str = typer.Option("circle", help="circle, square or figure8"),
+    size: float = typer.Option(4.0, help="the circle's or figure eight's radius, the square's side (m)"),
+    laps: float = typer.Option(1.0, help="laps of the path"),
+    speed: float = typer.Option(0.3, help="m/s"),
+    seed: int = typer.Option(0, help="random seed"),
 ) -> None:
-    """Simulate a robot driving an arc in a furnished room and position it from its scans."""
-    if scans < 2:
-        _fail(f"--scans must be at least 2, got {scans}")
-    world = furnished_room(0)
-    scanner = ScannerModel(n_beams=180, range_max=8.0, range_noise_std=noise)
-    rng = np.random.default_rng(seed)
-    truth = arc_path(Pose2D(-1.5, -1.0, 0.3), scans, step=0.02, turn_deg=0.6)
-    # odometry that over-reads distance by 3% and turns 0.15° too much per scan, with noise
-    odom = drifting_odometry(truth, scale=1.03, rotation_bias_deg=0.15, noise_std=(0.002, 0.05), rng=rng)
-    sim_scans = simulate_scans(world, truth, scanner, rng=rng, stamps=[0.1 * k for k in range(scans)])
-    console.print(
-        f"fuzzypos {__version__} demo: {scans} scans of {scanner.n_beams} beams in "
-        f"{world.name}, {noise * 100:.1f} cm range noise, odometry +3 % distance and "
-        "+0.15°/scan heading drift"
-    )
-    results: dict[str, tuple[_Errors, float, float]] = {}
-    with Progress(console=console, transient=True) as progress:
-        for name in ("paper", "default"):
-            pos = Positioner(Config.preset(name))
-            task = progress.add_task(f"{name:>8}", total=scans)
-            ests = []
-            t0 = time.perf_counter()
-            for s, o in zip(sim_scans, odom):
-                ests.append(pos.update(s, o))
-                progress.advance(task)
-            dt = time.perf_counter() - t0
-            n_feat = float(np.mean([len(e.features.points_of_interest) for e in ests if e.features]))
-            deg = sum(e.degraded for e in ests)
-            results[name] = (_errors(truth, [e.pose for e in ests], deg), scans / dt, n_feat)
-    odo_err = _errors(truth, odom, 0)
-    table = Table(title="position error against the simulated truth")
-    for col in ("", "final (m)", "mean (m)", "max (m)", "mean heading (°)", "degraded", "scans/s"):
-        table.add_column(col, justify="right")
-    table.add_row("odometry", f"{odo_err.final:.3f}", f"{odo_err.mean:.3f}", f"{odo_err.max:.3f}",
-                  f"{odo_err.mean_heading_deg:.2f}", "0", "")
-    for name, (err, rate, _) in results.items():
-        table.add_row(name, f"{err.final:.3f}", f"{err.mean:.3f}", f"{err.max:.3f}",
-                      f"{err.mean_heading_deg:.2f}", str(err.degraded), f"{rate:.0f}")
-    console.print(table)
-    dist = sum(math.hypot(*relative(truth[k - 1].as_array(), truth[k].as_array())[:2]) for k in range(1, scans))
-    console.print(
-        f"distance travelled {dist:.2f} m; feature points per scan: "
-        f"{results['default'][2]:.1f} (default), {results['paper'][2]:.1f} (paper)"
-    )
+    """Simulate a run and write it as a CARMEN log: FLASER lines carry the odometry, TRUEPOS
+    lines the truth, as CARMEN's own simulator does."""
+    from . import sim
+    from .demo import DemoSettings
+    from .io import CarmenRecord, write_carmen, write_tum
+
+    try:
+        w = sim.world_by_name(world) if world in sim.WORLD_NAMES else sim.World.from_file(world)
+        builders = {"circle": sim.CommandedPath.circle, "figure8": sim.CommandedPath.figure8}
+        if path == "square":
+            commanded = sim.CommandedPath.square(size, laps=max(1, round(laps)), speed=speed)
+        elif path in builders:
+            commanded = builders[path](size, laps=laps, speed=speed)
+        else:
+            _fail(f"unknown path {path!r}; known: circle, square, figure8")
+            return
+        run = sim.simulate_run(w, commanded, DemoSettings().scanner, sim.SlipModel(), seed)
+        records = (
+            CarmenRecord(scan, run.odometry_pose(k), run.true_pose(k)) for k, scan in enumerate(run.scans)
+        )
+        n = write_carmen(out, records, header_comment=f"fuzzypos simulate: {commanded.name} in {w.name}, seed {seed}")
+        if tum is not None:
+            write_tum(tum, run.stamps, run.true_poses)
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+        return
+    console.print(f"{n} scans written to {out}" + (f", the truth to {tum}" if tum else ""))
 
 
 @app.command()
