@@ -49,6 +49,15 @@ def test_simulate_writes_a_carmen_log_with_truth_and_a_tum_file(tmp_path) -> Non
     assert np.abs(odo - truth).max() > 0  # the odometry is not the truth
 
 
+def test_simulate_follows_waypoints(tmp_path) -> None:
+    log = tmp_path / "wp.clf"
+    res = runner.invoke(app, ["simulate", "--out", str(log), "--world", "office", "--path", "-8,0;-5,0"])
+    assert res.exit_code == 0, res.output
+    truth = np.array([r.truth.as_array() for r in read_carmen(log)])
+    np.testing.assert_allclose(truth[0, :2], [-8.0, 0.0], atol=1e-9)
+    assert abs(truth[-1, 0] - (-5.0)) < 0.2  # 3 m with a few percent of slip
+
+
 def test_plot_scan_draws_figs_13_to_18(tmp_path) -> None:
     log = tmp_path / "run.clf"
     assert runner.invoke(app, ["simulate", "--out", str(log), "--laps", "0.05"]).exit_code == 0
@@ -62,6 +71,7 @@ def test_errors_are_one_line_and_exit_2(tmp_path) -> None:
     cases = [
         ["simulate", "--out", str(tmp_path / "x.clf"), "--world", "moon"],
         ["simulate", "--out", str(tmp_path / "x.clf"), "--path", "zigzag"],
+        ["simulate", "--out", str(tmp_path / "x.clf"), "--path", "1,2;3"],
         ["plot-scan", str(tmp_path / "missing.clf"), "--index", "0"],
         ["config", "--preset", "nope"],
         ["config", "--config", str(tmp_path / "missing.toml")],

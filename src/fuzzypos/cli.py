@@ -104,7 +104,7 @@ def simulate(
     out: Path = typer.Option(..., "--out", "-o", help="the CARMEN log to write (.gz: gzipped)"),
     tum: Optional[Path] = typer.Option(None, help="also write the true trajectory as TUM"),
     world: str = typer.Option("gym", help="gym, office, furnished_room, rectangular_room, or a world file"),
-    path: str = typer.Option("circle", help="circle, square or figure8"),
+    path: str = typer.Option("circle", help="circle, square, figure8, or waypoints 'x,y;x,y;…' (m)"),
     size: float = typer.Option(4.0, help="the circle's or figure eight's radius, the square's side (m)"),
     laps: float = typer.Option(1.0, help="laps of the path"),
     speed: float = typer.Option(0.3, help="m/s"),
@@ -119,12 +119,21 @@ def simulate(
     try:
         w = sim.world_by_name(world) if world in sim.WORLD_NAMES else sim.World.from_file(world)
         builders = {"circle": sim.CommandedPath.circle, "figure8": sim.CommandedPath.figure8}
-        if path == "square":
+        if ";" in path or "," in path:
+            try:
+                points = [tuple(float(v) for v in p.split(",")) for p in path.split(";") if p.strip()]
+            except ValueError:
+                points = []
+            if len(points) < 2 or any(len(p) != 2 for p in points):
+                _fail(f"--path {path!r}: waypoints are 'x,y;x,y;…' with at least two points")
+                return
+            commanded = sim.CommandedPath.waypoints(points, speed=speed)
+        elif path == "square":
             commanded = sim.CommandedPath.square(size, laps=max(1, round(laps)), speed=speed)
         elif path in builders:
             commanded = builders[path](size, laps=laps, speed=speed)
         else:
-            _fail(f"unknown path {path!r}; known: circle, square, figure8")
+            _fail(f"unknown path {path!r}; known: circle, square, figure8, or waypoints 'x,y;x,y'")
             return
         run = sim.simulate_run(w, commanded, DemoSettings().scanner, sim.SlipModel(), seed)
         records = (
