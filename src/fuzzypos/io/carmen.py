@@ -55,55 +55,37 @@ timestamps go backwards.
 
 The reader streams: one line in memory at a time (plus the record waiting for its TRUEPOS).
 Gzip is recognised by its magic bytes, not by the file name.
-
-TUM trajectories
-----------------
-``t x y z qx qy qz qw`` per line (the format ``evo`` reads): :func:`write_tum` writes planar
-poses (``z = qx = qy = 0``, ``qz = sin(θ/2)``, ``qw = cos(θ/2)``) at full precision;
-:func:`read_tum` reads them back with strict validation (:class:`TumFormatError`).
 """
 
 from __future__ import annotations
 
 import gzip
-import io
 import math
 import os
 import warnings
 import zlib
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from pathlib import Path
-from typing import IO, ClassVar, NamedTuple, Union
+from collections.abc import Iterable, Iterator
+from typing import IO, ClassVar, NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
-from .geometry import Pose2D, wrap_angle
-from .scan import LaserScan
+from ..geometry import Pose2D
+from ..scan import LaserScan
+from ._common import FloatArray, LogFormatError, PathLike, _write_atomically, open_text
 
 __all__ = [
     "CONVENTIONS",
     "CarmenFormatError",
     "CarmenReader",
     "CarmenRecord",
-    "LogFormatError",
-    "TumFormatError",
     "carmen_beam_geometry",
-    "open_text",
     "read_carmen",
-    "read_tum",
     "write_carmen",
-    "write_tum",
 ]
-
-PathLike = Union[str, "os.PathLike[str]"]
-FloatArray = NDArray[np.float64]
 
 #: the beam-angle conventions FLASER readers and writers understand (see the module docstring)
 CONVENTIONS = ("auto", "resolution", "span")
-
-GZIP_MAGIC = b"\x1f\x8b"
 
 #: tolerance (radians) when checking that a scan's geometry fits the FLASER convention
 _GEOMETRY_TOL = 1e-7
@@ -118,75 +100,12 @@ _INTERPRETED_PARAMS = ("robot_frontlaser_offset", "robot_front_laser_max")
 _RANGE_DECIMALS = 4
 
 
-# -- errors --------------------------------------------------------------------------------
-class LogFormatError(ValueError):
-    """A malformed line in a log file: ``"<file>:<line>: <what>"``.
-
-    ``path`` is the file as given, ``line`` the 1-based line number (0 when the problem is
-    not on one line) and ``reason`` what is wrong.
-    """
-
-    def __init__(self, path: PathLike, line: int, reason: str) -> None:
-        self.path = os.fspath(path)
-        self.line = int(line)
-        self.reason = reason
-        where = f"{self.path}:{self.line}" if self.line > 0 else self.path
-        super().__init__(f"{where}: {reason}")
-
-    def __reduce__(self) -> tuple[type, tuple[str, int, str]]:  # picklable across processes
-        return (type(self), (self.path, self.line, self.reason))
-
-
 class CarmenFormatError(LogFormatError):
     """A malformed CARMEN log line, e.g. ``log.clf:17: FLASER: expected 180 ranges, got 179``."""
 
 
-class TumFormatError(LogFormatError):
-    """A malformed TUM trajectory line, e.g. ``traj.tum:3: expected 8 fields …, got 7``."""
-
-
 class _Bad(Exception):
     """Internal: a line handler's complaint; the reader adds the file and line."""
-
-
-# -- files ---------------------------------------------------------------------------------
-def open_text(path: PathLike) -> IO[str]:
-    """Open a text log for reading, decompressing gzip when the file starts with its magic
-    bytes (whatever its name). Undecodable bytes become U+FFFD (and fail to parse as numbers
-    rather than aborting the read)."""
-    with open(path, "rb") as f:
-        magic = f.read(2)
-    if magic == GZIP_MAGIC:
-        raw: IO[bytes] = gzip.open(path, "rb")  # noqa: SIM115 - closed with the wrapper
-    else:
-        raw = open(path, "rb")  # noqa: SIM115 - the caller closes the returned stream
-    return io.TextIOWrapper(raw, encoding="utf-8", errors="replace")  # type: ignore[arg-type]
-
-
-def _write_atomically(path: PathLike, write: Callable[[IO[str]], None]) -> None:
-    """Call ``write`` on a text stream that ends up in ``path`` only if it returns: a
-    temporary file next to ``path`` is renamed over it, or removed on error. A name ending in
-    ``.gz`` gets a gzip file."""
-    target = Path(path)
-    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-    try:
-        if target.name.endswith(".gz"):
-            with (
-                open(tmp, "wb") as raw,
-                gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz,
-                io.TextIOWrapper(gz, encoding="utf-8", newline="\n") as fh,
-            ):
-                write(fh)
-        else:
-            with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-                write(fh)
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 # -- CARMEN: beam geometry -----------------------------------------------------------------
@@ -601,7 +520,7 @@ def write_carmen(
 
     def write(fh: IO[str]) -> None:
         nonlocal count
-        from . import __version__  # late: the package imports this module's siblings first
+        from .. import __version__  # late: the package imports this module's siblings first
 
         fh.write("# CARMEN Logfile\n")
         fh.write(f"# written by fuzzypos {__version__} (fuzzypos.io.write_carmen)\n")
@@ -666,99 +585,3 @@ def write_carmen(
 
     _write_atomically(path, write)
     return count
-
-
-# -- TUM -----------------------------------------------------------------------------------
-def _poses_array(poses: ArrayLike | Sequence[Pose2D]) -> FloatArray:
-    if isinstance(poses, (list, tuple)) and poses and isinstance(poses[0], Pose2D):
-        return np.array([p.as_array() for p in poses], dtype=np.float64).reshape(-1, 3)
-    arr = np.asarray(poses, dtype=np.float64)
-    if arr.ndim == 1 and arr.size == 0:
-        arr = arr.reshape(0, 3)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"poses must have shape (n, 3) (x, y, theta), got {arr.shape}")
-    return arr
-
-
-def write_tum(
-    path: PathLike,
-    stamps: ArrayLike,
-    poses: ArrayLike | Sequence[Pose2D],
-    *,
-    header_comment: str | None = None,
-) -> None:
-    """Write planar poses as a TUM trajectory: ``t x y z qx qy qz qw`` per line.
-
-    ``stamps`` has shape ``(n,)``, ``poses`` ``(n, 3)`` (``x, y, θ``) or is a sequence of
-    :class:`~fuzzypos.geometry.Pose2D`. ``z = qx = qy = 0``, ``qz = sin(θ/2)``,
-    ``qw = cos(θ/2)``; stamps and coordinates at full precision (``repr``), never rounded.
-    ``header_comment`` lines become ``#`` comments at the top (``evo`` skips them). Non-finite
-    values raise :class:`ValueError`. A name ending in ``.gz`` gets a gzip file.
-    """
-    t = np.asarray(stamps, dtype=np.float64)
-    if t.ndim != 1:
-        raise ValueError(f"stamps must have shape (n,), got {t.shape}")
-    p = _poses_array(poses)
-    if t.shape[0] != p.shape[0]:
-        raise ValueError(f"got {t.shape[0]} stamps for {p.shape[0]} poses")
-    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p))):
-        raise ValueError("stamps and poses must be finite")
-
-    def write(fh: IO[str]) -> None:
-        if header_comment:
-            for line in str(header_comment).splitlines():
-                fh.write(f"# {line}\n" if line else "#\n")
-        for ti, (x, y, th) in zip(t.tolist(), p.tolist()):
-            qz, qw = math.sin(th / 2.0), math.cos(th / 2.0)
-            fh.write(f"{ti!r} {x!r} {y!r} 0.0 0.0 0.0 {qz!r} {qw!r}\n")
-
-    _write_atomically(path, write)
-
-
-def read_tum(path: PathLike) -> tuple[FloatArray, FloatArray]:
-    """Read a TUM trajectory: ``(stamps (n,), poses (n, 3))`` with ``θ`` the quaternion's yaw.
-
-    Every non-comment line must hold exactly 8 finite numbers ``t x y z qx qy qz qw`` with a
-    unit quaternion (to 1e-3; it is normalised before use); lines starting with ``#`` and
-    blank lines are skipped; ``z``, roll and pitch are dropped. Anything else raises
-    :class:`TumFormatError` naming the file and line. Plain or gzip (by magic bytes); the
-    order of the file is kept (stamps need not increase).
-    """
-    stamps: list[float] = []
-    rows: list[tuple[float, float, float]] = []
-    with open_text(path) as fh:
-        for lineno, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            tok = s.split()
-            if len(tok) != 8:
-                raise TumFormatError(
-                    path, lineno, f"expected 8 fields (t x y z qx qy qz qw), got {len(tok)}"
-                )
-            vals = []
-            for what, f in zip(("t", "x", "y", "z", "qx", "qy", "qz", "qw"), tok):
-                try:
-                    v = float(f)
-                except ValueError:
-                    raise TumFormatError(path, lineno, f"{what} is not a number: {f!r}") from None
-                if not math.isfinite(v):
-                    raise TumFormatError(path, lineno, f"{what} must be finite, got {f!r}")
-                vals.append(v)
-            t, x, y, _z, qx, qy, qz, qw = vals
-            norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-            if abs(norm - 1.0) > 1e-3:
-                raise TumFormatError(
-                    path,
-                    lineno,
-                    f"quaternion (qx qy qz qw) is not a unit quaternion: norm {norm:.6g}",
-                )
-            qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
-            yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-            stamps.append(t)
-            rows.append((x, y, yaw))
-    t_arr = np.array(stamps, dtype=np.float64)
-    poses = np.array(rows, dtype=np.float64).reshape(-1, 3)
-    if poses.shape[0]:
-        poses[:, 2] = wrap_angle(poses[:, 2])
-    return t_arr, poses

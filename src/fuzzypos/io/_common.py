@@ -1,0 +1,88 @@
+"""What the log readers and writers share: the typed format errors, opening plain or gzip
+text by content, and atomic writes."""
+
+from __future__ import annotations
+
+import gzip
+import io
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Union
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["GZIP_MAGIC", "LogFormatError", "open_text"]
+
+PathLike = Union[str, "os.PathLike[str]"]
+FloatArray = NDArray[np.float64]
+
+GZIP_MAGIC = b"\x1f\x8b"
+
+
+# -- errors --------------------------------------------------------------------------------
+class LogFormatError(ValueError):
+    """A malformed line in a log file: ``"<file>:<line>: <what>"``.
+
+    ``path`` is the file as given, ``line`` the 1-based line number (0 when the problem is
+    not on one line) and ``reason`` what is wrong.
+    """
+
+    def __init__(self, path: PathLike, line: int, reason: str) -> None:
+        self.path = os.fspath(path)
+        self.line = int(line)
+        self.reason = reason
+        where = f"{self.path}:{self.line}" if self.line > 0 else self.path
+        super().__init__(f"{where}: {reason}")
+
+    def __reduce__(self) -> tuple[type, tuple[str, int, str]]:  # picklable across processes
+        return (type(self), (self.path, self.line, self.reason))
+
+
+class CarmenFormatError(LogFormatError):
+    """A malformed CARMEN log line, e.g. ``log.clf:17: FLASER: expected 180 ranges, got 179``."""
+
+
+class TumFormatError(LogFormatError):
+    """A malformed TUM trajectory line, e.g. ``traj.tum:3: expected 8 fields …, got 7``."""
+
+
+# -- files ---------------------------------------------------------------------------------
+def open_text(path: PathLike) -> IO[str]:
+    """Open a text log for reading, decompressing gzip when the file starts with its magic
+    bytes (whatever its name). Undecodable bytes become U+FFFD (and fail to parse as numbers
+    rather than aborting the read)."""
+    with open(path, "rb") as f:
+        magic = f.read(2)
+    if magic == GZIP_MAGIC:
+        raw: IO[bytes] = gzip.open(path, "rb")  # noqa: SIM115 - closed with the wrapper
+    else:
+        raw = open(path, "rb")  # noqa: SIM115 - the caller closes the returned stream
+    return io.TextIOWrapper(raw, encoding="utf-8", errors="replace")  # type: ignore[arg-type]
+
+
+def _write_atomically(path: PathLike, write: Callable[[IO[str]], None]) -> None:
+    """Call ``write`` on a text stream that ends up in ``path`` only if it returns: a
+    temporary file next to ``path`` is renamed over it, or removed on error. A name ending in
+    ``.gz`` gets a gzip file."""
+    target = Path(path)
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    try:
+        if target.name.endswith(".gz"):
+            with (
+                open(tmp, "wb") as raw,
+                gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz,
+                io.TextIOWrapper(gz, encoding="utf-8", newline="\n") as fh,
+            ):
+                write(fh)
+        else:
+            with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+                write(fh)
+        os.replace(tmp, target)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
