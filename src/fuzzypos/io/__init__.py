@@ -9,7 +9,7 @@ line and what is wrong.
 
 from __future__ import annotations
 
-from ._common import GZIP_MAGIC, LogFormatError, open_text
+from ._common import GZIP_MAGIC, LogFormatError, LogRecord, open_text
 from .carmen import (
     CONVENTIONS,
     CarmenFormatError,
@@ -28,6 +28,7 @@ __all__ = [
     "CarmenReader",
     "CarmenRecord",
     "LogFormatError",
+    "LogRecord",
     "TumFormatError",
     "carmen_beam_geometry",
     "open_text",

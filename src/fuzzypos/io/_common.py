@@ -8,17 +8,30 @@ import io
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Union
+from typing import IO, NamedTuple, Union
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["GZIP_MAGIC", "LogFormatError", "open_text"]
+from ..geometry import Pose2D
+from ..scan import LaserScan
+
+__all__ = ["GZIP_MAGIC", "LogFormatError", "LogRecord", "open_text"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 FloatArray = NDArray[np.float64]
 
 GZIP_MAGIC = b"\x1f\x8b"
+
+
+class LogRecord(NamedTuple):
+    """One scan of a log with the robot's raw odometry pose at it (None where the log has no
+    odometry) and, for a simulated log, the true pose (else None). The scan's
+    ``sensor_pose`` is the laser's mounting pose on the robot."""
+
+    scan: LaserScan
+    odometry: Pose2D | None
+    truth: Pose2D | None = None
 
 
 # -- errors --------------------------------------------------------------------------------

@@ -66,13 +66,13 @@ import warnings
 import zlib
 from collections import deque
 from collections.abc import Iterable, Iterator
-from typing import IO, ClassVar, NamedTuple
+from typing import IO, ClassVar
 
 import numpy as np
 
 from ..geometry import Pose2D
 from ..scan import LaserScan
-from ._common import FloatArray, LogFormatError, PathLike, _write_atomically, open_text
+from ._common import FloatArray, LogFormatError, LogRecord, PathLike, _write_atomically, open_text
 
 __all__ = [
     "CONVENTIONS",
@@ -146,12 +146,8 @@ def _check_convention(convention: str) -> None:
 
 
 # -- CARMEN: reading -----------------------------------------------------------------------
-class CarmenRecord(NamedTuple):
-    """One FLASER scan with its raw odometry pose and, when the log has it, the true pose."""
-
-    scan: LaserScan
-    odometry: Pose2D
-    truth: Pose2D | None = None
+#: a CARMEN record is a :class:`~fuzzypos.io.LogRecord` (its odometry is never None)
+CarmenRecord = LogRecord
 
 
 def _float(s: str, what: str) -> float:
