@@ -49,6 +49,18 @@ def test_simulate_writes_a_carmen_log_with_truth_and_a_tum_file(tmp_path) -> Non
     assert np.abs(odo - truth).max() > 0  # the odometry is not the truth
 
 
+def test_same_seed_gives_the_same_log_byte_for_byte(tmp_path) -> None:
+    args = ["simulate", "--world", "gym", "--path", "square", "--size", "2.0", "--laps", "0.1"]
+    logs = []
+    for name, seed in (("a", "5"), ("b", "5"), ("c", "6")):
+        log = tmp_path / f"{name}.clf"
+        res = runner.invoke(app, [*args, "--out", str(log), "--seed", seed])
+        assert res.exit_code == 0, res.output
+        logs.append(log.read_bytes())
+    assert logs[0] == logs[1]
+    assert logs[0] != logs[2]
+
+
 def test_simulate_follows_waypoints(tmp_path) -> None:
     log = tmp_path / "wp.clf"
     res = runner.invoke(app, ["simulate", "--out", str(log), "--world", "office", "--path", "-8,0;-5,0"])
