@@ -1,6 +1,8 @@
 """Reading and writing robot logs and trajectories.
 
 - :mod:`fuzzypos.io.carmen`: CARMEN logs (``.clf``, plain or gzip), read as a stream and written;
+- :mod:`fuzzypos.io.rosbag`: ROS1 and ROS2 bags (``sensor_msgs/LaserScan`` with ``nav_msgs/Odometry``)
+  through the ``rosbags`` package;
 - :mod:`fuzzypos.io.tum`: TUM trajectories (``t x y z qx qy qz qw``, what ``evo`` reads).
 
 Every format error is a :class:`LogFormatError` (a :class:`ValueError`) naming the file, the
@@ -19,9 +21,25 @@ from .carmen import (
     read_carmen,
     write_carmen,
 )
+from .rosbag import (
+    BagFormatError,
+    BagReader,
+    BagTopicError,
+    interpolate_poses,
+    is_ros1_bag,
+    is_ros2_bag,
+    read_bag,
+)
 from .tum import TumFormatError, read_tum, write_tum
 
 __all__ = [
+    "BagFormatError",
+    "BagReader",
+    "BagTopicError",
+    "interpolate_poses",
+    "is_ros1_bag",
+    "is_ros2_bag",
+    "read_bag",
     "CONVENTIONS",
     "GZIP_MAGIC",
     "CarmenFormatError",
