@@ -3,6 +3,7 @@
 - :mod:`fuzzypos.io.carmen`: CARMEN logs (``.clf``, plain or gzip), read as a stream and written;
 - :mod:`fuzzypos.io.rosbag`: ROS1 and ROS2 bags (``sensor_msgs/LaserScan`` with ``nav_msgs/Odometry``)
   through the ``rosbags`` package;
+- :mod:`fuzzypos.io.relations`: the Freiburg benchmark's relations files;
 - :mod:`fuzzypos.io.tum`: TUM trajectories (``t x y z qx qy qz qw``, what ``evo`` reads).
 
 Every format error is a :class:`LogFormatError` (a :class:`ValueError`) naming the file, the
@@ -21,6 +22,7 @@ from .carmen import (
     read_carmen,
     write_carmen,
 )
+from .relations import PLANAR_TOLERANCE, Relations, RelationsFormatError, read_relations
 from .rosbag import (
     BagFormatError,
     BagReader,
@@ -33,6 +35,10 @@ from .rosbag import (
 from .tum import TumFormatError, read_tum, write_tum
 
 __all__ = [
+    "PLANAR_TOLERANCE",
+    "Relations",
+    "RelationsFormatError",
+    "read_relations",
     "BagFormatError",
     "BagReader",
     "BagTopicError",
