@@ -268,7 +268,10 @@ def test_comments_blank_lines_and_unknown_messages_skipped(tmp_path):
         flaser(R5, odom=(1.0, 2.0, 0.5), stamp=1.0),
         "NEFF 12 0.5 h 1.05",
         "RLASER 3 1 2 3 0 0 0 0 0 0 1.1 h 1.1",
-        "ROBOTLASER1 garbage that we do not read yet",
+        "RAWLASER1 garbage of a type we do not read",
+        "FLASERX 6 1 2 3",  # only exact message names count
+        "flaser 6 1 2 3",
+        "#FLASER 6 1 2 3",
         "whatever else",
         "\t" + flaser(R5, odom=(1.5, 2.0, 0.5), stamp=2.0) + "   ",
     ]
@@ -581,3 +584,553 @@ def test_reads_aces_log_head():
     assert recs[0].scan.angle_increment == pytest.approx(DEG)
     assert all(r.scan.range_max == 50.0 for r in recs)  # its "no return" value, learned
     assert all(r.truth is None for r in recs)
+
+
+# -- ROBOTLASER1 ---------------------------------------------------------------------------
+def robotlaser1(
+    ranges,
+    *,
+    robot=(0.0, 0.0, 0.0),
+    offset=(0.0, 0.0, 0.0),
+    laser=None,
+    start=-math.pi / 2,
+    res=DEG,
+    fov=None,
+    max_range=50.0,
+    remissions=(),
+    n=None,
+    n_rem=None,
+    stamp=1.0,
+    vel=(0.1, 0.2, 0.3, 0.4, 0.5),
+    host="h",
+):
+    """A ROBOTLASER1 line; the laser pose is ``robot ⊕ offset`` unless ``laser`` is given.
+    Any field may be a string (to break the line)."""
+    if laser is None:
+        laser = tuple(Pose2D(*robot).compose(Pose2D(*offset)))
+    n = len(ranges) if n is None else n
+    n_rem = len(remissions) if n_rem is None else n_rem
+    fov = len(ranges) * res if fov is None else fov
+    fields = [
+        "ROBOTLASER1",
+        "0",
+        _num(start),
+        _num(fov),
+        _num(res),
+        _num(max_range),
+        "0.01",
+        "0",
+        str(n),
+        *(_num(r) for r in ranges),
+        str(n_rem),
+        *(_num(r) for r in remissions),
+        *(_num(v) for v in laser),
+        *(_num(v) for v in robot),
+        *(_num(v) for v in vel),
+        _num(stamp),
+        host,
+        _num(stamp),
+    ]
+    return " ".join(fields)
+
+
+def write_robotlaser1_log(path: Path, records):
+    """A tiny ROBOTLASER1 writer: ``records`` are ``(scan, robot_pose)``; the scan's geometry,
+    ``range_max`` and stamp go on the line and its laser pose is ``robot ⊕ sensor_pose``."""
+    lines = ["# ROBOTLASER1 test log"]
+    for scan, robot in records:
+        lines.append(
+            robotlaser1(
+                scan.ranges.tolist(),
+                robot=tuple(robot),
+                laser=tuple(robot.compose(scan.sensor_pose)),
+                start=scan.angle_min,
+                res=scan.angle_increment,
+                max_range=scan.range_max,
+                remissions=[0.5] * scan.n_beams,
+                stamp=scan.stamp,
+            )
+        )
+    return write_lines(path, lines)
+
+
+def test_robotlaser1_own_geometry_range_and_poses(tmp_path):
+    robot = (1.0, 2.0, math.pi / 2)
+    offset = (0.3, 0.1, 0.2)
+    line = robotlaser1(
+        [1.0, 4.0, 5.0, 3.999, "nan"],
+        robot=robot,
+        offset=offset,
+        start=-1.0,
+        res=0.01,
+        max_range=4.0,
+        remissions=[7.0] * 5,
+        stamp=12.5,
+    )
+    laser = [float(v) for v in line.split()[20:23]]  # robot ⊕ offset, as the helper wrote it
+    assert laser == pytest.approx([0.9, 2.3, math.pi / 2 + 0.2], abs=1e-12)
+    (rec,) = read_carmen(write_lines(tmp_path / "rl.clf", [line]))
+    scan = rec.scan
+    assert scan.n_beams == 5 and scan.stamp == 12.5
+    assert scan.angle_min == -1.0 and scan.angle_increment == 0.01
+    assert scan.range_max == 4.0
+    assert scan.valid.tolist() == [True, False, False, True, False]  # >= max_range: invalid
+    assert rec.odometry == Pose2D(*robot)  # the estimate is of the robot ...
+    np.testing.assert_allclose(tuple(scan.sensor_pose), offset, atol=1e-12)  # ... laser on it
+    assert rec.truth is None
+
+
+def test_robotlaser1_pose_fields_swapped_would_be_caught(tmp_path):
+    # robot and laser poses differ by a pure rotation: a reader mixing them up gives a
+    # sensor_pose of the wrong sign or the laser's pose as odometry
+    line = robotlaser1(R5, robot=(5.0, -1.0, 0.5), laser=(5.0, -1.0, 1.0))
+    (rec,) = read_carmen(write_lines(tmp_path / "rl.clf", [line]))
+    assert rec.odometry == Pose2D(5.0, -1.0, 0.5)
+    assert rec.scan.sensor_pose.theta == pytest.approx(0.5, abs=1e-12)
+    assert rec.scan.sensor_pose.translation_norm < 1e-12
+
+
+pose_st = st.builds(
+    Pose2D,
+    st.floats(-1e4, 1e4),
+    st.floats(-1e4, 1e4),
+    st.floats(-math.pi, math.pi, exclude_max=True),
+)
+offset_st = st.builds(
+    Pose2D,
+    st.floats(-2.0, 2.0),
+    st.floats(-2.0, 2.0),
+    st.floats(-math.pi, math.pi, exclude_max=True),
+)
+
+
+@given(robot=pose_st, offset=offset_st, n=st.sampled_from([1, 2, 180, 181, 361, 541]))
+def test_robotlaser1_write_read_round_trip(tmp_path_factory, robot, offset, n):
+    """write (laser = robot ⊕ offset) -> read: sensor_pose = ⊖robot ⊕ laser gives offset back."""
+    rng = np.random.default_rng(n)
+    res = math.pi / max(n, 2)
+    scan = LaserScan(
+        rng.uniform(0.1, 7.9, n), -math.pi / 2, res, range_max=8.0, stamp=3.25, sensor_pose=offset
+    )
+    path = write_robotlaser1_log(tmp_path_factory.mktemp("rl") / "rt.clf", [(scan, robot)])
+    (rec,) = read_carmen(path)
+    assert rec.odometry == robot
+    got = rec.scan.sensor_pose
+    # the laser pose was written with 17 digits at up to 1e4 m: composition loses ~1e-12 rel
+    assert got.x == pytest.approx(offset.x, abs=1e-8)
+    assert got.y == pytest.approx(offset.y, abs=1e-8)
+    assert math.remainder(got.theta - offset.theta, math.tau) == pytest.approx(0.0, abs=1e-9)
+    np.testing.assert_array_equal(rec.scan.ranges, scan.ranges)
+    assert rec.scan.angle_min == scan.angle_min and rec.scan.angle_increment == res
+    assert rec.scan.range_max == 8.0 and rec.scan.stamp == 3.25
+
+
+def test_robotlaser1_ignores_flaser_options_and_params(tmp_path):
+    lines = [
+        "PARAM robot_front_laser_max 2.0 0 h 0",
+        "PARAM robot_frontlaser_offset 0.7 0 h 0",
+        robotlaser1([1.0, 3.0, 3.0, 9.0], max_range=9.0, res=0.5 * DEG, start=-0.3),
+        flaser(R5),
+    ]
+    path = write_lines(tmp_path / "mix.clf", lines)
+    rd = CarmenReader(path, field_of_view_deg=90.0, convention="span")
+    rl, fl = list(rd)
+    assert rl.scan.range_max == 9.0 and rl.scan.valid.tolist() == [True, True, True, False]
+    assert rl.scan.angle_min == -0.3 and rl.scan.angle_increment == 0.5 * DEG
+    assert rl.scan.sensor_pose == Pose2D()
+    assert fl.scan.range_max == 2.0 and fl.scan.sensor_pose == Pose2D(0.7, 0.0, 0.0)
+    assert fl.scan.angle_min == pytest.approx(-math.pi / 4)
+    # an explicit max_range wins over the line's own field
+    (rl2, _) = read_carmen(path, max_range=2.5)
+    assert rl2.scan.range_max == 2.5 and rl2.scan.valid.tolist() == [True, False, False, False]
+
+
+def test_robotlaser1_does_not_teach_the_no_return_value(tmp_path):
+    lines = [robotlaser1([1.0, 9.0, 9.0, 2.0], max_range=10.0), flaser([1.0, 9.0, 2, 3, 4, 5])]
+    rd = CarmenReader(write_lines(tmp_path / "log.clf", lines))
+    rl, fl = list(rd)
+    assert rd.no_return_value is None
+    assert rl.scan.valid.all() and fl.scan.valid.all() and fl.scan.range_max == math.inf
+
+
+GOOD_RL = robotlaser1([1.0, 2.0, 3.0], remissions=[0.1, 0.2, 0.3], stamp=1.5)
+BAD_RL_LINES = [
+    ("ROBOTLASER1 0 -1.5 3.1 0.01", "ROBOTLASER1: line has 5 fields, too few"),
+    (robotlaser1(R5, start="abc"), "ROBOTLASER1: start_angle is not a number: 'abc'"),
+    (robotlaser1(R5, start="inf"), "ROBOTLASER1: start_angle must be finite"),
+    (robotlaser1(R5, fov="wide"), "ROBOTLASER1: fov is not a number"),
+    (robotlaser1(R5, res=0.0), "ROBOTLASER1: angular_res must be non-zero"),
+    (robotlaser1(R5, max_range=0.0), "ROBOTLASER1: max_range must be > 0"),
+    (robotlaser1(R5, max_range="nan"), "ROBOTLASER1: max_range must be > 0"),
+    (robotlaser1(R5, n="six"), "ROBOTLASER1: beam count n is not an integer: 'six'"),
+    (robotlaser1(R5, n=0), "ROBOTLASER1: beam count n must be >= 1"),
+    (
+        robotlaser1(R5, n=7, remissions=[0.5] * 6),
+        "ROBOTLASER1: n_rem (field 17, after 7 ranges) is not an integer: '0.5'",
+    ),
+    (robotlaser1(R5, n=7), "ROBOTLASER1: expected at least 31 fields for 7 ranges"),
+    (robotlaser1(R5, n=5), "ROBOTLASER1: n_rem (field 15, after 5 ranges) is not an integer"),
+    (robotlaser1(R5, n=60), "ROBOTLASER1: expected at least 84 fields for 60 ranges"),
+    (robotlaser1(R5, remissions=[1.0] * 6, n_rem=5), "n_rem is 5 but the line has 6 fields"),
+    (robotlaser1(R5, remissions=[1.0] * 6, n_rem=7), "n_rem is 7 but the line has 6 fields"),
+    (robotlaser1(R5, n_rem="x"), "n_rem (field 16, after 6 ranges) is not an integer: 'x'"),
+    (robotlaser1([1, 2, "3.o", 4, 5, 6]), "ROBOTLASER1: range 3 of 6 is not a number: '3.o'"),
+    (robotlaser1(R5, remissions=[1, "q"]), "ROBOTLASER1: remission 2 of 2 is not a number"),
+    (robotlaser1(R5, laser=(0.0, "nan", 0.0)), "ROBOTLASER1: laser_y must be finite"),
+    (robotlaser1(R5, robot=(0, 0, "inf"), laser=(0, 0, 0)), "ROBOTLASER1: robot_θ must be finite"),
+    (robotlaser1(R5, robot=("x", 0, 0), laser=(0, 0, 0)), "ROBOTLASER1: robot_x is not a number"),
+    (robotlaser1(R5, vel=(0, 0, 0, "s", 0)), "ROBOTLASER1: side_safety is not a number"),
+    (robotlaser1(R5, stamp="t"), "ROBOTLASER1: ipc_timestamp is not a number"),
+    (robotlaser1([1.0] * 400, res=DEG), "ROBOTLASER1: LaserScan.angle_increment"),
+]
+BAD_ODOM_LINES = [
+    ("ODOM 1 2 3 0 0 0 0.9 h", "ODOM: expected 10 fields (ODOM x y θ tv rv accel"),
+    ("ODOM 1 2 3 0 0 0 0.9 h 0.9 extra", "ODOM: expected 10 fields"),
+    ("ODOM one 2 3 0 0 0 0.9 h 0.9", "ODOM: x is not a number: 'one'"),
+    ("ODOM 1 2 nan 0 0 0 0.9 h 0.9", "ODOM: θ must be finite"),
+    ("ODOM 1 2 3 0 0 a 0.9 h 0.9", "ODOM: accel is not a number"),
+    ("ODOM 1 2 3 0 0 0 t h 0.9", "ODOM: ipc_timestamp is not a number"),
+    ("ODOM 1 2 3 0 0 0 0.9 h inf", "ODOM: logger_timestamp must be finite"),
+]
+
+
+@pytest.mark.parametrize("odometry", ["scan", "interpolated"])
+@pytest.mark.parametrize("bad, what", BAD_RL_LINES + BAD_ODOM_LINES)
+def test_malformed_robotlaser1_and_odom_raise(tmp_path, bad, what, odometry):
+    lines = ["# header", "ODOM 0 0 0 0 0 0 0.5 h 0.5", GOOD_RL, bad, GOOD_RL]
+    path = write_lines(tmp_path / "broken.clf", lines)
+    it = read_carmen(path, odometry=odometry)
+    with pytest.raises(CarmenFormatError) as info:
+        list(it)
+    err = info.value
+    assert str(err).startswith(f"{path}:4: ") and what in str(err)
+    assert err.line == 4 and what in err.reason
+    assert isinstance(err, LogFormatError) and isinstance(err, ValueError)
+
+
+def test_good_robotlaser1_helper_line_reads(tmp_path):
+    # the BAD_RL_LINES above differ from this good line in one field each
+    (rec,) = read_carmen(write_lines(tmp_path / "ok.clf", [robotlaser1(R5, remissions=[1] * 6)]))
+    assert rec.scan.n_beams == 6 and rec.scan.valid.all()
+
+
+def test_skipped_bad_robotlaser1_ends_its_record(tmp_path):
+    bad = BAD_RL_LINES[1][0]
+    lines = [GOOD_RL, bad, truepos((1.0, 2.0, 3.0)), "ODOM x", robotlaser1(R5, stamp=2.0)]
+    rd = CarmenReader(write_lines(tmp_path / "log.clf", lines), skip_bad_lines=True)
+    recs = list(rd)
+    assert [r.scan.stamp for r in recs] == [1.5, 2.0]
+    assert [r.truth for r in recs] == [None, None]  # the TRUEPOS was the skipped scan's
+    assert rd.bad_lines == 2 and [e.line for e in rd.errors] == [2, 4]
+    assert rd.odom_messages == 0
+
+
+def test_truepos_attaches_to_robotlaser1(tmp_path):
+    lines = [GOOD_RL, truepos((1.0, 2.0, 0.5), stamp=1.5), robotlaser1(R5, stamp=2.0)]
+    recs = list(read_carmen(write_lines(tmp_path / "log.clf", lines)))
+    assert [r.truth for r in recs] == [Pose2D(1.0, 2.0, 0.5), None]
+
+
+# -- laser_offset ----------------------------------------------------------------------------
+def test_laser_offset_overrides_param_and_robotlaser1_fields(tmp_path):
+    lines = [
+        "PARAM robot_frontlaser_offset 0.3 0 h 0",
+        flaser(R5, stamp=1.0),
+        robotlaser1(R5, robot=(1.0, 1.0, 1.0), offset=(0.2, 0.1, 0.05), stamp=2.0),
+    ]
+    path = write_lines(tmp_path / "log.clf", lines)
+    fl, rl = read_carmen(path)
+    assert fl.scan.sensor_pose == Pose2D(0.3, 0.0, 0.0)
+    np.testing.assert_allclose(tuple(rl.scan.sensor_pose), (0.2, 0.1, 0.05), atol=1e-12)
+    mount = Pose2D(-0.1, 0.05, math.pi)
+    rd = CarmenReader(path, laser_offset=mount)
+    assert rd.laser_offset == mount
+    fl, rl = list(rd)
+    assert fl.scan.sensor_pose == mount and rl.scan.sensor_pose == mount
+    assert rl.odometry == Pose2D(1.0, 1.0, 1.0)  # the odometry stays the robot's
+    (fl,) = itertools.islice(read_carmen(path, laser_offset=(0.5, 0.0, 0.0)), 1)
+    assert fl.scan.sensor_pose == Pose2D(0.5, 0.0, 0.0)  # a 3-sequence is taken too
+
+
+@pytest.mark.parametrize(
+    "bad, exc, what",
+    [
+        ("0.3", TypeError, "laser_offset must be a Pose2D"),
+        ((0.3, 0.0), ValueError, "laser_offset: a pose array needs 3 values"),
+        ((0.3, math.nan, 0.0), ValueError, "laser_offset: Pose2D.y must be finite"),
+        (object(), TypeError, "laser_offset must be a Pose2D"),
+    ],
+)
+def test_laser_offset_validated(tmp_path, bad, exc, what):
+    path = write_lines(tmp_path / "log.clf", [flaser(R5)])
+    with pytest.raises(exc, match=what):
+        CarmenReader(path, laser_offset=bad)
+    with pytest.raises(exc, match=what):
+        read_carmen(path, laser_offset=bad)
+
+
+# -- any FLASER beam count -------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "n, fov, first_deg, inc_deg",
+    [(541, 180.0, -90.0, 1 / 3), (361, 180.0, -90.0, 0.5), (541, 270.0, -135.0, 0.5)],
+)
+def test_flaser_541_and_361_beams(tmp_path, n, fov, first_deg, inc_deg):
+    ranges = np.round(np.linspace(0.5, 20.0, n), 4)
+    ranges[[7, 100]] = 81.83  # "no return", repeated: learned
+    line = flaser(ranges.tolist(), odom=(1.0, 0.0, 0.1), stamp=4.0)
+    rd = CarmenReader(write_lines(tmp_path / "wide.clf", [line]), field_of_view_deg=fov)
+    (rec,) = list(rd)
+    assert rec.scan.n_beams == n
+    assert rec.scan.angle_min == pytest.approx(first_deg * DEG, abs=1e-12)
+    assert rec.scan.angle_increment == pytest.approx(inc_deg * DEG, abs=1e-12)
+    assert rec.scan.angles[-1] == pytest.approx(-first_deg * DEG, abs=1e-12)  # odd: span
+    np.testing.assert_array_equal(rec.scan.ranges, ranges)
+    assert rd.no_return_value == 81.83 and int((~rec.scan.valid).sum()) == 2
+
+
+# -- message types skipped, order kept -------------------------------------------------------
+def test_other_messages_skipped_between_scans_and_file_order_kept(tmp_path):
+    lines = [
+        "# a comment FLASER 6 1 2 3",
+        "RLASER 6 1 2 3 4 5 6 0 0 0 0 0 0 5.0 h 5.0",
+        robotlaser1(R5, stamp=9.0),
+        "SYNC tag 0.5 h 0.5",
+        flaser(R5, stamp=5.0),  # earlier than the scan before it
+        "NEFF 12 0.5 h 1.05",
+        "RAWLASER3 1 2 3",
+        "  # indented comment",
+        robotlaser1(R5, stamp=5.0),  # same stamp
+        flaser(R5, stamp=4.5),
+        "GPSNMEA whatever",
+    ]
+    rd = CarmenReader(write_lines(tmp_path / "log.clf", lines))
+    recs = list(rd)
+    assert [r.scan.stamp for r in recs] == [9.0, 5.0, 5.0, 4.5]
+    assert [r.scan.n_beams for r in recs] == [6, 6, 6, 6]
+    assert [r.scan.angle_min == -math.pi / 2 for r in recs] == [True] * 4
+    assert rd.bad_lines == 0 and rd.lines == len(lines)
+
+
+# -- odometry="interpolated" -----------------------------------------------------------------
+def odom(x, y, th, stamp):
+    return f"ODOM {_num(x)} {_num(y)} {_num(th)} 0.1 0.0 0 {_num(stamp)} h {_num(stamp)}"
+
+
+def _interp(path, **kw):
+    return list(read_carmen(path, odometry="interpolated", **kw))
+
+
+def test_interpolated_linear_in_xy_shortest_angle_in_theta(tmp_path):
+    lines = [
+        odom(0.0, 0.0, 3.0, 10.0),
+        flaser(R5, odom=(9.0, 9.0, 0.0), stamp=10.25),
+        odom(1.0, 2.0, -3.0, 11.0),  # +3 rad -> -3 rad: the short way is through pi
+        robotlaser1(R5, robot=(8.0, 8.0, 0.0), offset=(0.2, 0.0, 0.0), stamp=10.5),
+        odom(1.0, 2.0, -3.0, 12.0),
+    ]
+    path = write_lines(tmp_path / "log.clf", lines)
+    own = list(read_carmen(path))
+    assert [r.odometry for r in own] == [Pose2D(9.0, 9.0, 0.0), Pose2D(8.0, 8.0, 0.0)]
+    rd = CarmenReader(path, odometry="interpolated")
+    a, b = list(rd)
+    assert rd.odometry == "interpolated" and rd.odom_messages == 3
+    dth = 2 * math.pi - 6.0
+    assert a.odometry.x == pytest.approx(0.25) and a.odometry.y == pytest.approx(0.5)
+    assert a.odometry.theta == pytest.approx(3.0 + 0.25 * dth, abs=1e-12)
+    assert b.odometry.x == pytest.approx(0.5) and b.odometry.y == pytest.approx(1.0)
+    assert abs(math.remainder(b.odometry.theta - math.pi, math.tau)) < 1e-12
+    np.testing.assert_allclose(tuple(b.scan.sensor_pose), (0.2, 0.0, 0.0), atol=1e-12)
+
+
+def test_interpolated_nearest_outside_the_odom_stream(tmp_path):
+    lines = [
+        flaser(R5, stamp=0.5),  # before any ODOM line and before the first stamp
+        odom(1.0, 0.0, 0.1, 1.0),
+        odom(2.0, 0.0, 0.2, 2.0),
+        flaser(R5, stamp=0.9),  # written after, stamped before the first ODOM
+        flaser(R5, stamp=2.0),  # exactly on one
+        flaser(R5, stamp=7.0),  # after the last
+    ]
+    recs = _interp(write_lines(tmp_path / "log.clf", lines))
+    want = [(1.0, 0.1), (1.0, 0.1), (2.0, 0.2), (2.0, 0.2)]
+    assert [(r.odometry.x, r.odometry.theta) for r in recs] == want
+
+
+def test_interpolated_scan_lines_out_of_time_order_with_odom(tmp_path):
+    # increasing stamps in each stream, but the lines interleave out of time order (aces)
+    lines = [
+        odom(0.0, 0.0, 0.0, 0.0),
+        odom(1.0, 0.0, 0.0, 1.0),
+        flaser(R5, stamp=0.5),  # written after the ODOM at t=1
+        flaser(R5, stamp=1.5),  # written before the ODOM at t=1.2 and t=2
+        odom(1.2, 0.0, 0.0, 1.2),
+        odom(2.0, 0.0, 0.0, 2.0),
+    ]
+    recs = _interp(write_lines(tmp_path / "log.clf", lines))
+    assert [r.odometry.x for r in recs] == pytest.approx([0.5, 1.2 + 0.3 / 0.8 * 0.8])
+
+
+def test_interpolated_with_timestamps_going_backwards(tmp_path):
+    """Two clocks (intel): the pose is interpolated in time between the ODOM lines of the
+    window (16 before the scan, those after it up to the first stamped at or after it) that
+    bracket the scan's stamp; records stay in file order."""
+    lines = [
+        odom(0.0, 0.0, 0.0, 10.0),
+        odom(1.0, 0.0, 0.0, 11.0),
+        flaser(R5, stamp=11.5),
+        odom(5.0, 0.0, 0.0, 10.2),  # the clock jumps back
+        odom(7.0, 0.0, 0.0, 10.4),
+        flaser(R5, stamp=10.3),  # this scan's stamp went back too
+        odom(3.0, 0.0, 0.0, 12.0),  # releases both
+        flaser(R5, stamp=13.0),  # after every ODOM stamp: the nearest, the one at t=12
+    ]
+    recs = _interp(write_lines(tmp_path / "log.clf", lines))
+    assert [r.scan.stamp for r in recs] == [11.5, 10.3, 13.0]
+    # 11.5: between t=11 (x=1) and t=12 (x=3), skipping the lines of the other clock
+    # 10.3: between t=10.2 (x=5) and t=10.4 (x=7), not the t=10 line written first
+    assert [r.odometry.x for r in recs] == pytest.approx([2.0, 6.0, 3.0])
+
+
+def test_interpolated_never_uses_odom_lines_far_back_in_the_file(tmp_path):
+    lines = [
+        flaser(R5, stamp=1e6),  # held (no ODOM reaches its stamp): keeps old lines in memory
+        odom(100.0, 0.0, 0.0, 10.25),  # brackets 10.3 in time, but 21 ODOM lines before it
+        *(odom(0.0, 0.0, 0.0, float(t)) for t in range(11, 31)),
+        flaser(R5, stamp=10.3),  # the clock went back
+        odom(7.0, 0.0, 0.0, 10.4),
+    ]
+    recs = _interp(write_lines(tmp_path / "log.clf", lines))
+    assert [r.scan.stamp for r in recs] == [1e6, 10.3]
+    assert recs[0].odometry.x == 0.0  # the latest stamp of its window (t=30)
+    assert recs[1].odometry.x == 7.0  # the nearest after, not interpolated from x=100
+
+
+def test_interpolated_streams_holding_a_scan_until_its_odom(tmp_path):
+    lines = [
+        odom(0.0, 0.0, 0.0, 0.0),
+        flaser(R5, stamp=0.5),
+        flaser(R5, stamp=0.7),  # ends the first record (no TRUEPOS for it)
+        "ODOM broken",
+    ]
+    it = read_carmen(write_lines(tmp_path / "a.clf", lines), odometry="interpolated")
+    with pytest.raises(CarmenFormatError, match=r"a\.clf:4:"):  # the scan is still held
+        next(it)
+    it = read_carmen(write_lines(tmp_path / "a.clf", lines), odometry="scan")
+    assert next(it).scan.stamp == 0.5  # without interpolation it comes out
+    lines = [
+        odom(0.0, 0.0, 0.0, 0.0),
+        flaser(R5, stamp=0.5),
+        odom(1.0, 0.0, 0.0, 1.0),
+        flaser(R5, stamp=1.5),
+        odom(2.0, 0.0, 0.0, 2.0),
+        "FLASER broken",
+    ]
+    it = read_carmen(write_lines(tmp_path / "b.clf", lines), odometry="interpolated")
+    assert next(it).odometry.x == 0.5  # released by the ODOM at t=1 (and the next scan)
+    with pytest.raises(CarmenFormatError, match=r"b\.clf:6:"):
+        next(it)
+
+
+def test_interpolated_memory_is_bounded(tmp_path):
+    # a scan stamped after every ODOM line is released after 100 ODOM lines, not at the end
+    lines = [odom(0.0, 0.0, 0.0, 0.0), flaser(R5, stamp=1e6)]
+    lines += [odom(float(k), 0.0, 0.0, float(k)) for k in range(1, 3000)]
+    lines += [flaser(R5, stamp=2e6), "FLASER broken"]
+    rd = CarmenReader(write_lines(tmp_path / "log.clf", lines), odometry="interpolated")
+    it = rd.records()
+    (rec,) = itertools.islice(it, 1)  # comes out before the broken last line
+    assert rec.odometry.x == 100.0  # the latest of the window: ODOM lines 1..100 after it
+    assert len(rd._odoms) <= 116
+    with pytest.raises(CarmenFormatError, match=":3003:"):
+        next(it)
+
+
+def test_interpolated_releases_scans_when_too_many_wait(tmp_path):
+    # no ODOM line after the first: the scans wait, until more than 1000 do
+    lines = [odom(1.0, 2.0, 0.5, 0.0)] + [flaser(R5, stamp=1.0 + k) for k in range(1100)]
+    lines.append("FLASER broken")
+    it = read_carmen(write_lines(tmp_path / "log.clf", lines), odometry="interpolated")
+    recs = list(itertools.islice(it, 50))  # before the broken last line
+    assert [r.scan.stamp for r in recs] == [1.0 + k for k in range(50)]
+    assert all(r.odometry == Pose2D(1.0, 2.0, 0.5) for r in recs)  # the nearest: the last
+    with pytest.raises(CarmenFormatError, match=":1102:"):
+        list(it)
+
+
+def test_interpolated_without_odom_lines_raises_naming_the_scan(tmp_path):
+    lines = ["# no ODOM here", flaser(R5, stamp=1.0), flaser(R5, stamp=2.0)]
+    path = write_lines(tmp_path / "log.clf", lines)
+    with pytest.raises(CarmenFormatError, match=r"log\.clf:2: odometry='interpolated', but no"):
+        _interp(path)
+    assert len(list(read_carmen(path))) == 2  # fine with the scans' own fields
+
+
+def test_interpolated_keeps_truepos_and_skip_bad_lines(tmp_path):
+    lines = [
+        odom(0.0, 0.0, 0.0, 0.0),
+        flaser(R5, stamp=0.5),
+        truepos((4.0, 4.0, 0.0), stamp=0.5),
+        "ODOM broken",
+        odom(2.0, 0.0, 0.0, 1.0),
+    ]
+    rd = CarmenReader(
+        write_lines(tmp_path / "log.clf", lines), odometry="interpolated", skip_bad_lines=True
+    )
+    (rec,) = list(rd)
+    assert rec.truth == Pose2D(4.0, 4.0, 0.0) and rec.odometry.x == 1.0
+    assert rd.bad_lines == 1 and rd.odom_messages == 2
+
+
+def test_odometry_option_validated(tmp_path):
+    path = write_lines(tmp_path / "log.clf", [flaser(R5)])
+    with pytest.raises(ValueError, match="odometry must be one of"):
+        CarmenReader(path, odometry="odom")
+    with pytest.raises(ValueError, match="odometry must be one of"):
+        read_carmen(path, odometry="Interpolated")
+
+
+def _reference_interpolation(odom_t, odom_p, t):
+    """Independent: ``searchsorted`` on increasing ODOM stamps (ties: the latest line at or
+    before, the earliest at or after), theta along the shorter arc."""
+    i = np.searchsorted(odom_t, t, side="right") - 1
+    j = np.searchsorted(odom_t, t, side="left")
+    out = np.empty((len(t), 3))
+    for k in range(len(t)):
+        lo, hi = i[k], j[k]
+        if lo < 0:
+            out[k] = odom_p[0]
+        elif hi >= len(odom_t) or odom_t[hi] == odom_t[lo]:
+            out[k] = odom_p[lo]
+        else:
+            s = (t[k] - odom_t[lo]) / (odom_t[hi] - odom_t[lo])
+            d = odom_p[hi] - odom_p[lo]
+            d[2] = math.remainder(d[2], math.tau)
+            out[k] = odom_p[lo] + s * d
+    out[:, 2] = np.angle(np.exp(1j * out[:, 2]))
+    return out
+
+
+@given(
+    odom_dt=st.lists(st.sampled_from([0.0, 0.05, 0.1, 0.13]), min_size=1, max_size=30),
+    scan_t=st.lists(st.floats(-0.5, 4.0), min_size=1, max_size=10),
+    seed=st.integers(0, 2**16),
+)
+def test_interpolated_matches_reference_on_monotone_streams(
+    tmp_path_factory, odom_dt, scan_t, seed
+):
+    rng = np.random.default_rng(seed)
+    ot = np.cumsum(odom_dt)
+    op = np.column_stack([rng.normal(0, 3, ot.size), rng.normal(0, 3, ot.size)])
+    op = np.column_stack([op, rng.uniform(-math.pi, math.pi, ot.size)])
+    # lines in time order, scans written just after the last ODOM at or before them
+    events = [(t, 0, k) for k, t in enumerate(ot)] + [(t, 1, k) for k, t in enumerate(scan_t)]
+    lines = []
+    for t, kind, k in sorted(events):
+        lines.append(odom(*op[k], t) if kind == 0 else flaser(R5, stamp=t))
+    path = tmp_path_factory.mktemp("i") / "log.clf"
+    recs = _interp(write_lines(path, lines))
+    got = np.array([tuple(r.odometry) for r in recs])
+    stamps = np.array([r.scan.stamp for r in recs])
+    want = _reference_interpolation(ot, op, stamps)
+    np.testing.assert_allclose(got[:, :2], want[:, :2], atol=1e-9)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (got[:, 2] - want[:, 2]))), 0.0, atol=1e-9)

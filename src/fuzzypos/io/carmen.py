@@ -3,58 +3,104 @@
 CARMEN logs
 -----------
 One message per line, ``NAME fields… ipc_timestamp hostname logger_timestamp``
-(``/work/shared/data/README.md`` describes the lines). This first version understands
+(``/work/shared/data/README.md`` describes the lines). The reader understands
 
 - ``FLASER n r_1 … r_n x y θ odom_x odom_y odom_θ ipc_timestamp hostname logger_timestamp``:
-  one scan. The odometry comes from the ``odom_*`` fields, never from ``x y θ`` (which may be
-  a corrected pose in other logs); the scan's stamp is ``ipc_timestamp``.
+  one scan of any beam count ``n >= 2`` (180, 181, 360, 361, 541 …). The odometry comes from
+  the ``odom_*`` fields, never from ``x y θ`` (which may be a corrected pose in other logs);
+  the scan's stamp is ``ipc_timestamp``. Beam angles and maximum range: see below.
+- ``ROBOTLASER1 laser_type start_angle fov angular_res max_range accuracy remission_mode n
+  r_1 … r_n n_rem rem_1 … rem_m laser_x laser_y laser_θ robot_x robot_y robot_θ tv rv
+  forward_safety side_safety turn_axis ipc_timestamp hostname logger_timestamp``: one scan
+  (``n >= 1``) that carries its own geometry: beam ``i`` is at ``start_angle + i*angular_res``
+  (radians; ``fov`` is checked to be a number but not used), and a reading at or above its
+  ``max_range`` is invalid. The record is the robot's, not the laser's: its odometry is
+  ``robot_x robot_y robot_θ`` and the scan's ``sensor_pose`` (the laser's mounting pose on the
+  robot) is ``⊖robot_pose ⊕ laser_pose``, computed per line from the line's own fields.
+  Remissions are checked and dropped; the line must have exactly ``n + n_rem + 24`` fields.
+  The reader options ``field_of_view_deg``, ``convention`` and ``PARAM`` lines do not apply to
+  it; ``max_range`` and ``laser_offset`` do when given (see below).
+- ``ODOM x y θ tv rv accel ipc_timestamp hostname logger_timestamp``: the raw odometry at its
+  own rate. Always checked (count in :attr:`CarmenReader.odom_messages`); used only with
+  ``odometry="interpolated"`` (see "Odometry").
 - ``TRUEPOS true_x true_y true_θ odom_x odom_y odom_θ ipc_timestamp hostname
-  logger_timestamp``: the simulator's true pose, attached to the FLASER record before it
-  (the first TRUEPOS after a FLASER wins; one before any FLASER is ignored).
-- ``PARAM robot_frontlaser_offset x``: the laser's forward offset on the robot (the scans'
-  ``sensor_pose`` is ``(x, 0, 0)``); ``PARAM robot_front_laser_max r``: the laser's maximum
-  range (see "Maximum range" below). Both apply to the FLASER lines after them; every other
-  PARAM is skipped.
-- ``#`` comments, blank lines and every other message type (``ODOM``, ``SYNC``, ``NEFF``,
-  ``RLASER``, ``ROBOTLASER1`` …) are skipped. New message types plug in as one method each
+  logger_timestamp``: the simulator's true pose, attached to the scan record before it
+  (the first TRUEPOS after a scan wins; one before any scan is ignored).
+- ``PARAM robot_frontlaser_offset x``: the laser's forward offset on the robot (the FLASER
+  scans' ``sensor_pose`` is ``(x, 0, 0)``, unless the reader's ``laser_offset`` is given);
+  ``PARAM robot_front_laser_max r``: the laser's maximum range (see "Maximum range" below).
+  Both apply to the FLASER lines after them; every other PARAM is skipped.
+- ``#`` comments, blank lines and every other message type (``SYNC``, ``NEFF``, ``RLASER``,
+  ``RAWLASER1`` …) are skipped. New message types plug in as one method each
   (see :attr:`CarmenReader._HANDLERS`).
 
-Beam geometry. FLASER carries no angles: the reader's ``field_of_view_deg`` (default 180°)
-and ``convention`` give them, and they must match what wrote the log. Beams start at
+Laser mounting pose (``sensor_pose``). In order of precedence: the reader's ``laser_offset``
+argument (a :class:`~fuzzypos.geometry.Pose2D`) for every scan, FLASER and ROBOTLASER1 alike
+(an explicit argument always wins, e.g. to correct a log whose pose fields are wrong); else,
+for ROBOTLASER1, ``⊖robot_pose ⊕ laser_pose`` from the line; for FLASER, ``(x, 0, 0)`` from the
+latest ``PARAM robot_frontlaser_offset x``, else the origin.
+
+FLASER beam geometry. FLASER carries no angles: the reader's ``field_of_view_deg`` (default
+180°) and ``convention`` give them, and they must match what wrote the log. Beams start at
 ``-fov/2`` (the right edge) and go counter-clockwise:
 
 - ``"resolution"``: increment ``fov/n``, so 180 beams over 180° lie at -90° … +89°;
 - ``"span"``: increment ``fov/(n-1)``, so the beams cover exactly -fov/2 … +fov/2;
 - ``"auto"`` (default): ``"resolution"`` for an even beam count (180, 360: 1° and 0.5° over
-  180°), ``"span"`` for an odd one (181, 361). See :func:`carmen_beam_geometry`.
+  180°), ``"span"`` for an odd one (181, 361, 541). See :func:`carmen_beam_geometry`.
 
-Maximum range. FLASER carries no maximum either; a scanner reports "no return" as its
-maximum value (81.83 m in the intel log, 50.0 m in aces), and a reading at or above the
-scan's ``range_max`` is invalid (:class:`~fuzzypos.scan.LaserScan`). The scans' ``range_max``
-is, in order of precedence:
+Maximum range. A reading at or above the scan's ``range_max`` is invalid
+(:class:`~fuzzypos.scan.LaserScan`). The scans' ``range_max`` is, in order of precedence:
 
-1. the ``max_range`` argument when given (``math.inf``: every positive reading is valid);
-2. else the value of the latest ``PARAM robot_front_laser_max`` line (what :func:`write_carmen`
+1. the ``max_range`` argument when given (``math.inf``: every positive reading is valid), for
+   FLASER and ROBOTLASER1;
+2. for ROBOTLASER1, the line's own ``max_range`` field (the steps below are FLASER's);
+3. else the value of the latest ``PARAM robot_front_laser_max`` line (what :func:`write_carmen`
    writes for scans with a finite ``range_max``);
-3. else it is learned from the data as the file streams: the "no return" value ``v`` is the
-   largest reading seen so far that was the maximum of its scan *and occurred at least twice in
-   that scan* (a scanner's saturated value repeats; a genuine far wall rarely gives the same
-   maximum twice). A scan whose largest finite reading is ``<= v`` gets ``range_max = v``;
-   before any ``v`` is seen, or for a scan reaching above ``v`` without repeating its maximum,
-   ``range_max = +inf``. On the shared logs this marks exactly the 68,313 readings of 81.83 m
-   (intel) and 11,139 of 50.0 m (aces) invalid and nothing else. The current ``v`` is
-   :attr:`CarmenReader.no_return_value`.
+4. else it is learned from the data as the file streams. FLASER carries no maximum; a scanner
+   reports "no return" as its maximum value (81.83 m in the intel log, 50.0 m in aces). The
+   "no return" value ``v`` is the largest reading seen so far that was the maximum of its
+   scan *and occurred at least twice in that scan* (a scanner's saturated value repeats; a
+   genuine far wall rarely gives the same maximum twice). A scan whose largest finite reading
+   is ``<= v`` gets ``range_max = v``; before any ``v`` is seen, or for a scan reaching above
+   ``v`` without repeating its maximum, ``range_max = +inf``. On the shared logs this marks
+   exactly the 68,313 readings of 81.83 m (intel) and 11,139 of 50.0 m (aces) invalid and
+   nothing else. The current ``v`` is :attr:`CarmenReader.no_return_value`.
 
-Errors. A malformed FLASER, TRUEPOS or interpreted PARAM line raises
-:class:`CarmenFormatError` naming the file, the 1-based line and what is wrong; with
-``skip_bad_lines=True`` the line is skipped and counted in :attr:`CarmenReader.bad_lines`. A
-last line without its newline that does not parse (a log cut off mid-write), or a gzip stream
-that ends early, stops the reading with a :func:`warnings.warn` naming the file. A scan whose
-readings are all invalid is data, not an error. Records come in file order, even where the
-timestamps go backwards.
+Odometry. ``odometry="scan"`` (default): each record's odometry is its scan line's own
+odometry fields (FLASER ``odom_*``, ROBOTLASER1 ``robot_*``). ``odometry="interpolated"``: it
+is the ``ODOM`` stream interpolated in SE(2) at the scan's ``ipc_timestamp`` ``t``: linearly
+in ``x, y`` and along the shorter arc in ``θ`` between ``b``, the ODOM line with the latest
+stamp ``<= t``, and ``a``, the one with the earliest stamp ``>= t``; where only one of them
+exists (a scan before the first or after the last ODOM) it is that one's pose (the nearest),
+and where ``a`` and ``b`` have the same stamp, ``b``'s. To keep streaming, ``a`` and ``b`` are
+looked for among a bounded window of ODOM lines in *file order*: the 16 before the scan and
+those after it up to the first one stamped ``>= t`` (at most 100). The scan is held (with the
+scans after it, so records still come in file order) until that ODOM line arrives, the 100
+are read, 1000 scans wait, or the log ends. So when both streams' stamps increase this is
+exact interpolation in time even where a scan line is written a little before or after its
+ODOM neighbours (aces: 161 scans); when stamps go backwards (intel: 602 times in the ODOM
+stream, 631 in the scans, by up to 0.9 s, two hosts' clocks) the window still holds the ODOM
+lines written around the scan, and the pose is interpolated *in time* between those of them
+that bracket ``t`` (or the nearest in time, when none do on one side); ODOM lines further
+away in the file are never used. Beware: on intel the scans' stamps are not acquisition times
+(they arrive in bursts), and the README of the shared data advises the scans' own fields.
+A scan with no ODOM line in its window at all raises :class:`CarmenFormatError` (a log
+without ODOM lines cannot be read with ``odometry="interpolated"``).
 
-The reader streams: one line in memory at a time (plus the record waiting for its TRUEPOS).
-Gzip is recognised by its magic bytes, not by the file name.
+Errors. A malformed FLASER, ROBOTLASER1, ODOM, TRUEPOS or interpreted PARAM line raises
+:class:`CarmenFormatError` naming the file, the 1-based line and what is wrong (wrong field
+counts, a count that is not an integer, ``n_rem`` disagreeing with the fields left, a field
+that is not a number or not finite, a non-positive maximum range, a zero angular resolution
+…); with ``skip_bad_lines=True`` the line is skipped and counted in
+:attr:`CarmenReader.bad_lines`. A last line without its newline that does not parse (a log cut
+off mid-write), or a gzip stream that ends early, stops the reading with a
+:func:`warnings.warn` naming the file. A scan whose readings are all invalid is data, not an
+error. Records come in file order, even where the timestamps go backwards.
+
+The reader streams: one line in memory at a time, plus the record waiting for its TRUEPOS
+(and, with ``odometry="interpolated"``, the bounded window above). Gzip is recognised by its
+magic bytes, not by the file name. Ranges are parsed by numpy, not beam by beam.
 """
 
 from __future__ import annotations
@@ -71,11 +117,12 @@ from typing import IO, ClassVar
 import numpy as np
 
 from ..geometry import Pose2D
-from ..scan import LaserScan
+from ..scan import LaserScan, ScanError
 from ._common import FloatArray, LogFormatError, LogRecord, PathLike, _write_atomically, open_text
 
 __all__ = [
     "CONVENTIONS",
+    "ODOMETRY_SOURCES",
     "CarmenFormatError",
     "CarmenReader",
     "CarmenRecord",
@@ -86,6 +133,21 @@ __all__ = [
 
 #: the beam-angle conventions FLASER readers and writers understand (see the module docstring)
 CONVENTIONS = ("auto", "resolution", "span")
+
+#: where a scan's odometry comes from: its own fields, or the ODOM stream at its stamp
+ODOMETRY_SOURCES = ("scan", "interpolated")
+
+#: odometry="interpolated": how many ODOM lines before a scan (in file order) it may use ...
+_ODOM_HISTORY = 16
+#: ... and how many after it at most (it uses those up to the first at or after its stamp)
+_ODOM_LOOKAHEAD = 100
+#: ... and how many scans may wait for their ODOM lines before the oldest is given the
+#: odometry of those seen so far (bounds the memory on a log with few or no ODOM lines)
+_MAX_HELD_SCANS = 1000
+
+#: ROBOTLASER1 fields after the remissions: laser pose, robot pose, tv rv forward_safety
+#: side_safety turn_axis, ipc_timestamp hostname logger_timestamp
+_ROBOTLASER1_TAIL = 14
 
 #: tolerance (radians) when checking that a scan's geometry fits the FLASER convention
 _GEOMETRY_TOL = 1e-7
@@ -164,32 +226,87 @@ def _finite(s: str, what: str) -> float:
     return v
 
 
+def _count(s: str, what: str, minimum: int) -> int:
+    try:
+        n = int(s)
+    except ValueError:
+        raise _Bad(f"{what} is not an integer: {s!r}") from None
+    if n < minimum:
+        raise _Bad(f"{what} must be >= {minimum}, got {n}")
+    return n
+
+
+def _numbers(tok: list[str], what: str) -> FloatArray:
+    """``tok`` as a float array (numpy parses; the loop only runs to name a bad field)."""
+    try:
+        return np.array(tok, dtype=np.float64)
+    except ValueError:
+        for k, s in enumerate(tok):
+            _float(s, f"{what} {k + 1} of {len(tok)}")
+        raise  # pragma: no cover - numpy and float() disagree
+
+
+def _check_offset(laser_offset: object) -> Pose2D | None:
+    """``laser_offset`` as a Pose2D: TypeError for a wrong type, ValueError for a bad value."""
+    if laser_offset is None or isinstance(laser_offset, Pose2D):
+        return laser_offset
+    if isinstance(laser_offset, (str, bytes)):
+        raise TypeError(f"laser_offset must be a Pose2D or None, got {laser_offset!r}")
+    try:
+        return Pose2D.from_array(laser_offset)  # type: ignore[arg-type]
+    except TypeError:
+        raise TypeError(
+            f"laser_offset must be a Pose2D (or x, y, theta) or None, got {laser_offset!r}"
+        ) from None
+    except ValueError as exc:
+        raise ValueError(f"laser_offset: {exc} (got {laser_offset!r})") from None
+
+
+class _Held:
+    """Internal: a record on its way out, with where it came from (its 1-based line and how
+    many ODOM lines came before it) and whether its odometry is final."""
+
+    __slots__ = ("lineno", "odom_seq", "record", "resolved")
+
+    def __init__(self, record: CarmenRecord, lineno: int, odom_seq: int, resolved: bool) -> None:
+        self.record = record
+        self.lineno = lineno
+        self.odom_seq = odom_seq
+        self.resolved = resolved
+
+
 class CarmenReader:
-    """Stream the FLASER records of a CARMEN log (plain or gzip).
+    """Stream the scan records (FLASER, ROBOTLASER1) of a CARMEN log (plain or gzip).
 
     ``CarmenReader(path, …).records()`` (or iterating the reader) yields
     :class:`CarmenRecord` in file order; the options are :func:`read_carmen`'s (see the module
-    docstring). After (or during) the iteration:
+    docstring) and are kept as attributes (``field_of_view_deg``, ``max_range``,
+    ``convention``, ``skip_bad_lines``, ``odometry``, ``laser_offset``). After (or during) the
+    iteration:
 
     - ``bad_lines``: malformed lines skipped (``skip_bad_lines=True``);
     - ``errors``: the :class:`CarmenFormatError` of the first 100 of them;
     - ``truncated``: whether the log ended mid-line or mid-stream (a warning was issued);
     - ``lines``: lines read; ``no_return_value``: the learned "no return" reading (or None);
-    - ``params``: the PARAM lines seen, name -> value (as text).
+    - ``params``: the PARAM lines seen, name -> value (as text);
+    - ``odom_messages``: the well-formed ODOM lines read.
 
     Each call of :meth:`records` reads the file again from the start and resets these.
     """
 
     #: message type -> handler method name; a handler gets the line's tokens and either
-    #: raises :class:`_Bad` or updates ``_pending`` / ``_ready``
+    #: raises :class:`_Bad` or updates the reader's state (a scan goes through
+    #: :meth:`_add_scan`)
     _HANDLERS: ClassVar[dict[str, str]] = {
         "FLASER": "_on_flaser",
+        "ROBOTLASER1": "_on_robotlaser1",
+        "ODOM": "_on_odom",
         "TRUEPOS": "_on_truepos",
         "PARAM": "_on_param",
     }
     #: message types that make a record: a malformed one that is skipped ends the record
     #: before it, so that a TRUEPOS meant for the skipped scan attaches to nothing
-    _SCAN_MESSAGES: ClassVar[frozenset[str]] = frozenset({"FLASER"})
+    _SCAN_MESSAGES: ClassVar[frozenset[str]] = frozenset({"FLASER", "ROBOTLASER1"})
 
     def __init__(
         self,
@@ -199,6 +316,8 @@ class CarmenReader:
         max_range: float | None = None,
         convention: str = "auto",
         skip_bad_lines: bool = False,
+        odometry: str = "scan",
+        laser_offset: Pose2D | None = None,
     ) -> None:
         self.path = path
         self.name = os.fspath(path)
@@ -212,6 +331,10 @@ class CarmenReader:
             max_range = mr
         self.max_range = max_range
         self.skip_bad_lines = bool(skip_bad_lines)
+        if odometry not in ODOMETRY_SOURCES:
+            raise ValueError(f"odometry must be one of {ODOMETRY_SOURCES}, got {odometry!r}")
+        self.odometry = odometry
+        self.laser_offset = _check_offset(laser_offset)
         with open(path, "rb"):  # fail here, not at the first record, if it cannot be read
             pass
         self._geometry: dict[int, tuple[float, float]] = {}
@@ -224,10 +347,16 @@ class CarmenReader:
         self.lines = 0
         self.no_return_value: float | None = None
         self.params: dict[str, str] = {}
+        self.odom_messages = 0
         self._param_max: float | None = None
         self._sensor_pose = Pose2D(0.0, 0.0, 0.0)
-        self._pending: CarmenRecord | None = None
-        self._ready: deque[CarmenRecord] = deque()
+        self._lineno = 0
+        self._pending: _Held | None = None  # the latest scan, waiting for its TRUEPOS
+        self._ready: deque[_Held] = deque()  # scans in file order, waiting to be yielded
+        # odometry="interpolated": the scans whose odometry is not final yet (file order) and
+        # the ODOM lines they may still need, as (index among ODOM lines, stamp, pose)
+        self._unresolved: deque[_Held] = deque()
+        self._odoms: deque[tuple[int, float, Pose2D]] = deque()
 
     def __iter__(self) -> Iterator[CarmenRecord]:
         return self.records()
@@ -235,7 +364,8 @@ class CarmenReader:
     # -- the loop ---------------------------------------------------------------------------
     def records(self) -> Iterator[CarmenRecord]:
         """Yield the log's records in file order (a record waits for its TRUEPOS, so it comes
-        out when the next FLASER or the end of the file arrives)."""
+        out when the next scan or the end of the file arrives; with
+        ``odometry="interpolated"`` it may also wait for the ODOM lines after it)."""
         self._reset()
         for lineno, line in self._numbered_lines():
             tokens = line.split()
@@ -244,13 +374,13 @@ class CarmenReader:
             name = self._HANDLERS.get(tokens[0])
             if name is None:
                 continue
+            self._lineno = lineno
             try:
                 getattr(self, name)(tokens)
             except _Bad as bad:
                 err = CarmenFormatError(self.path, lineno, str(bad))
-                if tokens[0] in self._SCAN_MESSAGES and self._pending is not None:
-                    self._ready.append(self._pending)
-                    self._pending = None
+                if tokens[0] in self._SCAN_MESSAGES:
+                    self._flush_pending()
                 if not line.endswith("\n"):
                     self.truncated = True
                     warnings.warn(
@@ -264,13 +394,15 @@ class CarmenReader:
                 self.bad_lines += 1
                 if len(self.errors) < _MAX_KEPT_ERRORS:
                     self.errors.append(err)
-            while self._ready:
-                yield self._ready.popleft()
+            if len(self._ready) > _MAX_HELD_SCANS:
+                self._force_oldest()
+            while self._ready and self._ready[0].resolved:
+                yield self._ready.popleft().record
+        self._flush_pending()
+        while self._unresolved:  # the end of the log: no later ODOM will come
+            self._force_oldest()
         while self._ready:
-            yield self._ready.popleft()
-        if self._pending is not None:
-            rec, self._pending = self._pending, None
-            yield rec
+            yield self._ready.popleft().record
 
     def _numbered_lines(self) -> Iterator[tuple[int, str]]:
         with open_text(self.path) as fh:
@@ -296,28 +428,36 @@ class CarmenReader:
                 self.lines += 1
                 yield self.lines, line
 
+    def _flush_pending(self) -> None:
+        if self._pending is not None:
+            self._ready.append(self._pending)
+            self._pending = None
+
+    def _add_scan(self, scan: LaserScan, odometry: Pose2D) -> None:
+        """A parsed scan line: it becomes the pending record (the previous one is done)."""
+        self._flush_pending()
+        held = _Held(
+            CarmenRecord(scan, odometry, None),
+            self._lineno,
+            self.odom_messages,
+            resolved=self.odometry == "scan",
+        )
+        if not held.resolved:
+            self._unresolved.append(held)
+        self._pending = held
+
     # -- message handlers -------------------------------------------------------------------
     def _on_flaser(self, tok: list[str]) -> None:
         if len(tok) < 2:
             raise _Bad("FLASER: missing the beam count")
-        try:
-            n = int(tok[1])
-        except ValueError:
-            raise _Bad(f"FLASER: beam count is not an integer: {tok[1]!r}") from None
-        if n < 2:
-            raise _Bad(f"FLASER: beam count must be >= 2, got {n}")
+        n = _count(tok[1], "FLASER: beam count", 2)
         if len(tok) != n + 11:
             raise _Bad(
                 f"FLASER: expected {n} ranges, got {len(tok) - 11} (line has {len(tok)} "
                 f"fields; FLASER needs n + 11: n ranges, x y θ, odom_x odom_y odom_θ, "
                 f"ipc_timestamp hostname logger_timestamp)"
             )
-        try:
-            ranges = np.array(tok[2 : 2 + n], dtype=np.float64)
-        except ValueError:
-            for k, s in enumerate(tok[2 : 2 + n]):
-                _float(s, f"FLASER: range {k + 1} of {n}")
-            raise  # pragma: no cover - numpy and float() disagree
+        ranges = _numbers(tok[2 : 2 + n], "FLASER: range")
         p = 2 + n
         for k, what in enumerate(("x", "y", "θ")):
             _float(tok[p + k], f"FLASER: {what}")
@@ -338,11 +478,9 @@ class CarmenReader:
             range_min=0.0,
             range_max=self._range_max(ranges),
             stamp=stamp,
-            sensor_pose=self._sensor_pose,
+            sensor_pose=self._sensor_pose if self.laser_offset is None else self.laser_offset,
         )
-        if self._pending is not None:
-            self._ready.append(self._pending)
-        self._pending = CarmenRecord(scan, Pose2D(ox, oy, ot), None)
+        self._add_scan(scan, Pose2D(ox, oy, ot))
 
     def _range_max(self, ranges: FloatArray) -> float:
         """The scan's ``range_max`` (module docstring, "Maximum range")."""
@@ -361,6 +499,152 @@ class CarmenReader:
         v = self.no_return_value
         return v if v is not None and m <= v else math.inf
 
+    def _on_robotlaser1(self, tok: list[str]) -> None:
+        # ROBOTLASER1 laser_type start_angle fov angular_res max_range accuracy remission_mode
+        # n r_1..r_n n_rem rem_1..rem_m laser_x laser_y laser_θ robot_x robot_y robot_θ
+        # tv rv forward_safety side_safety turn_axis ipc_timestamp hostname logger_timestamp
+        if len(tok) < 10:
+            raise _Bad(
+                f"ROBOTLASER1: line has {len(tok)} fields, too few for the header "
+                f"(laser_type start_angle fov angular_res max_range accuracy remission_mode n) "
+                f"and the remission count"
+            )
+        _float(tok[1], "ROBOTLASER1: laser_type")
+        start = _finite(tok[2], "ROBOTLASER1: start_angle")
+        _finite(tok[3], "ROBOTLASER1: fov")
+        res = _finite(tok[4], "ROBOTLASER1: angular_res")
+        if res == 0.0:
+            raise _Bad("ROBOTLASER1: angular_res must be non-zero")
+        max_range = _float(tok[5], "ROBOTLASER1: max_range")
+        if math.isnan(max_range) or max_range <= 0.0:
+            raise _Bad(f"ROBOTLASER1: max_range must be > 0, got {tok[5]!r}")
+        _float(tok[6], "ROBOTLASER1: accuracy")
+        _float(tok[7], "ROBOTLASER1: remission_mode")
+        n = _count(tok[8], "ROBOTLASER1: beam count n", 1)
+        q = 9 + n  # where n_rem should be
+        if len(tok) < q + 1 + _ROBOTLASER1_TAIL:
+            raise _Bad(
+                f"ROBOTLASER1: expected at least {q + 1 + _ROBOTLASER1_TAIL} fields for "
+                f"{n} ranges (n + 24 with no remissions), got {len(tok)}"
+            )
+        try:
+            m = int(tok[q])
+        except ValueError:
+            raise _Bad(
+                f"ROBOTLASER1: n_rem (field {q + 1}, after {n} ranges) is not an integer: "
+                f"{tok[q]!r} (is the range count n = {n} right?)"
+            ) from None
+        room = len(tok) - q - 1 - _ROBOTLASER1_TAIL
+        if m != room:
+            raise _Bad(
+                f"ROBOTLASER1: n_rem is {m} but the line has {room} fields between it and the "
+                f"{_ROBOTLASER1_TAIL} trailing ones (laser pose, robot pose, tv rv "
+                f"forward_safety side_safety turn_axis, ipc_timestamp hostname "
+                f"logger_timestamp); {len(tok)} fields for n = {n}"
+            )
+        ranges = _numbers(tok[9:q], "ROBOTLASER1: range")
+        _numbers(tok[q + 1 : q + 1 + m], "ROBOTLASER1: remission")
+        p = q + 1 + m
+        laser = Pose2D(
+            _finite(tok[p], "ROBOTLASER1: laser_x"),
+            _finite(tok[p + 1], "ROBOTLASER1: laser_y"),
+            _finite(tok[p + 2], "ROBOTLASER1: laser_θ"),
+        )
+        robot = Pose2D(
+            _finite(tok[p + 3], "ROBOTLASER1: robot_x"),
+            _finite(tok[p + 4], "ROBOTLASER1: robot_y"),
+            _finite(tok[p + 5], "ROBOTLASER1: robot_θ"),
+        )
+        for k, what in enumerate(("tv", "rv", "forward_safety", "side_safety", "turn_axis")):
+            _float(tok[p + 6 + k], f"ROBOTLASER1: {what}")
+        stamp = _finite(tok[p + 11], "ROBOTLASER1: ipc_timestamp")
+        _finite(tok[p + 13], "ROBOTLASER1: logger_timestamp")
+        if self.laser_offset is not None:
+            sensor_pose = self.laser_offset
+        else:  # the laser's mounting pose on the robot: ⊖robot ⊕ laser
+            sensor_pose = robot.inverse().compose(laser)
+        try:
+            scan = LaserScan(
+                ranges,
+                start,
+                res,
+                range_min=0.0,
+                range_max=max_range if self.max_range is None else self.max_range,
+                stamp=stamp,
+                sensor_pose=sensor_pose,
+            )
+        except ScanError as exc:  # e.g. n beams of angular_res span more than one turn
+            raise _Bad(f"ROBOTLASER1: {exc}") from None
+        self._add_scan(scan, robot)
+
+    def _on_odom(self, tok: list[str]) -> None:
+        if len(tok) != 10:
+            raise _Bad(
+                f"ODOM: expected 10 fields (ODOM x y θ tv rv accel ipc_timestamp hostname "
+                f"logger_timestamp), got {len(tok)}"
+            )
+        x = _finite(tok[1], "ODOM: x")
+        y = _finite(tok[2], "ODOM: y")
+        th = _finite(tok[3], "ODOM: θ")
+        for k, what in ((4, "tv"), (5, "rv"), (6, "accel")):
+            _finite(tok[k], f"ODOM: {what}")
+        stamp = _finite(tok[7], "ODOM: ipc_timestamp")
+        _finite(tok[9], "ODOM: logger_timestamp")
+        seq = self.odom_messages
+        self.odom_messages += 1
+        if self.odometry == "scan":
+            return
+        odoms = self._odoms
+        odoms.append((seq, stamp, Pose2D(x, y, th)))
+        if self._unresolved:
+            still: deque[_Held] = deque()
+            for held in self._unresolved:
+                if stamp >= held.record.scan.stamp or seq + 1 - held.odom_seq >= _ODOM_LOOKAHEAD:
+                    self._resolve(held)
+                else:
+                    still.append(held)
+            self._unresolved = still
+        oldest = self._unresolved[0].odom_seq if self._unresolved else self.odom_messages
+        while odoms and odoms[0][0] < oldest - _ODOM_HISTORY:
+            odoms.popleft()
+
+    def _force_oldest(self) -> None:
+        """Give the oldest unresolved scan its odometry from the ODOM lines seen so far (the end
+        of the log, or too many scans waiting)."""
+        if self._unresolved:
+            self._resolve(self._unresolved.popleft())
+
+    def _resolve(self, held: _Held) -> None:
+        """Interpolate the ODOM stream at the scan's stamp (module docstring, "Odometry")."""
+        t = held.record.scan.stamp
+        lo = held.odom_seq - _ODOM_HISTORY
+        before: tuple[float, Pose2D] | None = None  # the latest stamp <= t
+        after: tuple[float, Pose2D] | None = None  # the earliest stamp >= t
+        for seq, ts, pose in self._odoms:
+            if seq < lo:
+                continue
+            if ts <= t and (before is None or ts >= before[0]):
+                before = (ts, pose)
+            if ts >= t and (after is None or ts < after[0]):
+                after = (ts, pose)
+        if before is None and after is None:
+            raise CarmenFormatError(
+                self.path,
+                held.lineno,
+                f"odometry='interpolated', but no ODOM line comes within "
+                f"{_ODOM_HISTORY} ODOM lines before this scan or {_MAX_HELD_SCANS} scans after "
+                f"it (does the log have ODOM lines?)",
+            )
+        if before is None or after is None or after[0] == before[0]:
+            pose = before[1] if before is not None else after[1]  # type: ignore[index]
+        else:
+            s = (t - before[0]) / (after[0] - before[0])
+            b, a = before[1], after[1]
+            dth = math.remainder(a.theta - b.theta, math.tau)  # the shorter way round
+            pose = Pose2D(b.x + s * (a.x - b.x), b.y + s * (a.y - b.y), b.theta + s * dth)
+        held.record = held.record._replace(odometry=pose)
+        held.resolved = True
+
     def _on_truepos(self, tok: list[str]) -> None:
         if len(tok) != 10:
             raise _Bad(
@@ -374,8 +658,9 @@ class CarmenReader:
             (4, 5, 6, 7, 9), ("odom_x", "odom_y", "odom_θ", "ipc_timestamp", "logger_timestamp")
         ):
             _finite(tok[k], f"TRUEPOS: {what}")
-        if self._pending is not None and self._pending.truth is None:
-            self._pending = self._pending._replace(truth=Pose2D(tx, ty, tt))
+        held = self._pending
+        if held is not None and held.record.truth is None:
+            held.record = held.record._replace(truth=Pose2D(tx, ty, tt))
 
     def _on_param(self, tok: list[str]) -> None:
         if len(tok) < 3:
@@ -400,14 +685,20 @@ def read_carmen(
     max_range: float | None = None,
     convention: str = "auto",
     skip_bad_lines: bool = False,
+    odometry: str = "scan",
+    laser_offset: Pose2D | None = None,
 ) -> Iterator[CarmenRecord]:
     """Stream the :class:`CarmenRecord` of a CARMEN log (plain or gzip) in file order.
 
     ``field_of_view_deg`` and ``convention`` give the FLASER beam angles
-    (:func:`carmen_beam_geometry`; they must match what wrote the log); ``max_range``: a
-    reading at or above it is invalid (None: ``PARAM robot_front_laser_max``, else learned
-    from the data; module docstring); ``skip_bad_lines``: skip malformed lines instead of
-    raising :class:`CarmenFormatError` (use :class:`CarmenReader` to get their count).
+    (:func:`carmen_beam_geometry`; they must match what wrote the log; ROBOTLASER1 lines carry
+    their own); ``max_range``: a reading at or above it is invalid (None: ROBOTLASER1's own
+    field, for FLASER ``PARAM robot_front_laser_max``, else learned from the data; module
+    docstring); ``skip_bad_lines``: skip malformed lines instead of raising
+    :class:`CarmenFormatError` (use :class:`CarmenReader` to get their count); ``odometry``:
+    ``"scan"`` (each scan's own odometry fields) or ``"interpolated"`` (the ODOM stream at the
+    scan's stamp); ``laser_offset``: the laser's mounting pose on the robot, overriding
+    ``PARAM robot_frontlaser_offset`` and ROBOTLASER1's pose fields.
     """
     return CarmenReader(
         path,
@@ -415,6 +706,8 @@ def read_carmen(
         max_range=max_range,
         convention=convention,
         skip_bad_lines=skip_bad_lines,
+        odometry=odometry,
+        laser_offset=laser_offset,
     ).records()
 
 
