@@ -53,14 +53,6 @@ class LogFormatError(ValueError):
         return (type(self), (self.path, self.line, self.reason))
 
 
-class CarmenFormatError(LogFormatError):
-    """A malformed CARMEN log line, e.g. ``log.clf:17: FLASER: expected 180 ranges, got 179``."""
-
-
-class TumFormatError(LogFormatError):
-    """A malformed TUM trajectory line, e.g. ``traj.tum:3: expected 8 fields …, got 7``."""
-
-
 # -- files ---------------------------------------------------------------------------------
 def open_text(path: PathLike) -> IO[str]:
     """Open a text log for reading, decompressing gzip when the file starts with its magic
