@@ -35,6 +35,8 @@ __all__ = [
     "VirtualPointConfig",
     "MatchingConfig",
     "FusionConfig",
+    "RefinementConfig",
+    "OdometryConfig",
     "PRESETS",
 ]
 
@@ -338,6 +340,90 @@ class FusionConfig:
     )
 
 
+@dataclass(frozen=True)
+class RefinementConfig:
+    """Beyond the paper: the feature estimate refined by fuzzy-weighted point-to-line matching
+    of every filtered point of the scan against the keyframe's points and their surface."""
+
+    enabled: bool = _reason(
+        "beyond the paper: features give the motion to a few centimetres; every filtered point "
+        "matched to the keyframe's surfaces gives it to millimetres, also where a real log has "
+        "too few lines (intel's clutter)",
+        default=True,
+    )
+    max_distance: float = _reason(
+        "a point pairs with the nearest keyframe point within 0.3 m at the first iteration",
+        default=0.3,
+    )
+    min_distance: float = _reason(
+        "the pairing distance shrinks each iteration down to 0.1 m", default=0.1
+    )
+    iterations: int = _reason("Gauss-Newton iterations at most", default=15)
+    residual_scale: float = _reason(
+        "Huber scale of the point-to-line residual: 2 cm, a real scanner's noise", default=0.02
+    )
+    neighbour_distance: float = _reason(
+        "a keyframe point's surface normal comes from its neighbours within 0.3 m in its cluster",
+        default=0.3,
+    )
+    neighbour_step: int = _reason(
+        "the normal is that of the chord from the 2nd neighbour before to the 2nd after",
+        default=2,
+    )
+    min_points: int = _reason(
+        "at least 20 points must pair for the refinement to count", default=20
+    )
+    min_inlier_fraction: float = _reason(
+        "and at least 40 % of the scan's points must pair, else the refinement is not trusted",
+        default=0.4,
+    )
+    prior_sigma: float = _reason(
+        "the starting motion counts as a measurement with 5 cm standard deviation in translation: "
+        "along a corridor (every normal the same) the odometry keeps its say",
+        default=0.05,
+    )
+    prior_sigma_angle: float = _reason(
+        "and 2° in rotation", default=math.radians(2.0)
+    )
+    max_correction: float = _reason(
+        "a refinement that moves the estimate by more than 0.5 m from its start is rejected",
+        default=0.5,
+    )
+
+
+@dataclass(frozen=True)
+class OdometryConfig:
+    """How far the odometry prior is trusted (beyond the paper, which assumes sane odometry)."""
+
+    max_speed: float = _reason(
+        "an odometry increment faster than 1.5 m/s (plus max_jump_distance) is no robot's motion",
+        default=1.5,
+    )
+    max_turn_rate: float = _reason(
+        "nor one turning faster than 2 rad/s (plus max_jump_angle)", default=2.0
+    )
+    max_jump_distance: float = _reason(
+        "allowance whatever the time step: stamps of real logs are not acquisition times (intel's "
+        "bursts); 0.25 m is above any of intel's and aces' sane increments",
+        default=0.25,
+    )
+    max_jump_angle: float = _reason(
+        "allowance in rotation whatever the time step: 20°, above intel's largest sane increment "
+        "(15.8°) and below aces' jump (60.6°)",
+        default=math.radians(20.0),
+    )
+    jump_search_distance: float = _reason(
+        "after a rejected increment the refinement pairs points within 1 m of the last "
+        "increment's prediction",
+        default=1.0,
+    )
+    trust_stand_still: bool = _reason(
+        "an odometry increment of exactly zero means the robot stands still: the estimate keeps "
+        "its pose (real logs stand still for long stretches; matching there only adds noise)",
+        default=True,
+    )
+
+
 _SECTIONS: dict[str, type] = {
     "fuzzy": FuzzyConfig,
     "filtering": FilterConfig,
@@ -347,6 +433,8 @@ _SECTIONS: dict[str, type] = {
     "virtual_points": VirtualPointConfig,
     "matching": MatchingConfig,
     "fusion": FusionConfig,
+    "refinement": RefinementConfig,
+    "odometry": OdometryConfig,
 }
 
 # fields holding angles (radians in code, degrees in TOML under "<name>_deg")
@@ -359,6 +447,8 @@ _ANGLE_FIELDS = {
     ("matching", "line_angle_gate"),
     ("matching", "line_angle_gate_prior"),
     ("matching", "line_trim_angle"),
+    ("refinement", "prior_sigma_angle"),
+    ("odometry", "max_jump_angle"),
 }
 
 
@@ -374,6 +464,8 @@ class Config:
     virtual_points: VirtualPointConfig = field(default_factory=VirtualPointConfig)
     matching: MatchingConfig = field(default_factory=MatchingConfig)
     fusion: FusionConfig = field(default_factory=FusionConfig)
+    refinement: RefinementConfig = field(default_factory=RefinementConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -494,6 +586,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
             "match_lines": False,
         },
         "fusion": {"method": "weighted_mean", "robust": False},
+        "refinement": {"enabled": False},
     },
 }
 
@@ -592,6 +685,16 @@ def _validate(cfg: Config) -> None:
         "matching.line_distance_gate_prior": cfg.matching.line_distance_gate_prior,
         "matching.line_prior_sigma": cfg.matching.line_prior_sigma,
         "virtual_points.max_distance": cfg.virtual_points.max_distance,
+        "refinement.max_distance": cfg.refinement.max_distance,
+        "refinement.min_distance": cfg.refinement.min_distance,
+        "refinement.residual_scale": cfg.refinement.residual_scale,
+        "refinement.neighbour_distance": cfg.refinement.neighbour_distance,
+        "refinement.prior_sigma": cfg.refinement.prior_sigma,
+        "refinement.prior_sigma_angle": cfg.refinement.prior_sigma_angle,
+        "refinement.max_correction": cfg.refinement.max_correction,
+        "odometry.max_speed": cfg.odometry.max_speed,
+        "odometry.max_turn_rate": cfg.odometry.max_turn_rate,
+        "odometry.jump_search_distance": cfg.odometry.jump_search_distance,
     }
     for key, v in positive.items():
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -609,6 +712,8 @@ def _validate(cfg: Config) -> None:
         "matching.keyframe_angle": cfg.matching.keyframe_angle,
         "matching.line_inlier_distance": cfg.matching.line_inlier_distance,
         "fusion.trim_floor": cfg.fusion.trim_floor,
+        "odometry.max_jump_distance": cfg.odometry.max_jump_distance,
+        "odometry.max_jump_angle": cfg.odometry.max_jump_angle,
     }
     for key, v in nonneg.items():
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
@@ -637,6 +742,16 @@ def _validate(cfg: Config) -> None:
         raise ConfigError(
             f"fusion.method must be 'weighted_mean' or 'least_squares', got {cfg.fusion.method!r}"
         )
+    if cfg.refinement.iterations < 1:
+        raise ConfigError("refinement.iterations must be at least 1")
+    if cfg.refinement.neighbour_step < 1:
+        raise ConfigError("refinement.neighbour_step must be at least 1")
+    if cfg.refinement.min_points < 3:
+        raise ConfigError("refinement.min_points must be at least 3")
+    if not 0 <= cfg.refinement.min_inlier_fraction <= 1:
+        raise ConfigError("refinement.min_inlier_fraction must lie in [0, 1]")
+    if cfg.refinement.min_distance > cfg.refinement.max_distance:
+        raise ConfigError("refinement.min_distance must not exceed refinement.max_distance")
     if cfg.fusion.min_inliers < 2:
         raise ConfigError("fusion.min_inliers must be at least 2")
     if cfg.fusion.max_solutions < 1:

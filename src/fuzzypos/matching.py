@@ -14,6 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from .config import FusionConfig
 from .features import FeaturePoints, Lines
@@ -35,6 +36,10 @@ __all__ = [
     "LinePairs",
     "pair_lines",
     "increment_from_lines",
+    "SurfacePoints",
+    "surface_points",
+    "Refinement",
+    "refine_point_to_line",
 ]
 
 
@@ -422,3 +427,127 @@ def _robust_keep(values: FloatArray, floor: float, center: float | None = None) 
         center = _median(values)
     dev = np.abs(values - center)
     return dev <= max(3.0 * 1.4826 * _median(dev), floor)
+
+
+# -- beyond the paper: fuzzy-weighted point-to-line refinement ---------------------------------
+@dataclass(frozen=True, eq=False)
+class SurfacePoints:
+    """A keyframe's filtered points with the normal of the surface through each (unit,
+    robot frame), their certainty ``weight`` (1 − the fuzzy uncertainty of eq. 4) and a
+    KD-tree over them. Points with no neighbour on their surface are left out."""
+
+    xy: FloatArray
+    normal: FloatArray
+    weight: FloatArray
+    tree: cKDTree
+
+    def __len__(self) -> int:
+        return int(self.xy.shape[0])
+
+
+def surface_points(
+    points: FloatArray,
+    cluster: IntArray,
+    uncertainty: FloatArray,
+    neighbour_distance: float,
+    neighbour_step: int = 1,
+) -> SurfacePoints:
+    """Normals from the chord between each point's ``neighbour_step``-th neighbours on either
+    side in scan order, within its run of points (same cluster, steps no longer than
+    ``neighbour_distance``; at a run's end the chord stops at its last point). Points alone in
+    their run are left out. No Python loop runs over points."""
+    xy = np.asarray(points, dtype=float).reshape(-1, 2)
+    n = xy.shape[0]
+    if n < 3:
+        empty = np.zeros((0, 2))
+        return SurfacePoints(empty, empty, np.zeros(0), cKDTree(empty))
+    step = np.diff(xy, axis=0)
+    step_len = np.hypot(step[:, 0], step[:, 1])
+    link = (cluster[1:] == cluster[:-1]) & (cluster[1:] >= 0) & (step_len <= neighbour_distance)
+    run = np.concatenate(([0], np.cumsum(~link)))
+    first = np.searchsorted(run, run, side="left")
+    last = np.searchsorted(run, run, side="right") - 1
+    idx = np.arange(n)
+    prev_i = np.maximum(idx - neighbour_step, first)
+    next_i = np.minimum(idx + neighbour_step, last)
+    chord = xy[next_i] - xy[prev_i]
+    length = np.hypot(chord[:, 0], chord[:, 1])
+    ok = (next_i > prev_i) & (length > 1e-9)
+    normal = stack_columns(-chord[ok, 1], chord[ok, 0]) / length[ok, None]
+    w = np.clip(1.0 - np.asarray(uncertainty, dtype=float)[ok], 0.05, 1.0)
+    xy_ok = xy[ok]
+    return SurfacePoints(xy_ok, normal, w, cKDTree(xy_ok))
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """The refined increment, how many points paired at the last iteration, and the fraction
+    of the scan's points that did."""
+
+    increment: FloatArray
+    n_paired: int
+    inlier_fraction: float
+
+
+def refine_point_to_line(
+    reference: SurfacePoints,
+    points: FloatArray,
+    weights: FloatArray,
+    start: FloatArray,
+    prior: FloatArray,
+    *,
+    max_distance: float,
+    min_distance: float,
+    iterations: int,
+    residual_scale: float,
+    prior_sigma: float,
+    prior_sigma_angle: float,
+) -> Refinement | None:
+    """Refine the increment ``start`` (the pose of the scan in the reference's frame) so that
+    the scan's ``points`` land on the reference's surfaces: Gauss-Newton on Σ w ρ(n·(T·p − q))
+    with ρ Huber at ``residual_scale``, w the product of both points' certainties, and the
+    ``prior`` as one more measurement with standard deviations ``prior_sigma`` (translation)
+    and ``prior_sigma_angle``: in a direction no surface constrains (along a corridor) the
+    prior decides. Each point pairs with the nearest reference point within a distance that
+    shrinks from ``max_distance`` to ``min_distance``. None when no point pairs."""
+    if len(reference) < 3 or points.shape[0] == 0:
+        return None
+    pose = np.asarray(start, dtype=float).copy()
+    prior = np.asarray(prior, dtype=float)
+    info_prior = np.array([1.0 / prior_sigma**2, 1.0 / prior_sigma**2, 1.0 / prior_sigma_angle**2])
+    gates = np.geomspace(max_distance, min_distance, max(2, iterations // 2))
+    paired = 0
+    for it in range(iterations):
+        gate = gates[min(it, gates.size - 1)]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        rx = c * points[:, 0] - s * points[:, 1]
+        ry = s * points[:, 0] + c * points[:, 1]
+        qx, qy = rx + pose[0], ry + pose[1]
+        dist, j = reference.tree.query(stack_columns(qx, qy), distance_upper_bound=gate)
+        ok = np.isfinite(dist)
+        paired = int(ok.sum())
+        if paired < 3:
+            return None
+        j = j[ok]
+        nx, ny = reference.normal[j, 0], reference.normal[j, 1]
+        r = nx * (qx[ok] - reference.xy[j, 0]) + ny * (qy[ok] - reference.xy[j, 1])
+        jt = nx * (-ry[ok]) + ny * rx[ok]  # d r / d θ
+        absr = np.abs(r)
+        huber = np.where(absr <= residual_scale, 1.0, residual_scale / np.maximum(absr, 1e-12))
+        w = weights[ok] * reference.weight[j] * huber / residual_scale**2
+        J = np.stack((nx, ny, jt))  # (3, m)
+        H = (J * w) @ J.T
+        g = (J * w) @ r
+        dp = pose - prior
+        dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
+        H[np.diag_indices(3)] += info_prior
+        g += info_prior * dp
+        try:
+            delta = -np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            return None
+        pose += delta
+        if it >= gates.size - 1 and abs(delta[0]) + abs(delta[1]) < 1e-5 and abs(delta[2]) < 1e-6:
+            break
+    pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
+    return Refinement(pose, paired, paired / points.shape[0])

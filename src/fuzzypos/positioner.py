@@ -10,7 +10,7 @@ empty or all-invalid scan is not an error but such a degraded estimate.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterable, Iterator, Sized, cast
 
 import numpy as np
@@ -18,7 +18,15 @@ import numpy as np
 from .config import Config
 from .features import Features, FeaturePoints, Lines, extract_features
 from .geometry import Pose2D, compose, relative
-from .matching import estimate_increment, increment_from_lines, pair_features, pair_lines
+from .matching import (
+    SurfacePoints,
+    estimate_increment,
+    increment_from_lines,
+    pair_features,
+    pair_lines,
+    refine_point_to_line,
+    surface_points,
+)
 from .scan import LaserScan
 
 __all__ = ["Estimate", "Positioner"]
@@ -44,6 +52,8 @@ class Estimate:
     from. ``n_pairs``: the pairs the increment rests on (line pairs where line-to-line matching
     gave it, feature-point pairs where the paper's pairing did). ``degraded``: True where the
     estimate fell back to the prior. ``features``: this scan's features (None unless kept).
+    ``odometry_rejected``: the odometry increment was no robot's motion (a jump) and the last
+    increment replaced it as the prior. ``refined``: the point-to-line refinement moved it.
     """
 
     stamp: float
@@ -54,6 +64,8 @@ class Estimate:
     degraded: bool
     features: Features | None = None
     reason: str = ""
+    odometry_rejected: bool = False
+    refined: bool = False
 
 
 class Positioner:
@@ -71,6 +83,10 @@ class Positioner:
         self._key_features: Features | None = None
         self._key_pose = np.zeros(3)
         self._key_odom: Pose2D | None = None
+        self._key_surface: SurfacePoints | None = None
+        self._prev_stamp: float | None = None
+        #: odometry increments rejected as jumps so far
+        self.odometry_jumps = 0
 
     @property
     def pose(self) -> Pose2D | None:
@@ -83,24 +99,56 @@ class Positioner:
             raise TypeError(f"update() needs a LaserScan, got {type(scan).__name__}")
         if odom is not None and not isinstance(odom, Pose2D):
             raise TypeError(f"odom must be a Pose2D or None, got {type(odom).__name__}")
-        features = extract_features(scan, self.config)
+        cfg = self.config
 
         if self._pose is None:  # the first scan: its odometry pose, or the origin
+            features = extract_features(scan, cfg)
             start = odom.as_array() if odom is not None else np.zeros(3)
             self._pose = start
             self._prev_odom = odom
+            self._prev_stamp = scan.stamp
             self._set_keyframe(features, start, odom)
             zero = Pose2D()
             return Estimate(scan.stamp, Pose2D.from_array(start), zero, zero, 0, False, features)
 
         # the prior for this scan's motion: the odometry increment, else the last increment
+        rejected = False
+        odo_inc = None
         if odom is not None and self._prev_odom is not None:
-            prior = relative(self._prev_odom.as_array(), odom.as_array())
+            odo_inc = relative(self._prev_odom.as_array(), odom.as_array())
+            dt = max(0.0, scan.stamp - cast(float, self._prev_stamp))
+            rejected = self._is_jump(odo_inc, dt)
+        self._prev_stamp = scan.stamp
+        if odo_inc is not None and not rejected:
+            prior = odo_inc
         else:
             prior = self._last_increment
+        if rejected:
+            self.odometry_jumps += 1
+        self._prev_odom = odom
+
+        if (
+            odo_inc is not None
+            and not rejected
+            and cfg.odometry.trust_stand_still
+            and not odo_inc.any()
+        ):  # the odometry says the robot stands still: so does the estimate
+            self._last_increment = np.zeros(3)
+            zero = Pose2D()
+            return Estimate(scan.stamp, _pose(self._pose), zero, zero, 0, False, None, "standing still")
+
+        features = extract_features(scan, cfg)
         # the same prior from the keyframe: what was estimated up to the previous scan, then it
         key_prior = compose(relative(self._key_pose, self._pose), prior)
         from_key, n_pairs, reason = self._motion(cast(Features, self._key_features), features, key_prior)
+        refined = False
+        if cfg.refinement.enabled:
+            start = key_prior if from_key is None else from_key
+            better = self._refine(features, start, key_prior, rejected)
+            if better is not None:
+                from_key, refined = better, True
+                if n_pairs == 0:
+                    reason = ""
         degraded = from_key is None
         if from_key is None:  # fall back to the prior, and start afresh from this scan
             increment = np.asarray(prior, dtype=float)
@@ -108,7 +156,7 @@ class Positioner:
         else:
             pose = compose(self._key_pose, from_key)
             increment = relative(self._pose, pose)
-        m = self.config.matching
+        m = cfg.matching
         if (
             degraded
             or math.hypot(from_key[0], from_key[1]) >= m.keyframe_distance
@@ -117,7 +165,6 @@ class Positioner:
             self._set_keyframe(features, pose, odom)
         self._pose = pose
         self._last_increment = increment
-        self._prev_odom = odom
         return Estimate(
             stamp=scan.stamp,
             pose=_pose(pose),
@@ -127,12 +174,54 @@ class Positioner:
             degraded=degraded,
             features=features,
             reason=reason,
+            odometry_rejected=rejected,
+            refined=refined,
         )
+
+    def _is_jump(self, increment: np.ndarray, dt: float) -> bool:
+        """An odometry increment no robot makes: faster than ``max_speed`` / ``max_turn_rate``
+        over ``dt`` plus the allowances (stamps of real logs are not acquisition times)."""
+        o = self.config.odometry
+        dist = math.hypot(increment[0], increment[1])
+        return bool(
+            dist > o.max_speed * dt + o.max_jump_distance
+            or abs(increment[2]) > o.max_turn_rate * dt + o.max_jump_angle
+        )
+
+    def _refine(
+        self, features: Features, start: np.ndarray, prior: np.ndarray, wide: bool
+    ) -> np.ndarray | None:
+        """The point-to-line refinement of ``start`` against the keyframe; None where too few
+        points pair or it moves further than ``max_correction``."""
+        r = self.config.refinement
+        if self._key_surface is None:
+            kf = cast(Features, self._key_features)
+            kept = kf.points[kf.kept_index]
+            self._key_surface = surface_points(
+                kept, kf.cluster, kf.uncertainty[kf.kept_index], r.neighbour_distance, r.neighbour_step
+            )
+        pts = features.points[features.kept_index]
+        if pts.shape[0] < r.min_points:
+            return None
+        weights = np.clip(1.0 - features.uncertainty[features.kept_index], 0.05, 1.0)
+        max_distance = self.config.odometry.jump_search_distance if wide else r.max_distance
+        res = refine_point_to_line(
+            self._key_surface, pts, weights, start, prior,
+            max_distance=max_distance, min_distance=r.min_distance, iterations=r.iterations,
+            residual_scale=r.residual_scale, prior_sigma=r.prior_sigma,
+            prior_sigma_angle=r.prior_sigma_angle,
+        )
+        if res is None or res.n_paired < r.min_points or res.inlier_fraction < r.min_inlier_fraction:
+            return None
+        if math.hypot(res.increment[0] - start[0], res.increment[1] - start[1]) > r.max_correction:
+            return None
+        return res.increment
 
     def _set_keyframe(self, features: Features, pose: np.ndarray, odom: Pose2D | None) -> None:
         self._key_features = features
         self._key_pose = pose
         self._key_odom = odom
+        self._key_surface = None
 
     def _motion(
         self, prev: Features, features: Features, prior: np.ndarray
@@ -237,10 +326,7 @@ class Positioner:
                     raise ValueError(f"odoms ran out at scan {k}: give one odometry pose per scan") from None
             est = self.update(scan, odom)
             if not keep_features:
-                est = Estimate(
-                    est.stamp, est.pose, est.increment, est.prior, est.n_pairs, est.degraded, None,
-                    est.reason,
-                )
+                est = replace(est, features=None)
             yield est
         if odom_iter is not None and next(odom_iter, _END) is not _END:
             raise ValueError("odoms has more poses than there were scans: give one per scan")
