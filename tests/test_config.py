@@ -32,6 +32,11 @@ ANGLES_DEG = {
     ("matching", "line_angle_gate"): 3.0,
     ("matching", "line_angle_gate_prior"): 8.0,
     ("matching", "line_trim_angle"): 0.2,
+    ("refinement", "prior_sigma_angle"): 2.0,
+    ("refinement", "max_bend_angle"): 30.0,
+    ("odometry", "max_jump_angle"): 20.0,
+    ("odometry", "search_angle"): 60.0,
+    ("odometry", "search_angle_step"): 1.0,
 }
 ANGLE_WORDS = ("angle", "rotation", "heading", "bearing", "yaw", "theta")
 SECTIONS = [
@@ -43,6 +48,8 @@ SECTIONS = [
     "virtual_points",
     "matching",
     "fusion",
+    "refinement",
+    "odometry",
 ]
 
 

@@ -40,6 +40,7 @@ __all__ = [
     "surface_points",
     "Refinement",
     "refine_point_to_line",
+    "search_start",
 ]
 
 
@@ -447,15 +448,19 @@ class SurfacePoints:
 
 def surface_points(
     points: FloatArray,
-    cluster: IntArray,
+    ranges: FloatArray,
     uncertainty: FloatArray,
     neighbour_distance: float,
     neighbour_step: int = 1,
+    neighbour_ratio: float = 0.05,
+    max_bend: float = math.radians(10.0),
 ) -> SurfacePoints:
     """Normals from the chord between each point's ``neighbour_step``-th neighbours on either
-    side in scan order, within its run of points (same cluster, steps no longer than
-    ``neighbour_distance``; at a run's end the chord stops at its last point). Points alone in
-    their run are left out. No Python loop runs over points."""
+    side in scan order, within its run of points (consecutive points no further apart than
+    ``neighbour_distance`` or ``neighbour_ratio`` × their range, whichever is larger, so that
+    far walls, sampled sparsely, stay one surface; at a run's end the chord stops at its last
+    point). Only points on a straight stretch keep a normal: the chords to either side must
+    agree in direction within ``max_bend``. No Python loop runs over points."""
     xy = np.asarray(points, dtype=float).reshape(-1, 2)
     n = xy.shape[0]
     if n < 3:
@@ -463,16 +468,37 @@ def surface_points(
         return SurfacePoints(empty, empty, np.zeros(0), cKDTree(empty))
     step = np.diff(xy, axis=0)
     step_len = np.hypot(step[:, 0], step[:, 1])
-    link = (cluster[1:] == cluster[:-1]) & (cluster[1:] >= 0) & (step_len <= neighbour_distance)
+    rng = np.asarray(ranges, dtype=float)
+    limit = np.maximum(neighbour_distance, neighbour_ratio * np.minimum(rng[1:], rng[:-1]))
+    link = step_len <= limit
     run = np.concatenate(([0], np.cumsum(~link)))
     first = np.searchsorted(run, run, side="left")
     last = np.searchsorted(run, run, side="right") - 1
     idx = np.arange(n)
     prev_i = np.maximum(idx - neighbour_step, first)
     next_i = np.minimum(idx + neighbour_step, last)
-    chord = xy[next_i] - xy[prev_i]
+    # a point on a straight stretch: the chords to either side agree in direction within
+    # ``max_bend``, and its normal is that of the chord across it. Where they do not (next to
+    # a corner), the side whose chord agrees with the chord beyond it gives the normal; a
+    # point straight on neither side (a corner, a round pillar) and a run's ends give none
+    prev2 = np.maximum(prev_i - neighbour_step, first)
+    next2 = np.minimum(next_i + neighbour_step, last)
+    left, right = xy - xy[prev_i], xy[next_i] - xy
+    far_left, far_right = xy[prev_i] - xy[prev2], xy[next2] - xy[next_i]
+    tan_bend = math.tan(max_bend) if max_bend < math.pi / 2 else math.inf
+
+    def agree(a: FloatArray, b: FloatArray) -> NDArray[np.bool_]:
+        cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
+        return (dot > 0) & (np.abs(cross) <= tan_bend * dot)
+
+    inner = (next_i > idx) & (prev_i < idx)
+    straight = inner & agree(left, right)
+    left_ok = ~straight & inner & (prev2 < prev_i) & agree(far_left, left)
+    right_ok = ~straight & inner & ~left_ok & (next2 > next_i) & agree(right, far_right)
+    chord = np.where(straight[:, None], xy[next_i] - xy[prev_i], np.where(left_ok[:, None], left, right))
     length = np.hypot(chord[:, 0], chord[:, 1])
-    ok = (next_i > prev_i) & (length > 1e-9)
+    ok = (straight | left_ok | right_ok) & (length > 1e-9)
     normal = stack_columns(-chord[ok, 1], chord[ok, 0]) / length[ok, None]
     w = np.clip(1.0 - np.asarray(uncertainty, dtype=float)[ok], 0.05, 1.0)
     xy_ok = xy[ok]
@@ -502,17 +528,22 @@ def refine_point_to_line(
     residual_scale: float,
     prior_sigma: float,
     prior_sigma_angle: float,
+    point_sigma: float = 0.01,
+    degenerate_ratio: float = 0.02,
 ) -> Refinement | None:
     """Refine the increment ``start`` (the pose of the scan in the reference's frame) so that
     the scan's ``points`` land on the reference's surfaces: Gauss-Newton on Σ w ρ(n·(T·p − q))
-    with ρ Huber at ``residual_scale``, w the product of both points' certainties, and the
+    with ρ Huber at ``residual_scale``, w the product of both points' certainties over
+    ``point_sigma``² (a certain point's standard deviation along its normal), and the
     ``prior`` as one more measurement with standard deviations ``prior_sigma`` (translation)
-    and ``prior_sigma_angle``: in a direction no surface constrains (along a corridor) the
-    prior decides. Each point pairs with the nearest reference point within a distance that
+    and ``prior_sigma_angle``. Where the points constrain one direction of the translation
+    less than ``degenerate_ratio`` times the other (a corridor), the translation along it stays
+    at ``start`` (which carries the prior's or the line matching's say there). Each point pairs with the nearest reference point within a distance that
     shrinks from ``max_distance`` to ``min_distance``. None when no point pairs."""
     if len(reference) < 3 or points.shape[0] == 0:
         return None
     pose = np.asarray(start, dtype=float).copy()
+    start_xy = pose[:2].copy()
     prior = np.asarray(prior, dtype=float)
     info_prior = np.array([1.0 / prior_sigma**2, 1.0 / prior_sigma**2, 1.0 / prior_sigma_angle**2])
     gates = np.geomspace(max_distance, min_distance, max(2, iterations // 2))
@@ -534,10 +565,21 @@ def refine_point_to_line(
         jt = nx * (-ry[ok]) + ny * rx[ok]  # d r / d θ
         absr = np.abs(r)
         huber = np.where(absr <= residual_scale, 1.0, residual_scale / np.maximum(absr, 1e-12))
-        w = weights[ok] * reference.weight[j] * huber / residual_scale**2
+        # pairs far beyond the residuals' robust spread are false (a far wall's point next to
+        # a nearer object): they get no weight, never with a tighter cut than 2 mm
+        cut = max(3.0 * 1.4826 * float(np.median(absr)), 0.002)
+        huber[absr > cut] = 0.0
+        w = weights[ok] * reference.weight[j] * huber / point_sigma**2
         J = np.stack((nx, ny, jt))  # (3, m)
         H = (J * w) @ J.T
         g = (J * w) @ r
+        # degeneracy (a corridor): where the points fix the translation in one direction only,
+        # the other direction, which only the noise of the normals speaks for, stays at start
+        evals, evecs = np.linalg.eigh(H[:2, :2])
+        if evals[0] < degenerate_ratio * evals[1]:
+            v = evecs[:, 0]
+            H[:2, :2] += evals[1] * np.outer(v, v)
+            g[:2] += evals[1] * v * float(v @ (pose[:2] - start_xy))
         dp = pose - prior
         dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
         H[np.diag_indices(3)] += info_prior
@@ -551,3 +593,30 @@ def refine_point_to_line(
             break
     pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
     return Refinement(pose, paired, paired / points.shape[0])
+
+
+def search_start(
+    reference: SurfacePoints,
+    points: FloatArray,
+    start: FloatArray,
+    half_width: float,
+    step: float,
+    gate: float,
+) -> tuple[FloatArray, float]:
+    """A wider search where the prior cannot be trusted (an odometry jump, a failed match):
+    the rotations ``start[2] ± half_width`` in steps of ``step``, each scored by the fraction
+    of ``points`` that land within ``gate`` of a reference point (about the start's position,
+    each rotation turning the scan about the robot). Returns the best start and its score.
+    One KD-tree query over all candidates at once; no Python loop over points."""
+    if len(reference) == 0 or points.shape[0] == 0:
+        return np.asarray(start, dtype=float), 0.0
+    k = int(round(half_width / step))
+    thetas = start[2] + step * np.arange(-k, k + 1)
+    c, s = np.cos(thetas)[:, None], np.sin(thetas)[:, None]
+    qx = c * points[None, :, 0] - s * points[None, :, 1] + start[0]
+    qy = s * points[None, :, 0] + c * points[None, :, 1] + start[1]
+    dist, _ = reference.tree.query(np.stack((qx.ravel(), qy.ravel()), axis=1), distance_upper_bound=gate)
+    score = np.isfinite(dist).reshape(thetas.size, -1).mean(axis=1)
+    best = int(np.argmax(score))
+    out = np.array([start[0], start[1], thetas[best]], dtype=float)
+    return out, float(score[best])

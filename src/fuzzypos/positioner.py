@@ -25,6 +25,7 @@ from .matching import (
     pair_features,
     pair_lines,
     refine_point_to_line,
+    search_start,
     surface_points,
 )
 from .scan import LaserScan
@@ -85,6 +86,7 @@ class Positioner:
         self._key_odom: Pose2D | None = None
         self._key_surface: SurfacePoints | None = None
         self._prev_stamp: float | None = None
+        self._last_dt = 0.0
         #: odometry increments rejected as jumps so far
         self.odometry_jumps = 0
 
@@ -114,26 +116,30 @@ class Positioner:
         # the prior for this scan's motion: the odometry increment, else the last increment
         rejected = False
         odo_inc = None
+        dt = max(0.0, scan.stamp - cast(float, self._prev_stamp))
         if odom is not None and self._prev_odom is not None:
             odo_inc = relative(self._prev_odom.as_array(), odom.as_array())
-            dt = max(0.0, scan.stamp - cast(float, self._prev_stamp))
             rejected = self._is_jump(odo_inc, dt)
         self._prev_stamp = scan.stamp
         if odo_inc is not None and not rejected:
             prior = odo_inc
+        elif rejected:  # the last motion, at most as far as it went in its own time step
+            ratio = min(1.0, dt / self._last_dt) if self._last_dt > 0 else 1.0
+            prior = self._last_increment * ratio
         else:
             prior = self._last_increment
         if rejected:
             self.odometry_jumps += 1
+        standing = (
+            odo_inc is not None
+            and cfg.odometry.trust_stand_still
+            and odom == self._prev_odom  # the very same pose: the wheels did not turn
+        )
         self._prev_odom = odom
 
-        if (
-            odo_inc is not None
-            and not rejected
-            and cfg.odometry.trust_stand_still
-            and not odo_inc.any()
-        ):  # the odometry says the robot stands still: so does the estimate
+        if standing:  # the odometry says the robot stands still: so does the estimate
             self._last_increment = np.zeros(3)
+            self._last_dt = dt
             zero = Pose2D()
             return Estimate(scan.stamp, _pose(self._pose), zero, zero, 0, False, None, "standing still")
 
@@ -142,9 +148,15 @@ class Positioner:
         key_prior = compose(relative(self._key_pose, self._pose), prior)
         from_key, n_pairs, reason = self._motion(cast(Features, self._key_features), features, key_prior)
         refined = False
-        if cfg.refinement.enabled:
+        lines_suffice = (
+            from_key is not None
+            and cfg.refinement.skip_with_line_pairs > 0
+            and n_pairs >= cfg.refinement.skip_with_line_pairs
+        )
+        if cfg.refinement.enabled and not lines_suffice:
             start = key_prior if from_key is None else from_key
-            better = self._refine(features, start, key_prior, rejected)
+            refine_from_start = from_key is not None and cfg.refinement.prior_from_features
+            better = self._refine(features, start, start if refine_from_start else key_prior, rejected)
             if better is not None:
                 from_key, refined = better, True
                 if n_pairs == 0:
@@ -165,6 +177,7 @@ class Positioner:
             self._set_keyframe(features, pose, odom)
         self._pose = pose
         self._last_increment = increment
+        self._last_dt = dt
         return Estimate(
             stamp=scan.stamp,
             pose=_pose(pose),
@@ -196,26 +209,48 @@ class Positioner:
         r = self.config.refinement
         if self._key_surface is None:
             kf = cast(Features, self._key_features)
-            kept = kf.points[kf.kept_index]
             self._key_surface = surface_points(
-                kept, kf.cluster, kf.uncertainty[kf.kept_index], r.neighbour_distance, r.neighbour_step
+                kf.points, kf.ranges, kf.uncertainty, r.neighbour_distance, r.neighbour_step,
+                r.neighbour_ratio, r.max_bend_angle,
             )
-        pts = features.points[features.kept_index]
+        # every valid point: the paper's filter (§3.1) drops grazing points that still tell
+        # where a wall is
+        pts = features.points
         if pts.shape[0] < r.min_points:
             return None
-        weights = np.clip(1.0 - features.uncertainty[features.kept_index], 0.05, 1.0)
-        max_distance = self.config.odometry.jump_search_distance if wide else r.max_distance
+        weights = np.clip(1.0 - features.uncertainty, 0.05, 1.0)
+        o = self.config.odometry
+        best = self._refine_from(pts, weights, start, prior, o.jump_search_distance if wide else r.max_distance)
+        if best is None or wide:
+            # a wider search: the prior is a jump, or nothing near it matched
+            searched, score = search_start(
+                self._key_surface, pts, start, o.search_angle, o.search_angle_step, o.jump_search_distance / 2
+            )
+            if best is None or score > best[1]:
+                found = self._refine_from(pts, weights, searched, searched, o.jump_search_distance, weak_prior=True)
+                if found is not None and (best is None or found[1] > best[1]):
+                    best = found
+        return None if best is None else best[0]
+
+    def _refine_from(
+        self, pts: np.ndarray, weights: np.ndarray, start: np.ndarray, prior: np.ndarray,
+        max_distance: float, weak_prior: bool = False,
+    ) -> tuple[np.ndarray, float] | None:
+        r = self.config.refinement
         res = refine_point_to_line(
-            self._key_surface, pts, weights, start, prior,
+            cast(SurfacePoints, self._key_surface), pts, weights, start, prior,
             max_distance=max_distance, min_distance=r.min_distance, iterations=r.iterations,
-            residual_scale=r.residual_scale, prior_sigma=r.prior_sigma,
-            prior_sigma_angle=r.prior_sigma_angle,
+            residual_scale=r.residual_scale, point_sigma=r.point_sigma,
+            degenerate_ratio=r.degenerate_ratio,
+            prior_sigma=r.prior_sigma * (100.0 if weak_prior else 1.0),
+            prior_sigma_angle=r.prior_sigma_angle * (100.0 if weak_prior else 1.0),
         )
         if res is None or res.n_paired < r.min_points or res.inlier_fraction < r.min_inlier_fraction:
             return None
-        if math.hypot(res.increment[0] - start[0], res.increment[1] - start[1]) > r.max_correction:
+        limit = self.config.odometry.jump_search_distance if weak_prior else r.max_correction
+        if math.hypot(res.increment[0] - start[0], res.increment[1] - start[1]) > limit:
             return None
-        return res.increment
+        return res.increment, res.inlier_fraction
 
     def _set_keyframe(self, features: Features, pose: np.ndarray, odom: Pose2D | None) -> None:
         self._key_features = features

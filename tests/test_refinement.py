@@ -1,0 +1,186 @@
+"""Beyond the paper: the point-to-line refinement, and how far the positioner trusts odometry
+(jumps no robot makes, standing still). Checked on simulated rooms and corridors whose motion is
+known."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fuzzypos import sim
+from fuzzypos.config import Config
+from fuzzypos.features import extract_features
+from fuzzypos.geometry import Pose2D, compose, relative
+from fuzzypos.matching import refine_point_to_line, surface_points
+from fuzzypos.positioner import Positioner
+
+CFG = Config()
+R = CFG.refinement
+
+
+def scanner(noise: float = 0.0) -> sim.ScannerModel:
+    return sim.ScannerModel(n_beams=360, field_of_view_deg=360.0, angle_min_deg=-180.0,
+                            range_max=20.0, range_noise_std=noise)
+
+
+def refine(ref_scan, scan, start, prior, **kw):
+    fr, fc = extract_features(ref_scan, CFG), extract_features(scan, CFG)
+    surf = surface_points(fr.points, fr.ranges, fr.uncertainty, R.neighbour_distance,
+                          R.neighbour_step, R.neighbour_ratio)
+    args = dict(max_distance=0.5, min_distance=0.3, iterations=30, residual_scale=R.residual_scale,
+                prior_sigma=R.prior_sigma, prior_sigma_angle=R.prior_sigma_angle)
+    args.update(kw)
+    return refine_point_to_line(surf, fc.points, np.ones(len(fc.points)), np.asarray(start),
+                                np.asarray(prior), **args)
+
+
+def test_surface_normals_are_the_walls_normals() -> None:
+    room = sim.rectangular_room(8.0, 6.0)
+    scan = sim.simulate_scan(room, Pose2D(0.5, -0.3, 0.2), scanner())
+    f = extract_features(scan, CFG)
+    s = surface_points(f.points, f.ranges, f.uncertainty, 0.3, 2, 0.05)
+    assert len(s) > 300
+    # in the robot frame the walls' normals are at -0.2 + k·90°: |n · wall direction| ~ 0
+    ang = np.arctan2(s.normal[:, 1], s.normal[:, 0]) + 0.2
+    off = np.abs((ang + math.pi / 4) % (math.pi / 2) - math.pi / 4)
+    # all but the points at the four corners, whose chord cuts across the corner
+    assert np.mean(off < 1e-6) > 0.95
+    assert np.allclose(np.hypot(s.normal[:, 0], s.normal[:, 1]), 1.0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    dx=st.floats(-0.3, 0.3), dy=st.floats(-0.3, 0.3), dth=st.floats(-0.15, 0.15),
+    ex=st.floats(-0.1, 0.1), ey=st.floats(-0.1, 0.1), eth=st.floats(-0.05, 0.05),
+)
+def test_recovers_a_known_motion_from_a_wrong_start(dx, dy, dth, ex, ey, eth) -> None:
+    world = sim.furnished_room(seed=1)
+    a = Pose2D(0.0, 0.0, 0.1)
+    motion = np.array([dx, dy, dth])
+    b = Pose2D.from_array(compose(a.as_array(), motion))
+    sa, sb = (sim.simulate_scan(world, p, scanner()) for p in (a, b))
+    start = motion + np.array([ex, ey, eth])
+    res = refine(sa, sb, start, start, prior_sigma=10.0, prior_sigma_angle=10.0)
+    assert res is not None and res.inlier_fraction > 0.9
+    err = relative(motion, res.increment)
+    assert math.hypot(err[0], err[1]) < 2e-3 and abs(err[2]) < math.radians(0.05), (motion, res)
+
+
+def test_noise_and_the_prior_along_a_corridor() -> None:
+    """Two parallel walls: across the corridor and in heading the points decide, along it the
+    prior does (the start is 0.4 m off along the corridor and 5 cm across)."""
+    walls = sim.World.from_segments([[-30.0, -1.0, 30.0, -1.0], [-30.0, 1.0, 30.0, 1.0]])
+    rng = np.random.default_rng(3)
+    a, b = Pose2D(0.0, 0.1, 0.0), Pose2D(0.5, -0.1, 0.05)
+    sa = sim.simulate_scan(walls, a, scanner(0.01), rng)
+    sb = sim.simulate_scan(walls, b, scanner(0.01), rng)
+    motion = relative(a.as_array(), b.as_array())
+    prior = motion + np.array([0.4, 0.05, 0.0])
+    res = refine(sa, sb, prior, prior)
+    assert res is not None
+    across = abs(res.increment[1] - motion[1])
+    along = res.increment[0] - motion[0]
+    assert across < 0.01 and abs(res.increment[2] - motion[2]) < math.radians(0.3), res
+    # unobservable along the corridor: the prior's 0.4 m stays (no drift toward anything else)
+    assert abs(along - 0.4) < 0.05, res
+
+
+def test_nothing_to_pair_gives_none() -> None:
+    room = sim.rectangular_room(8.0, 6.0)
+    sa = sim.simulate_scan(room, Pose2D(), scanner())
+    far = np.array([30.0, 30.0, 0.0])  # every point lands far outside the room
+    assert refine(sa, sa, far, far, max_distance=0.5, min_distance=0.1) is None
+
+
+# -- the positioner's trust in odometry ---------------------------------------------------------
+def room_run(poses, odom, noise=0.0, stamps=None, config=None):
+    world = sim.furnished_room(seed=2)
+    rng = np.random.default_rng(0)
+    pos = Positioner(config or Config())
+    out = []
+    for k, (p, o) in enumerate(zip(poses, odom)):
+        scan = sim.simulate_scan(world, p, scanner(noise), rng, stamp=0.2 * k if stamps is None else stamps[k])
+        out.append(pos.update(scan, o))
+    return pos, out
+
+
+def test_an_odometry_jump_is_rejected_and_the_motion_found() -> None:
+    truth = sim.arc_path(Pose2D(-1.0, -0.5, 0.2), 12, 0.05, 1.0)
+    odom = list(truth)
+    jump = np.array([0.38, 0.0, math.radians(-60.6)])  # aces: 0.38 m and -60.6° in 0.16 s
+    odom = odom[:6] + [Pose2D.from_array(compose(p.as_array(), jump)) for p in odom[6:]]
+    pos, est = room_run(truth, odom, noise=0.005)
+    assert pos.odometry_jumps == 1
+    assert est[6].odometry_rejected and not any(e.odometry_rejected for e in est[:6] + est[7:])
+    final = relative(truth[-1].as_array(), est[-1].pose.as_array())
+    assert math.hypot(final[0], final[1]) < 0.02 and abs(final[2]) < math.radians(0.5), est[-1]
+    # without the check and without the wider search the estimate follows the jump
+    trusting = Config().with_overrides({"odometry": {
+        "max_jump_angle": math.pi, "max_jump_distance": 5.0, "search_angle": math.radians(1.0)}})
+    pos2, est2 = room_run(truth, odom, noise=0.005, config=trusting)
+    assert pos2.odometry_jumps == 0
+    bad = relative(truth[-1].as_array(), est2[-1].pose.as_array())
+    assert math.hypot(bad[0], bad[1]) > 0.1 or abs(bad[2]) > math.radians(5)
+
+
+def test_plausible_fast_motion_is_not_a_jump() -> None:
+    pos = Positioner()
+    # 0.3 m and 25° in 0.5 s: 0.6 m/s and 0.87 rad/s
+    assert not pos._is_jump(np.array([0.3, 0.0, math.radians(25.0)]), 0.5)
+    assert pos._is_jump(np.array([0.38, 0.0, math.radians(-60.6)]), 0.16)
+    assert pos._is_jump(np.array([2.0, 0.0, 0.0]), 0.5)  # 4 m/s
+
+
+def test_standing_still_does_not_drift() -> None:
+    still = [Pose2D(0.3, -0.2, 0.4)] * 40
+    pos, est = room_run(still, still, noise=0.02)
+    poses = np.array([e.pose.as_array() for e in est])
+    assert np.ptp(poses, axis=0).max() == 0.0
+    assert all(e.reason == "standing still" for e in est[1:])
+    # the same noisy scans without trusting the stand-still jitter
+    cfg = Config().with_overrides({"odometry": {"trust_stand_still": False}})
+    pos2, est2 = room_run(still, still, noise=0.02, config=cfg)
+    poses2 = np.array([e.pose.as_array() for e in est2])
+    assert np.ptp(poses2[:, :2], axis=0).max() < 0.03  # small (2 cm noise), but not zero
+    assert np.ptp(poses2, axis=0).max() > 0.0
+
+
+def test_refinement_beats_features_alone_with_noise() -> None:
+    truth = sim.arc_path(Pose2D(-1.0, -0.5, 0.2), 30, 0.06, 1.5)
+    odom = sim.drifting_odometry(truth, scale=1.03, rotation_bias_deg=0.3)
+    errs = {}
+    for name, on in (("refined", True), ("features", False)):
+        cfg = Config().with_overrides({"refinement": {"enabled": on}})
+        _, est = room_run(truth, odom, noise=0.01, config=cfg)
+        d = relative(truth[-1].as_array(), est[-1].pose.as_array())
+        errs[name] = math.hypot(d[0], d[1])
+    assert errs["refined"] < 0.03, errs
+    assert errs["refined"] <= errs["features"] + 0.005, errs
+
+
+@pytest.mark.parametrize("key, value", [
+    ("iterations", 0), ("min_points", 2), ("min_inlier_fraction", 1.5), ("residual_scale", 0.0),
+    ("neighbour_step", 0), ("min_distance", 9.0),
+])
+def test_refinement_config_is_validated(key, value) -> None:
+    from fuzzypos.config import ConfigError
+    with pytest.raises(ConfigError, match=key):
+        Config().with_overrides({"refinement": {key: value}})
+
+
+def test_search_start_finds_a_large_rotation() -> None:
+    from fuzzypos.matching import search_start
+
+    world = sim.furnished_room(seed=1)
+    a, b = Pose2D(0.0, 0.0, 0.0), Pose2D(0.05, 0.0, math.radians(-40.0))
+    fa, fb = (extract_features(sim.simulate_scan(world, p, scanner()), CFG) for p in (a, b))
+    surf = surface_points(fa.points, fa.ranges, fa.uncertainty, 0.3, 2, 0.05)
+    start, score = search_start(surf, fb.points, np.zeros(3), math.radians(60.0), math.radians(1.0), 0.3)
+    assert abs(math.degrees(start[2]) + 40.0) <= 2.0 and score > 0.8, (start, score)
+    # the prior's own rotation scores far worse
+    _, at_prior = search_start(surf, fb.points, np.zeros(3), 0.0, math.radians(1.0), 0.3)
+    assert at_prior < score - 0.3
