@@ -546,7 +546,7 @@ def refine_point_to_line(
     start_xy = pose[:2].copy()
     prior = np.asarray(prior, dtype=float)
     info_prior = np.array([1.0 / prior_sigma**2, 1.0 / prior_sigma**2, 1.0 / prior_sigma_angle**2])
-    gates = np.geomspace(max_distance, min_distance, max(2, iterations // 2))
+    gates = np.geomspace(max_distance, min_distance, 3)
     paired = 0
     for it in range(iterations):
         gate = gates[min(it, gates.size - 1)]
@@ -567,7 +567,8 @@ def refine_point_to_line(
         huber = np.where(absr <= residual_scale, 1.0, residual_scale / np.maximum(absr, 1e-12))
         # pairs far beyond the residuals' robust spread are false (a far wall's point next to
         # a nearer object): they get no weight, never with a tighter cut than 2 mm
-        cut = max(3.0 * 1.4826 * float(np.median(absr)), 0.002)
+        m = absr.size // 2
+        cut = max(3.0 * 1.4826 * float(np.partition(absr, m)[m]), 0.002)
         huber[absr > cut] = 0.0
         w = weights[ok] * reference.weight[j] * huber / point_sigma**2
         J = np.stack((nx, ny, jt))  # (3, m)
@@ -575,11 +576,16 @@ def refine_point_to_line(
         g = (J * w) @ r
         # degeneracy (a corridor): where the points fix the translation in one direction only,
         # the other direction, which only the noise of the normals speaks for, stays at start
-        evals, evecs = np.linalg.eigh(H[:2, :2])
-        if evals[0] < degenerate_ratio * evals[1]:
-            v = evecs[:, 0]
-            H[:2, :2] += evals[1] * np.outer(v, v)
-            g[:2] += evals[1] * v * float(v @ (pose[:2] - start_xy))
+        a, b, c = H[0, 0], H[0, 1], H[1, 1]
+        half = math.hypot(0.5 * (a - c), b)
+        lo, hi = 0.5 * (a + c) - half, 0.5 * (a + c) + half  # eigenvalues of the 2×2 block
+        if lo < degenerate_ratio * hi:
+            # its eigenvector for ``lo``: the direction the points hardly fix
+            v = np.array([b, lo - a]) if abs(b) > 1e-12 * hi else (
+                np.array([1.0, 0.0]) if a <= c else np.array([0.0, 1.0]))
+            v /= math.hypot(v[0], v[1])
+            H[:2, :2] += hi * np.outer(v, v)
+            g[:2] += hi * v * float(v @ (pose[:2] - start_xy))
         dp = pose - prior
         dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
         H[np.diag_indices(3)] += info_prior
@@ -589,7 +595,7 @@ def refine_point_to_line(
         except np.linalg.LinAlgError:
             return None
         pose += delta
-        if it >= gates.size - 1 and abs(delta[0]) + abs(delta[1]) < 1e-5 and abs(delta[2]) < 1e-6:
+        if it >= gates.size - 1 and abs(delta[0]) + abs(delta[1]) < 1e-4 and abs(delta[2]) < 1e-5:
             break
     pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
     return Refinement(pose, paired, paired / points.shape[0])
