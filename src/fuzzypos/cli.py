@@ -6,28 +6,40 @@ code 2; nothing here does work the library could do.
 
 from __future__ import annotations
 
+import inspect
+import json
+import math
 import time
+import warnings
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Annotated, NoReturn
 
 import typer
 from rich.console import Console
-from rich.progress import Progress
+from rich.progress import Progress, TaskID
 from rich.table import Table
+from rich.text import Text
 
 from . import __version__
 from .config import Config, ConfigError
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help="Fuzzy-based positioning from 2D laser scans and odometry.")
+if TYPE_CHECKING:
+    from .logs import OpenLog
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Fuzzy-based positioning from 2D laser scans and odometry.",
+)
 console = Console()
 
 
-def _fail(message: str) -> None:
+def _fail(message: str) -> NoReturn:
     typer.echo(f"fuzzypos: error: {message}", err=True)
     raise typer.Exit(code=2)
 
 
-def _load_config(preset: str, config: Optional[Path]) -> Config:
+def _load_config(preset: str, config: Path | None) -> Config:
     try:
         base = Config.preset(preset)
         if config is None:
@@ -35,7 +47,6 @@ def _load_config(preset: str, config: Optional[Path]) -> Config:
         return Config.from_dict(_read_toml(config), base=base, source=str(config))
     except ConfigError as exc:
         _fail(str(exc))
-        raise  # unreachable
 
 
 def _read_toml(path: Path) -> dict:
@@ -55,13 +66,18 @@ def _read_toml(path: Path) -> dict:
 
 @app.command()
 def demo(
-    out: Path = typer.Option(Path("demo-output"), help="folder for the figures and summary.json"),
-    seed: int = typer.Option(0, help="random seed of the simulation"),
-    laps: float = typer.Option(2.0, help="laps of the 4 m circle"),
+    out: Annotated[
+        Path, typer.Option(help="folder for the figures and summary.json")
+    ] = Path("demo-output"),
+    seed: Annotated[int, typer.Option(help="random seed of the simulation")] = 0,
+    laps: Annotated[float, typer.Option(help="laps of the 4 m circle")] = 2.0,
 ) -> None:
-    """The paper's experiment, simulated: a robot drives a circle in a gym on a slippery floor
-    (the truth is a spiral, odometry believes in the circle); positions it with the default
-    configuration and the paper preset; writes the paper's Figs. 13–20 and summary.json."""
+    """The paper's experiment, simulated, with its figures.
+
+    A robot drives a circle in a gym on a slippery floor (the truth is a spiral, odometry
+    believes in the circle); positions it with the default configuration and the paper
+    preset; writes the paper's Figs. 13–20 and summary.json.
+    """
     from .demo import DemoSettings, run_demo
 
     settings = DemoSettings(seed=seed, laps=laps)
@@ -78,13 +94,12 @@ def demo(
             result = run_demo(out, settings, progress=report)
             seconds = time.perf_counter() - t0
     except (ValueError, OSError) as exc:
-        _fail(str(exc))
-        return
+        _fail(_error_text(exc))
     summary = result.summary
     console.print(
-        f"fuzzypos {__version__} demo: {summary['scans']} scans, {summary['distance_travelled_m']:.1f} m "
-        f"along the true path ({result.run.path.name} in the {result.run.world.name}, seed {seed}); "
-        f"{seconds:.1f} s"
+        f"fuzzypos {__version__} demo: {summary['scans']} scans, "
+        f"{summary['distance_travelled_m']:.1f} m along the true path ({result.run.path.name} in "
+        f"the {result.run.world.name}, seed {seed}); {seconds:.1f} s"
     )
     table = Table(title="position error against the simulated truth")
     for col in ("", "final (m)", "mean (m)", "max (m)", "mean heading (°)", "degraded"):
@@ -93,7 +108,8 @@ def demo(
         e = result.errors[name]
         table.add_row(
             name, f"{e.final_position_error_m:.3f}", f"{e.mean_position_error_m:.3f}",
-            f"{e.max_position_error_m:.3f}", f"{e.mean_heading_error_deg:.2f}", str(e.scans_degraded),
+            f"{e.max_position_error_m:.3f}", f"{e.mean_heading_error_deg:.2f}",
+            str(e.scans_degraded),
         )
     console.print(table)
     console.print(f"figures and summary.json in {out}/")
@@ -101,17 +117,30 @@ def demo(
 
 @app.command()
 def simulate(
-    out: Path = typer.Option(..., "--out", "-o", help="the CARMEN log to write (.gz: gzipped)"),
-    tum: Optional[Path] = typer.Option(None, help="also write the true trajectory as TUM"),
-    world: str = typer.Option("gym", help="gym, office, furnished_room, rectangular_room, or a world file"),
-    path: str = typer.Option("circle", help="circle, square, figure8, or waypoints 'x,y;x,y;…' (m)"),
-    size: float = typer.Option(4.0, help="the circle's or figure eight's radius, the square's side (m)"),
-    laps: float = typer.Option(1.0, help="laps of the path"),
-    speed: float = typer.Option(0.3, help="m/s"),
-    seed: int = typer.Option(0, help="random seed"),
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="the CARMEN log to write (.gz: gzipped)")
+    ],
+    tum: Annotated[
+        Path | None, typer.Option(help="also write the true trajectory as TUM")
+    ] = None,
+    world: Annotated[
+        str,
+        typer.Option(help="gym, office, furnished_room, rectangular_room, or a world file"),
+    ] = "gym",
+    path: Annotated[
+        str, typer.Option(help="circle, square, figure8, or waypoints 'x,y;x,y;…' (m)")
+    ] = "circle",
+    size: Annotated[
+        float, typer.Option(help="the circle's or figure eight's radius, the square's side (m)")
+    ] = 4.0,
+    laps: Annotated[float, typer.Option(help="laps of the path")] = 1.0,
+    speed: Annotated[float, typer.Option(help="m/s")] = 0.3,
+    seed: Annotated[int, typer.Option(help="random seed")] = 0,
 ) -> None:
-    """Simulate a run and write it as a CARMEN log: FLASER lines carry the odometry, TRUEPOS
-    lines the truth, as CARMEN's own simulator does."""
+    """Simulate a run and write it as a CARMEN log.
+
+    FLASER lines carry the odometry, TRUEPOS lines the truth, as CARMEN's own simulator does.
+    """
     from . import sim
     from .demo import DemoSettings
     from .io import CarmenRecord, write_carmen, write_tum
@@ -121,12 +150,13 @@ def simulate(
         builders = {"circle": sim.CommandedPath.circle, "figure8": sim.CommandedPath.figure8}
         if ";" in path or "," in path:
             try:
-                points = [tuple(float(v) for v in p.split(",")) for p in path.split(";") if p.strip()]
+                points = [
+                    tuple(float(v) for v in p.split(",")) for p in path.split(";") if p.strip()
+                ]
             except ValueError:
                 points = []
             if len(points) < 2 or any(len(p) != 2 for p in points):
                 _fail(f"--path {path!r}: waypoints are 'x,y;x,y;…' with at least two points")
-                return
             commanded = sim.CommandedPath.waypoints(points, speed=speed)
         elif path == "square":
             commanded = sim.CommandedPath.square(size, laps=max(1, round(laps)), speed=speed)
@@ -134,25 +164,33 @@ def simulate(
             commanded = builders[path](size, laps=laps, speed=speed)
         else:
             _fail(f"unknown path {path!r}; known: circle, square, figure8, or waypoints 'x,y;x,y'")
-            return
         run = sim.simulate_run(w, commanded, DemoSettings().scanner, sim.SlipModel(), seed)
         records = (
-            CarmenRecord(scan, run.odometry_pose(k), run.true_pose(k)) for k, scan in enumerate(run.scans)
+            CarmenRecord(scan, run.odometry_pose(k), run.true_pose(k))
+            for k, scan in enumerate(run.scans)
         )
-        n = write_carmen(out, records, header_comment=f"fuzzypos simulate: {commanded.name} in {w.name}, seed {seed}")
+        n = write_carmen(
+            out, records,
+            header_comment=f"fuzzypos simulate: {commanded.name} in {w.name}, seed {seed}",
+        )
         if tum is not None:
             write_tum(tum, run.stamps, run.true_poses)
     except (ValueError, OSError) as exc:
-        _fail(str(exc))
-        return
+        _fail(_error_text(exc))
     console.print(f"{n} scans written to {out}" + (f", the truth to {tum}" if tum else ""))
+
+
+_PRESET = typer.Option(help="base configuration: default or paper")
+_CONFIG_FILE = typer.Option("--config", help="TOML file overriding keys")
 
 
 @app.command()
 def config(
-    preset: str = typer.Option("default", help="base configuration: default or paper"),
-    config_file: Optional[Path] = typer.Option(None, "--config", help="TOML file overriding keys"),
-    reasons: bool = typer.Option(False, help="print the reason for every setting instead"),
+    preset: Annotated[str, _PRESET] = "default",
+    config_file: Annotated[Path | None, _CONFIG_FILE] = None,
+    reasons: Annotated[
+        bool, typer.Option(help="print the reason for every setting instead")
+    ] = False,
 ) -> None:
     """Print a configuration as TOML (or why each value is what it is)."""
     cfg = _load_config(preset, config_file)
@@ -165,11 +203,14 @@ def config(
 
 @app.command("plot-scan")
 def plot_scan(
-    log: Path = typer.Argument(..., help="a CARMEN log (plain or gzipped)"),
-    index: int = typer.Option(..., "--index", "-n", help="the scan to plot, 0-based"),
-    out: Optional[Path] = typer.Option(None, help="folder for the figures (default: plots/<log>-scan<N>/)"),
-    preset: str = typer.Option("default", help="base configuration: default or paper"),
-    config_file: Optional[Path] = typer.Option(None, "--config", help="TOML file overriding keys"),
+    log: Annotated[Path, typer.Argument(help="a CARMEN log (plain or gzipped)")],
+    index: Annotated[int, typer.Option("--index", "-n", help="the scan to plot, 0-based")],
+    out: Annotated[
+        Path | None,
+        typer.Option(help="folder for the figures (default: plots/<log>-scan<N>/)"),
+    ] = None,
+    preset: Annotated[str, _PRESET] = "default",
+    config_file: Annotated[Path | None, _CONFIG_FILE] = None,
 ) -> None:
     """Draw the paper's Figs. 13–18 (filtering … virtual angular points) for one scan of a log."""
     from .features import extract_features
@@ -188,15 +229,409 @@ def plot_scan(
             count += 1
         if record is None:
             _fail(f"{log}: has no scan {index} (it has {count} scans)")
-            return
         features = extract_features(record.scan, cfg)
         folder = out if out is not None else Path("plots") / f"{log.name}-scan{index}"
         written = plot_feature_figures(features, folder, index)
     except (ValueError, OSError) as exc:
-        _fail(str(exc))
-        return
+        _fail(_error_text(exc))
     for number, path in sorted(written.items()):
         console.print(f"Fig. {number}: {path}")
+
+
+# -- real logs ------------------------------------------------------------------------------
+err_console = Console(stderr=True)
+
+
+def _error_text(exc: BaseException) -> str:
+    """One line for a library or file-system error."""
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        return f"{exc.filename}: {exc.strerror}"
+    text = str(exc) or type(exc).__name__
+    return " ".join(text.split())  # one line
+
+
+def _open(
+    log: Path,
+    *,
+    scan_topic: str | None = None,
+    odom_topic: str | None = None,
+    laser_offset: str | None = None,
+    skip_bad_lines: bool = False,
+    odometry: str = "scan",
+    fov: float = 180.0,
+    max_range: float | None = None,
+    convention: str = "auto",
+) -> OpenLog:
+    from .logs import open_log, parse_laser_offset
+
+    try:
+        offset = None if laser_offset is None else parse_laser_offset(laser_offset)
+        return open_log(
+            log, scan_topic=scan_topic, odom_topic=odom_topic, laser_offset=offset,
+            skip_bad_lines=skip_bad_lines, odometry=odometry, field_of_view_deg=fov,
+            max_range=max_range, convention=convention,
+        )
+    except (ValueError, OSError) as exc:
+        _fail(_error_text(exc))
+
+
+def _progress() -> Progress:
+    """A transient progress display on stderr, shown only on a terminal."""
+    return Progress(console=err_console, transient=True, disable=not err_console.is_terminal)
+
+
+def _print_warnings(caught: list[warnings.WarningMessage]) -> None:
+    for w in caught:
+        typer.echo(f"fuzzypos: warning: {' '.join(str(w.message).split())}", err=True)
+
+
+def _pm(mean: float | None, std: float | None, fmt: str) -> str:
+    if mean is None or std is None or math.isnan(mean):
+        return "–"
+    return f"{mean:{fmt}}±{std:{fmt}}"
+
+
+def _wide() -> Console:
+    """The console for tables: the terminal's; a wide one when stdout is a file or pipe (no
+    wrapping at 80 columns)."""
+    return console if console.is_terminal else Console(width=200)
+
+
+_LOG_ARG = typer.Argument(
+    help="a CARMEN log (.clf, plain or gzip), a ROS1 bag or a ROS2 bag directory; the kind is "
+    "told by content, not by name"
+)
+_SCAN_TOPIC = typer.Option("--scan-topic", help="bags: the LaserScan topic (when several)")
+_ODOM_TOPIC = typer.Option("--odom-topic", help="bags: the Odometry topic (when several)")
+_SKIP_BAD = typer.Option(
+    "--skip-bad-lines",
+    help="CARMEN: skip malformed lines (counted) instead of stopping at the first",
+)
+_ODOMETRY = typer.Option(
+    "--odometry",
+    help="CARMEN: 'scan' (each scan line's own odometry fields) or 'interpolated' (the ODOM "
+    "stream at the scan's stamp)",
+)
+_FOV = typer.Option("--fov", help="CARMEN FLASER: the scanner's field of view (degrees)")
+_MAX_RANGE = typer.Option(
+    "--max-range",
+    help="CARMEN: readings at or above it are invalid (default: PARAM robot_front_laser_max, "
+    "else learned from the data)",
+)
+_CONVENTION = typer.Option(
+    "--convention",
+    help="CARMEN FLASER beam angles: auto, resolution (fov/n) or span (fov/(n-1))",
+)
+_LASER_OFFSET = typer.Option(
+    "--laser-offset",
+    help="the laser's mounting pose on the robot 'x,y,θ' (m, m, degrees); overrides the log's",
+)
+_JSON = typer.Option("--json", help="print JSON instead of a table")
+
+
+@app.command()
+def info(
+    log: Annotated[Path, _LOG_ARG],
+    json_out: Annotated[bool, _JSON] = False,
+    scan_topic: Annotated[str | None, _SCAN_TOPIC] = None,
+    odom_topic: Annotated[str | None, _ODOM_TOPIC] = None,
+    skip_bad_lines: Annotated[bool, _SKIP_BAD] = False,
+    fov: Annotated[float, _FOV] = 180.0,
+    convention: Annotated[str, _CONVENTION] = "auto",
+) -> None:
+    """Describe a log (CARMEN, ROS1 bag or ROS2 bag): what it holds.
+
+    Reads the log once and prints its kind, scans, beam counts and angles, field of view,
+    duration (first and last stamp, and how often stamps go backwards), whether it has
+    odometry and truth (TRUEPOS), and the malformed lines skipped.
+    """
+    from .logs import describe_log
+
+    opened = _open(log, scan_topic=scan_topic, odom_topic=odom_topic,
+                   skip_bad_lines=skip_bad_lines, fov=fov, convention=convention)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            if json_out:
+                result = describe_log(opened)
+            else:
+                with _progress() as progress:
+                    task = progress.add_task("reading", total=opened.scan_count_hint())
+                    result = describe_log(
+                        opened, progress=lambda k: progress.update(task, completed=k)
+                    )
+    except (ValueError, OSError) as exc:
+        _fail(_error_text(exc))
+    _print_warnings(caught)
+    if json_out:
+        typer.echo(json.dumps(result.as_dict(), indent=2))
+        return
+    table = Table(title=f"{log}", show_header=False)
+    table.add_column("", style="bold")
+    table.add_column("")
+
+    def stamp(t: float | None) -> str:
+        return "–" if t is None else repr(t)
+
+    angles = fov_text = duration = "–"
+    if result.angle_min_deg is not None and result.angle_max_deg is not None:
+        angles = f"{result.angle_min_deg:.3f}° … {result.angle_max_deg:.3f}°"
+    if result.field_of_view_deg is not None:
+        fov_text = f"{result.field_of_view_deg:.3f}° (beams × increment)"
+    if result.duration_s is not None:
+        duration = f"{result.duration_s:.3f} s"
+    rows = [
+        ("kind", result.kind),
+        ("scans", str(result.scans)),
+        ("beams", ", ".join(map(str, result.beams)) or "–"),
+        ("beam angles", angles),
+        ("field of view", fov_text),
+        ("range_max", ", ".join(f"{r:g} m" for r in result.range_max) or "none finite"),
+        ("first stamp", stamp(result.first_stamp)),
+        ("last stamp", stamp(result.last_stamp)),
+        ("duration", duration),
+        ("stamps going backwards", str(result.stamps_backwards)),
+        ("odometry", f"yes ({result.scans_with_odometry} scans)" if result.has_odometry else "no"),
+        ("truth (TRUEPOS)", f"yes ({result.scans_with_truth} scans)" if result.has_truth else "no"),
+        ("bad lines skipped", str(result.bad_lines) + (" (truncated)" if result.truncated else "")),
+    ]
+    for k, v in rows:
+        table.add_row(k, v)
+    _wide().print(table)
+    for note in result.notes:
+        typer.echo(f"note: {note}")
+
+
+@app.command()
+def run(
+    log: Annotated[Path, _LOG_ARG],
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="also write the trajectory here (TUM)")
+    ] = None,
+    results: Annotated[
+        Path | None,
+        typer.Option("--results", help="the results folder (default: results/<log name>/)"),
+    ] = None,
+    preset: Annotated[str, _PRESET] = "default",
+    config_file: Annotated[Path | None, _CONFIG_FILE] = None,
+    start: Annotated[
+        float | None,
+        typer.Option(help="begin at the first scan (in file order) at least this many seconds "
+                     "after the first scan's stamp"),
+    ] = None,
+    end: Annotated[
+        float | None,
+        typer.Option(help="stop before the first scan (in file order, after the start) more "
+                     "than this many seconds after the first scan's stamp"),
+    ] = None,
+    max_scans: Annotated[
+        int | None, typer.Option("--max-scans", help="run at most this many scans")
+    ] = None,
+    skip_bad_lines: Annotated[bool, _SKIP_BAD] = False,
+    laser_offset: Annotated[str | None, _LASER_OFFSET] = None,
+    scan_topic: Annotated[str | None, _SCAN_TOPIC] = None,
+    odom_topic: Annotated[str | None, _ODOM_TOPIC] = None,
+    odometry: Annotated[str, _ODOMETRY] = "scan",
+    fov: Annotated[float, _FOV] = 180.0,
+    max_range: Annotated[float | None, _MAX_RANGE] = None,
+    convention: Annotated[str, _CONVENTION] = "auto",
+) -> None:
+    """Position the robot along a log and write a results folder.
+
+    The folder (default results/<log name>/) gets trajectory.tum (one pose per scan, stamped
+    as in the log, in file order), trajectory.clf (the log with the estimate as FLASER's pose
+    and the odometry kept), config.toml, path.png (path, odometry and map) and summary.json
+    (versions, input hash, scans, degraded scans, odometry jumps, speed, errors against the
+    log's truth where it has some). Prints the scan rate and where the results are.
+    """
+    from .results import default_results_dir, run_log
+
+    cfg = _load_config(preset, config_file)
+    opened = _open(log, scan_topic=scan_topic, odom_topic=odom_topic, laser_offset=laser_offset,
+                   skip_bad_lines=skip_bad_lines, odometry=odometry, fov=fov,
+                   max_range=max_range, convention=convention)
+    folder = results if results is not None else default_results_dir(log)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with _progress() as progress:
+                task = progress.add_task("positioning", total=None)
+
+                def report(done: int, total: int | None) -> None:
+                    progress.update(task, completed=done, total=total)
+
+                summary = run_log(
+                    opened, cfg, results_dir=folder, out_tum=out, progress=report,
+                    start=start, end=end, max_scans=max_scans, preset=preset,
+                    config_file=config_file,
+                )
+    except (ValueError, OSError) as exc:
+        _fail(_error_text(exc))
+    _print_warnings(caught)
+    s = summary.summary
+    bad = f", {s['bad_lines_skipped']} bad lines skipped" if s["bad_lines_skipped"] else ""
+    typer.echo(
+        f"{summary.scans} scans in {summary.seconds:.2f} s: "
+        f"{summary.scans_per_second:.1f} scans/s (positioner "
+        f"{s['positioner_ms_per_scan']:.2f} ms per scan); {summary.scans_degraded} degraded, "
+        f"{summary.odometry_jumps_rejected} odometry jumps rejected{bad}"
+    )
+    if s["truth_errors"]:
+        e = s["truth_errors"]["estimate"]
+        typer.echo(
+            f"against the log's truth: final {e['final_position_error_m']:.3f} m, mean "
+            f"{e['mean_position_error_m']:.3f} m, mean heading {e['mean_heading_error_deg']:.2f}°"
+        )
+    for note in summary.notes:
+        typer.echo(f"note: {note}")
+    typer.echo(f"results in {folder}/" + (f"; trajectory also in {out}" if out else ""))
+
+
+@app.command()
+def evaluate(
+    estimate: Annotated[Path, typer.Argument(help="the estimated trajectory (TUM)")],
+    relations: Annotated[
+        Path | None,
+        typer.Option(help="a relations file (t1 t2 x y z roll pitch yaw per line) of the log"),
+    ] = None,
+    reference: Annotated[
+        Path | None, typer.Option(help="a reference trajectory (TUM)")
+    ] = None,
+    json_out: Annotated[bool, _JSON] = False,
+) -> None:
+    """Score a trajectory against relations and/or a reference trajectory.
+
+    --relations: the benchmark's relations metric over all and local (t2 - t1 <= 10 s)
+    relations: mean ± std and median of the translational and rotational errors, and how
+    many matched. --reference: the ATE (RMSE after SE(2) alignment) and the RPE over 1 frame
+    and over 1 m. Give one of them or both.
+    """
+    from .results import evaluate_trajectory
+
+    if relations is None and reference is None:
+        _fail("evaluate needs --relations FILE and/or --reference REF.tum")
+    try:
+        ev = evaluate_trajectory(estimate, relations=relations, reference=reference)
+    except (ValueError, OSError) as exc:
+        _fail(_error_text(exc))
+    if json_out:
+        typer.echo(json.dumps(ev.as_dict(), indent=2))
+        return
+    typer.echo(f"{estimate}: {ev.poses} poses")
+    if ev.relations is not None:
+        typer.echo(f"relations ({relations}):")
+        for line in ev.relations.format().splitlines():
+            typer.echo(f"  {line}")
+    if ev.ate is not None:
+        a = ev.ate
+        typer.echo(
+            f"ATE against {reference}: RMSE {a.rmse_m:.4f} m after SE(2) alignment (mean "
+            f"{a.translation_m.mean:.4f} m, heading mean {a.rotation_deg.mean:.3f}°, "
+            f"{a.matched} poses matched)"
+        )
+    for name, rpe in (("RPE over 1 frame", ev.rpe_frame), ("RPE over 1 m", ev.rpe_metre)):
+        if rpe is not None:
+            typer.echo(
+                f"{name}: RMSE {rpe.translation_m.rmse:.4f} m / {rpe.rotation_deg.rmse:.3f}° "
+                f"(mean {rpe.translation_m.mean:.4f} m / {rpe.rotation_deg.mean:.3f}°, "
+                f"{rpe.pairs} pairs)"
+            )
+    for note in ev.notes:
+        typer.echo(f"note: {note}")
+
+
+@app.command()
+def benchmark(
+    data: Annotated[
+        Path,
+        typer.Option(
+            "--data",
+            envvar="FUZZYPOS_DATA",
+            help="folder searched for NAME.relations with NAME.clf.gz, NAME.clf or NAME.bag "
+            "next to it",
+        ),
+    ] = Path("../shared/data"),
+    out: Annotated[
+        Path, typer.Option("--out", help="folder for benchmark.json and the runs' results")
+    ] = Path("results/benchmark"),
+    max_scans: Annotated[
+        int | None, typer.Option("--max-scans", help="run only the first N scans of each log")
+    ] = None,
+    json_out: Annotated[bool, typer.Option("--json", help="print the rows as JSON")] = False,
+) -> None:
+    """Score the raw odometry, the paper preset and the default on every benchmark log.
+
+    Every NAME.relations under --data with NAME.clf.gz, NAME.clf or NAME.bag next to it is a
+    benchmark log. Prints the relations metric of each run and writes benchmark.json and
+    the runs' results folders under --out. On the full shared logs this takes minutes
+    (intel has 13,631 scans); --max-scans runs a stretch.
+    """
+    from .results import run_benchmark
+
+    if max_scans is not None and max_scans < 1:
+        _fail(f"--max-scans must be at least 1, got {max_scans}")
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with _progress() as progress:
+                tasks: dict[str, TaskID] = {}
+
+                def report(name: str, done: int, total: int | None) -> None:
+                    if name not in tasks:
+                        tasks[name] = progress.add_task(name, total=total)
+                    progress.update(tasks[name], completed=done, total=total)
+
+                result = run_benchmark(data, out, max_scans=max_scans, progress=report)
+    except (ValueError, OSError) as exc:
+        _fail(_error_text(exc))
+    _print_warnings(caught)
+    if json_out:
+        typer.echo(json.dumps(result.data["rows"], indent=2))
+        return
+    title = "relations metric" + (f" (first {max_scans} scans of each log)" if max_scans else "")
+    table = Table(title=title)
+    for col in ("log", "config", "all trans m", "all rot °", "local trans m / median",
+                "local rot °", "matched all/local", "scans/s", "degraded", "jumps"):
+        left = col in ("log", "config")
+        table.add_column(col, justify="left" if left else "right", no_wrap=left)
+    problems: list[str] = []
+    for r in result.data["rows"]:
+        if "error" in r:
+            table.add_row(r["log"], r["config"], Text("failed (below)", style="red"), *[""] * 7)
+            problems.append(f"{r['log']} {r['config']}: {r['error']}")
+            continue
+        if "not_scored" in r:
+            problems.append(f"{r['log']} {r['config']}: not scored: {r['not_scored']}")
+        sps = r.get("scans_per_second")
+        med = r.get("local_trans_median_m")
+        table.add_row(
+            r["log"], r["config"],
+            _pm(r.get("all_trans_mean_m"), r.get("all_trans_std_m"), ".3f"),
+            _pm(r.get("all_rot_mean_deg"), r.get("all_rot_std_deg"), ".2f"),
+            _pm(r.get("local_trans_mean_m"), r.get("local_trans_std_m"), ".3f")
+            + ("" if med is None else f" / {med:.3f}"),
+            _pm(r.get("local_rot_mean_deg"), r.get("local_rot_std_deg"), ".2f"),
+            f"{r.get('all_matched', 0)}/{r.get('local_matched', 0)}",
+            "–" if sps is None else f"{sps:.0f}",
+            str(r.get("scans_degraded", "")),
+            str(r.get("odometry_jumps_rejected", "")),
+        )
+    _wide().print(table)
+    for line in problems:
+        typer.echo(line)
+    typer.echo(f"benchmark.json and the runs' results in {result.out_dir}/")
+
+
+def _unwrap(doc: str) -> str:
+    """A docstring as help text: the lines of each paragraph joined (typer's rich help keeps
+    the docstring's line breaks otherwise)."""
+    paragraphs = inspect.cleandoc(doc).split("\n\n")
+    return "\n\n".join(" ".join(p.split()) for p in paragraphs)
+
+
+for _command in app.registered_commands:  # every command's help from its docstring, unwrapped
+    if _command.help is None and _command.callback is not None and _command.callback.__doc__:
+        _command.help = _unwrap(_command.callback.__doc__)
 
 
 def main() -> None:  # pragma: no cover - console entry point

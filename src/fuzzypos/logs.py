@@ -1,0 +1,478 @@
+"""Opening robot logs whatever they are, choosing a stretch of them, and describing them.
+
+- :func:`open_log` tells a log's kind by its *content*, never by its name, and returns an
+  :class:`OpenLog` whose :meth:`~OpenLog.records` streams :class:`~fuzzypos.io.LogRecord`:
+
+  ======================================================  ===========  ==========================
+  what the path is                                        ``kind``     read with
+  ======================================================  ===========  ==========================
+  a directory holding ``metadata.yaml``                   ``"ros2"``   :class:`~fuzzypos.io.BagReader`
+  a file starting with ``#ROSBAG V2.0``                   ``"ros1"``   :class:`~fuzzypos.io.BagReader`
+  a file starting with the gzip magic bytes, or text      ``"carmen"`` :class:`~fuzzypos.io.CarmenReader`
+  anything else (binary, a directory without metadata)    —            :class:`UnknownLogError`
+  ======================================================  ===========  ==========================
+
+  "Text" means: the first 8 KiB (decompressed, for gzip) hold no NUL byte and decode as UTF-8
+  (a multi-byte character cut at the end of the 8 KiB is allowed). An empty file is text (a
+  CARMEN log without scans). A path that does not exist raises :class:`FileNotFoundError`.
+- :func:`select_records` picks a stretch of a record stream by time and count, streaming.
+- :func:`describe_log` reads a whole log once and summarises it (:class:`LogInfo`).
+- :func:`parse_laser_offset` reads the command line's ``x,y,θdeg``.
+
+Every error here is a :class:`ValueError` subclass naming what is wrong (or an
+:class:`OSError` from the file system), so that the command line can print it on one line.
+"""
+
+from __future__ import annotations
+
+import errno
+import gzip
+import math
+import os
+import zlib
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Union
+
+from .geometry import Pose2D
+from .io import GZIP_MAGIC, BagReader, CarmenReader, LogFormatError, LogRecord
+from .io.rosbag import ROS1_MAGIC
+
+__all__ = [
+    "LOG_KINDS",
+    "LogInfo",
+    "OpenLog",
+    "SelectionError",
+    "UnknownLogError",
+    "describe_log",
+    "log_kind",
+    "open_log",
+    "parse_laser_offset",
+    "select_records",
+]
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: what :attr:`OpenLog.kind` may be
+LOG_KINDS = ("carmen", "ros1", "ros2")
+
+#: how many leading bytes :func:`log_kind` looks at to tell text from binary
+_SNIFF_BYTES = 8192
+
+#: the first bytes of files that are parts of a ROS2 bag (its storage), for a better message
+_ROS2_STORAGE_MAGIC = {b"SQLite format 3\x00": "sqlite3", b"\x89MCAP0\r\n": "mcap"}
+
+
+class UnknownLogError(LogFormatError):
+    """A path that is no log fuzzypos reads (neither a CARMEN log nor a ROS1/ROS2 bag):
+    ``"<path>: not a log: …"``."""
+
+    def __init__(self, path: PathLike, reason: str) -> None:
+        super().__init__(path, 0, reason)
+
+    def __reduce__(self) -> tuple[type, tuple[str, str]]:  # type: ignore[override]
+        return (type(self), (self.path, self.reason))
+
+
+class SelectionError(ValueError):
+    """A bad ``start`` / ``end`` / ``max_scans`` (or ``--laser-offset``) argument."""
+
+
+# -- telling the kind ----------------------------------------------------------------------
+def _is_text(head: bytes, complete: bool) -> bool:
+    """Whether ``head`` (the first bytes of a file; ``complete`` when that is all of it) looks
+    like UTF-8 text."""
+    if b"\x00" in head:
+        return False
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        # a multi-byte character cut by the end of the sniffed block is still text
+        return not complete and exc.start >= len(head) - 3 and exc.reason == "unexpected end of data"
+    return True
+
+
+def log_kind(path: PathLike) -> str:
+    """``"ros2"``, ``"ros1"`` or ``"carmen"`` from the content of ``path`` (see the module
+    docstring); :class:`UnknownLogError` for anything else, :class:`FileNotFoundError` when
+    nothing is there."""
+    p = Path(path)
+    name = os.fspath(path)
+    if not p.exists():
+        raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), name)
+    if p.is_dir():
+        if (p / "metadata.yaml").is_file():
+            return "ros2"
+        raise UnknownLogError(
+            path, "not a log: a directory without metadata.yaml (a ROS2 bag directory holds one)"
+        )
+    with open(p, "rb") as f:
+        head = f.read(_SNIFF_BYTES)
+        complete = len(head) < _SNIFF_BYTES or not f.read(1)
+    if head.startswith(ROS1_MAGIC):
+        return "ros1"
+    if head.startswith(GZIP_MAGIC):
+        try:
+            with gzip.open(p, "rb") as gz:
+                inner = gz.read(_SNIFF_BYTES)
+                inner_complete = len(inner) < _SNIFF_BYTES
+        except (OSError, EOFError, zlib.error) as exc:
+            raise UnknownLogError(path, f"not a log: a broken gzip file ({exc})") from None
+        if not _is_text(inner, inner_complete):
+            raise UnknownLogError(
+                path, "not a log: a gzip file whose content is binary, not a CARMEN text log"
+            )
+        return "carmen"
+    for magic, storage in _ROS2_STORAGE_MAGIC.items():
+        if head.startswith(magic):
+            raise UnknownLogError(
+                path,
+                f"not a log: this looks like the {storage} storage file of a ROS2 bag; give the "
+                "bag's directory (the one holding metadata.yaml)",
+            )
+    if not _is_text(head, complete):
+        raise UnknownLogError(
+            path,
+            "not a log: binary content that is neither a ROS1 bag (starting with "
+            f"{ROS1_MAGIC.decode()!r}), a gzip file nor a CARMEN text log",
+        )
+    return "carmen"
+
+
+# -- the open log ---------------------------------------------------------------------------
+@dataclass(eq=False)
+class OpenLog:
+    """A log opened by :func:`open_log`.
+
+    ``path`` as given; ``kind``: ``"carmen"``, ``"ros1"`` or ``"ros2"``; ``reader``: the
+    :class:`~fuzzypos.io.CarmenReader` or :class:`~fuzzypos.io.BagReader` (its counters,
+    e.g. ``bad_lines``, are those of the latest :meth:`records` pass); ``notes``: what the
+    reader assumed or found odd, and the options that do not apply to this kind of log, as
+    sentences; ``options``: the reader options used (plain values, for a summary).
+    """
+
+    path: PathLike
+    kind: str
+    reader: CarmenReader | BagReader
+    notes: list[str] = field(default_factory=list)
+    options: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return os.fspath(self.path)
+
+    def records(self) -> Iterator[LogRecord]:
+        """Stream the log's records in file (bag) order; each call reads the log again."""
+        return self.reader.records()
+
+    def __iter__(self) -> Iterator[LogRecord]:
+        return self.records()
+
+    @property
+    def bad_lines(self) -> int:
+        """Malformed lines skipped so far (CARMEN with ``skip_bad_lines``; 0 for a bag)."""
+        return int(getattr(self.reader, "bad_lines", 0))
+
+    @property
+    def truncated(self) -> bool:
+        """Whether a CARMEN log ended mid-line or mid-stream (False for a bag)."""
+        return bool(getattr(self.reader, "truncated", False))
+
+    def scan_count_hint(self) -> int | None:
+        """The number of scans, when known without reading the scans: a bag's index; for a
+        CARMEN log a quick count of its ``FLASER`` / ``ROBOTLASER1`` lines (malformed ones
+        included). None when it cannot be had."""
+        if isinstance(self.reader, BagReader):
+            return int(self.reader.scan_count)
+        try:
+            count = 0
+            opener: Callable[..., Any] = gzip.open if self._gzipped() else open
+            with opener(self.path, "rb") as fh:
+                for line in fh:
+                    if line.startswith((b"FLASER ", b"ROBOTLASER1 ")):
+                        count += 1
+            return count
+        except (OSError, EOFError, zlib.error):
+            return None
+
+    def _gzipped(self) -> bool:
+        with open(self.path, "rb") as f:
+            return f.read(2) == GZIP_MAGIC
+
+
+def open_log(
+    path: PathLike,
+    *,
+    scan_topic: str | None = None,
+    odom_topic: str | None = None,
+    laser_offset: Pose2D | None = None,
+    skip_bad_lines: bool = False,
+    odometry: str = "scan",
+    field_of_view_deg: float = 180.0,
+    max_range: float | None = None,
+    convention: str = "auto",
+) -> OpenLog:
+    """Open a CARMEN log or a ROS1/ROS2 bag, telling which by content (module docstring).
+
+    CARMEN logs take ``skip_bad_lines``, ``odometry`` (``"scan"``: each scan line's own
+    odometry fields; ``"interpolated"``: the ODOM stream at the scan's stamp),
+    ``field_of_view_deg``, ``max_range``, ``convention`` and ``laser_offset``
+    (:class:`~fuzzypos.io.CarmenReader`). Bags take ``scan_topic``, ``odom_topic`` and
+    ``laser_offset`` (:class:`~fuzzypos.io.BagReader`; their odometry is always the odometry
+    topic interpolated at the scan's stamp). An option given that does not apply to the kind
+    found is ignored with a note in :attr:`OpenLog.notes`.
+
+    Raises :class:`FileNotFoundError` for a missing path, :class:`UnknownLogError` for what
+    is no log, and the reader's own errors (``ValueError`` subclasses) for bad options or a
+    bag that cannot be opened.
+    """
+    if laser_offset is not None and not isinstance(laser_offset, Pose2D):
+        raise TypeError(f"laser_offset must be a Pose2D or None, got {type(laser_offset).__name__}")
+    kind = log_kind(path)
+    notes: list[str] = []
+    options: dict[str, Any] = {
+        "laser_offset": None if laser_offset is None else list(laser_offset.as_array()),
+    }
+    reader: CarmenReader | BagReader
+    if kind == "carmen":
+        for given, what in ((scan_topic, "scan_topic"), (odom_topic, "odom_topic")):
+            if given is not None:
+                notes.append(f"{what} applies to bags only; ignored for this CARMEN log")
+        reader = CarmenReader(
+            path,
+            field_of_view_deg=field_of_view_deg,
+            max_range=max_range,
+            convention=convention,
+            skip_bad_lines=skip_bad_lines,
+            odometry=odometry,
+            laser_offset=laser_offset,
+        )
+        options.update(
+            field_of_view_deg=reader.field_of_view_deg,
+            max_range=reader.max_range,
+            convention=reader.convention,
+            skip_bad_lines=reader.skip_bad_lines,
+            odometry=reader.odometry,
+        )
+    else:
+        ignored = []
+        if skip_bad_lines:
+            ignored.append("skip_bad_lines")
+        if odometry != "scan":
+            ignored.append(f"odometry={odometry!r} (a bag's odometry is always interpolated)")
+        if float(field_of_view_deg) != 180.0:
+            ignored.append("field_of_view_deg (a bag's scans carry their angles)")
+        if max_range is not None:
+            ignored.append("max_range (a bag's scans carry their range_max)")
+        if convention != "auto":
+            ignored.append("convention")
+        for what in ignored:
+            notes.append(f"{what}: applies to CARMEN logs only; ignored for this bag")
+        reader = BagReader(
+            path, scan_topic=scan_topic, odom_topic=odom_topic, laser_offset=laser_offset
+        )
+        notes.extend(reader.notes)
+        options.update(
+            scan_topic=reader.scan_topic,
+            odom_topic=reader.odom_topic,
+            sensor_pose_source=reader.sensor_pose_source,
+        )
+    return OpenLog(path=path, kind=kind, reader=reader, notes=notes, options=options)
+
+
+# -- choosing a stretch -----------------------------------------------------------------------
+def _seconds(name: str, value: float | None) -> float | None:
+    if value is None:
+        return None
+    if isinstance(value, bool):
+        raise SelectionError(f"{name} must be a number of seconds, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise SelectionError(f"{name} must be a number of seconds, got {value!r}") from None
+    if not math.isfinite(v) or v < 0.0:
+        raise SelectionError(f"{name} must be a finite number of seconds >= 0, got {value!r}")
+    return v
+
+
+def select_records(
+    records: Iterable[LogRecord],
+    *,
+    start: float | None = None,
+    end: float | None = None,
+    max_scans: int | None = None,
+) -> Iterator[LogRecord]:
+    """A stretch of ``records`` (in their order), as a generator that reads no further than
+    it needs.
+
+    ``start`` and ``end`` are seconds relative to ``t0``, the stamp of the *first record of
+    the stream* (not the smallest stamp); ``rel = stamp - t0``. Because stamps may go
+    backwards in file order (intel: 631 times, by up to 0.9 s), the stretch is defined by
+    positions in the stream, not by a time filter:
+
+    - it begins at the first record (in stream order) with ``rel >= start`` (``start`` None
+      or 0: the first record). Every record after that one is a candidate, even one whose
+      ``rel`` is back below ``start``;
+    - it ends just before the first record after its beginning with ``rel > end`` (``end``
+      None: never); that record and everything after it are left out, even records whose
+      ``rel`` comes back under ``end``;
+    - ``max_scans`` (None: no cap) stops it after that many records.
+
+    So the stretch is always one contiguous run of the log in file order. ``start`` and
+    ``end`` must be finite and ``>= 0`` with ``end >= start``; ``max_scans`` an integer
+    ``>= 1``; otherwise :class:`SelectionError` (raised here, not at the first ``next()``).
+    """
+    s = _seconds("start", start)
+    e = _seconds("end", end)
+    if s is not None and e is not None and e < s:
+        raise SelectionError(f"end ({e:g} s) must not come before start ({s:g} s)")
+    if max_scans is not None:
+        if isinstance(max_scans, bool) or not isinstance(max_scans, int):
+            raise SelectionError(f"max_scans must be a whole number, got {max_scans!r}")
+        if max_scans < 1:
+            raise SelectionError(f"max_scans must be at least 1, got {max_scans}")
+    return _select(iter(records), s or 0.0, e, max_scans)
+
+
+def _select(
+    it: Iterator[LogRecord], start: float, end: float | None, max_scans: int | None
+) -> Iterator[LogRecord]:
+    t0: float | None = None
+    begun = False
+    count = 0
+    for rec in it:
+        stamp = rec.scan.stamp
+        if t0 is None:
+            t0 = stamp
+        rel = stamp - t0
+        if not begun:
+            if rel < start:
+                continue
+            begun = True
+        if end is not None and rel > end:
+            return
+        yield rec
+        count += 1
+        if max_scans is not None and count >= max_scans:
+            return
+
+
+# -- the command line's laser offset ----------------------------------------------------------
+def parse_laser_offset(text: str) -> Pose2D:
+    """``"x,y,θ"`` (metres, metres, degrees) → the laser's mounting pose on the robot
+    (θ in radians). :class:`SelectionError` for anything else."""
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != 3:
+        raise SelectionError(
+            f"--laser-offset {text!r}: expected three numbers 'x,y,θ' (metres, metres, degrees)"
+        )
+    try:
+        x, y, th = (float(p) for p in parts)
+    except ValueError:
+        raise SelectionError(
+            f"--laser-offset {text!r}: expected three numbers 'x,y,θ' (metres, metres, degrees)"
+        ) from None
+    if not all(math.isfinite(v) for v in (x, y, th)):
+        raise SelectionError(f"--laser-offset {text!r}: the numbers must be finite")
+    return Pose2D(x, y, math.radians(th))
+
+
+# -- describing a log -------------------------------------------------------------------------
+@dataclass
+class LogInfo:
+    """What :func:`describe_log` found in one pass over a log.
+
+    ``beams``: the distinct beam counts; ``angle_min_deg`` / ``angle_max_deg``: the first and
+    last beam's angle (degrees, over all scans); ``field_of_view_deg``: ``n·|increment|`` (the
+    largest over the scans; each beam covers one increment); ``first_stamp`` /
+    ``last_stamp``: of the first and last scan in file order, ``duration_s`` their
+    difference; ``min_stamp`` / ``max_stamp``; ``stamps_backwards``: how often a scan's stamp
+    is below the previous one's; ``scans_with_odometry`` / ``scans_with_truth``;
+    ``range_max``: the distinct finite ``range_max`` of the scans (at most 10 kept).
+    """
+
+    path: str
+    kind: str
+    scans: int = 0
+    beams: list[int] = field(default_factory=list)
+    angle_min_deg: float | None = None
+    angle_max_deg: float | None = None
+    field_of_view_deg: float | None = None
+    first_stamp: float | None = None
+    last_stamp: float | None = None
+    duration_s: float | None = None
+    min_stamp: float | None = None
+    max_stamp: float | None = None
+    stamps_backwards: int = 0
+    scans_with_odometry: int = 0
+    scans_with_truth: int = 0
+    range_max: list[float] = field(default_factory=list)
+    bad_lines: int = 0
+    truncated: bool = False
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def has_odometry(self) -> bool:
+        return self.scans_with_odometry > 0
+
+    @property
+    def has_truth(self) -> bool:
+        return self.scans_with_truth > 0
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["has_odometry"] = self.has_odometry
+        d["has_truth"] = self.has_truth
+        return d
+
+
+def describe_log(
+    log: OpenLog, progress: Callable[[int], None] | None = None
+) -> LogInfo:
+    """Read ``log`` once (streaming) and summarise it; ``progress(scans_so_far)`` is called
+    every 100 scans."""
+    info = LogInfo(path=log.name, kind=log.kind)
+    beams: set[int] = set()
+    rmax: set[float] = set()
+    prev: float | None = None
+    amin = amax = fov = None
+    for rec in log.records():
+        scan = rec.scan
+        info.scans += 1
+        beams.add(scan.n_beams)
+        a = scan.angles
+        lo, hi = float(min(a[0], a[-1])), float(max(a[0], a[-1]))
+        amin = lo if amin is None else min(amin, lo)
+        amax = hi if amax is None else max(amax, hi)
+        fov = scan.field_of_view if fov is None else max(fov, scan.field_of_view)
+        t = scan.stamp
+        if info.first_stamp is None:
+            info.first_stamp = info.min_stamp = info.max_stamp = t
+        else:
+            info.min_stamp = min(info.min_stamp, t)  # type: ignore[type-var]
+            info.max_stamp = max(info.max_stamp, t)  # type: ignore[type-var]
+        if prev is not None and t < prev:
+            info.stamps_backwards += 1
+        prev = t
+        info.last_stamp = t
+        info.scans_with_odometry += rec.odometry is not None
+        info.scans_with_truth += rec.truth is not None
+        if math.isfinite(scan.range_max) and len(rmax) < 10:
+            rmax.add(scan.range_max)
+        if progress is not None and info.scans % 100 == 0:
+            progress(info.scans)
+    info.beams = sorted(beams)
+    info.range_max = sorted(rmax)
+    if amin is not None:
+        info.angle_min_deg = math.degrees(amin)
+        info.angle_max_deg = math.degrees(amax)  # type: ignore[arg-type]
+        info.field_of_view_deg = math.degrees(fov)  # type: ignore[arg-type]
+    if info.first_stamp is not None and info.last_stamp is not None:
+        info.duration_s = info.last_stamp - info.first_stamp
+    info.bad_lines = log.bad_lines
+    info.truncated = log.truncated
+    info.notes = list(log.notes)
+    if log.kind != "carmen":  # the bag reader's notes may grow while reading
+        info.notes = list(dict.fromkeys([*log.notes, *log.reader.notes]))
+    return info
