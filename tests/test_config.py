@@ -35,8 +35,9 @@ ANGLES_DEG = {
     ("refinement", "prior_sigma_angle"): 2.0,
     ("refinement", "max_bend_angle"): 30.0,
     ("odometry", "max_jump_angle"): 20.0,
-    ("odometry", "search_angle"): 60.0,
-    ("odometry", "search_angle_step"): 1.0,
+    ("odometry", "search_angle"): 180.0,
+    ("odometry", "search_angle_step"): 2.0,
+    ("odometry", "failure_search_angle"): 30.0,
 }
 ANGLE_WORDS = ("angle", "rotation", "heading", "bearing", "yaw", "theta")
 SECTIONS = [

@@ -375,6 +375,18 @@ class RefinementConfig:
         "estimate back toward the keyframe",
         default=0.1,
     )
+    local_map_keyframes: int = _reason(
+        "scans are refined against the surfaces of the last N keyframes (a local map); 1 (the "
+        "keyframe alone): with 2 or 3 the relations metric moved by more than it gained, either "
+        "way, from log to log (intel all relations 1.8 / 2.4 / 2.9 m with 1 / 2 / 3)",
+        default=1,
+    )
+    hold_tolerance: float = _reason(
+        "along such a direction the features' motion stands where it lies within 10 cm of the "
+        "odometry's (doorways and jambs see it), else the odometry's does (intel: break points "
+        "in corridors were 0.2-1.5 m off)",
+        default=0.1,
+    )
     neighbour_distance: float = _reason(
         "consecutive keyframe points lie on one surface when closer than 0.3 m (or "
         "neighbour_ratio × their range)",
@@ -452,10 +464,38 @@ class OdometryConfig:
         default=1.0,
     )
     search_angle: float = _reason(
-        "the wider search tries rotations within ±60° of the prior (aces' jump: 60.6°)",
-        default=math.radians(60.0),
+        "the wider search tries every rotation (aces, scan 2,945: after a 3 s gap the scan is "
+        "turned 82° from the previous one, the odometry says 22°, and catches up with a "
+        "-60.6° jump a scan later)",
+        default=math.pi,
     )
-    search_angle_step: float = _reason("in steps of 1°", default=math.radians(1.0))
+    search_angle_step: float = _reason("in steps of 2°", default=math.radians(2.0))
+    search_translation_step: float = _reason(
+        "and translations within jump_search_distance in steps of 0.2 m", default=0.2
+    )
+    search_min_inlier_fraction: float = _reason(
+        "a motion found by the wider search must pair 25 % of the scan's points (aces, scan "
+        "2,945: 26 % of the scan still sees what the keyframe saw after an 82° turn)",
+        default=0.25,
+    )
+    search_gate: float = _reason(
+        "a candidate scores the fraction of points within 0.25 m of a keyframe point", default=0.25
+    )
+    failure_search_angle: float = _reason(
+        "where matching from the prior fails otherwise, rotations within ±30° of it are searched "
+        "(aces: 36 failures while turning, each found within 15° of the odometry; searching "
+        "every rotation there found false matches in intel's offices)",
+        default=math.radians(30.0),
+    )
+    failure_search_distance: float = _reason(
+        "and translations within 0.4 m", default=0.4
+    )
+    search_after_gap: float = _reason(
+        "where matching fails after more than 1 s without a scan, the wider search runs too (aces, "
+        "scan 2,945: 3 s, an 82° turn the odometry missed); elsewhere a failure falls back to the "
+        "odometry, which searching every rotation would only replace by false matches (intel)",
+        default=1.0,
+    )
     trust_stand_still: bool = _reason(
         "an odometry increment of exactly zero means the robot stands still: the estimate keeps "
         "its pose (real logs stand still for long stretches; matching there only adds noise)",
@@ -491,6 +531,7 @@ _ANGLE_FIELDS = {
     ("odometry", "max_jump_angle"),
     ("odometry", "search_angle"),
     ("odometry", "search_angle_step"),
+    ("odometry", "failure_search_angle"),
 }
 
 
@@ -742,6 +783,11 @@ def _validate(cfg: Config) -> None:
         "odometry.jump_search_distance": cfg.odometry.jump_search_distance,
         "odometry.search_angle": cfg.odometry.search_angle,
         "odometry.search_angle_step": cfg.odometry.search_angle_step,
+        "odometry.search_translation_step": cfg.odometry.search_translation_step,
+        "odometry.search_gate": cfg.odometry.search_gate,
+        "odometry.failure_search_angle": cfg.odometry.failure_search_angle,
+        "odometry.failure_search_distance": cfg.odometry.failure_search_distance,
+
     }
     for key, v in positive.items():
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -760,6 +806,7 @@ def _validate(cfg: Config) -> None:
         "matching.line_inlier_distance": cfg.matching.line_inlier_distance,
         "fusion.trim_floor": cfg.fusion.trim_floor,
         "odometry.max_jump_distance": cfg.odometry.max_jump_distance,
+        "refinement.hold_tolerance": cfg.refinement.hold_tolerance,
         "odometry.max_jump_angle": cfg.odometry.max_jump_angle,
     }
     for key, v in nonneg.items():
@@ -793,10 +840,14 @@ def _validate(cfg: Config) -> None:
         raise ConfigError("refinement.iterations must be at least 1")
     if not 0 < cfg.refinement.max_bend_angle <= math.pi / 2:
         raise ConfigError("refinement.max_bend_angle must lie in (0°, 90°]")
+    if cfg.refinement.local_map_keyframes < 1:
+        raise ConfigError("refinement.local_map_keyframes must be at least 1")
     if cfg.refinement.neighbour_step < 1:
         raise ConfigError("refinement.neighbour_step must be at least 1")
     if cfg.refinement.min_points < 3:
         raise ConfigError("refinement.min_points must be at least 3")
+    if not 0 <= cfg.odometry.search_min_inlier_fraction <= 1:
+        raise ConfigError("odometry.search_min_inlier_fraction must lie in [0, 1]")
     if not 0 <= cfg.refinement.min_inlier_fraction <= 1:
         raise ConfigError("refinement.min_inlier_fraction must lie in [0, 1]")
     if cfg.refinement.min_distance > cfg.refinement.max_distance:

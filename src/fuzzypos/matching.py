@@ -530,6 +530,8 @@ def refine_point_to_line(
     prior_sigma_angle: float,
     point_sigma: float = 0.01,
     degenerate_ratio: float = 0.02,
+    hold: FloatArray | None = None,
+    hold_tolerance: float = 0.1,
 ) -> Refinement | None:
     """Refine the increment ``start`` (the pose of the scan in the reference's frame) so that
     the scan's ``points`` land on the reference's surfaces: Gauss-Newton on Σ w ρ(n·(T·p − q))
@@ -538,12 +540,14 @@ def refine_point_to_line(
     ``prior`` as one more measurement with standard deviations ``prior_sigma`` (translation)
     and ``prior_sigma_angle``. Where the points constrain one direction of the translation
     less than ``degenerate_ratio`` times the other (a corridor), the translation along it stays
-    at ``start`` (which carries the prior's or the line matching's say there). Each point pairs with the nearest reference point within a distance that
+    at ``start``'s where that lies within ``hold_tolerance`` of ``hold``'s (the odometry), else
+    at ``hold``'s: the odometry keeps its say along a corridor. Each point pairs with the nearest reference point within a distance that
     shrinks from ``max_distance`` to ``min_distance``. None when no point pairs."""
     if len(reference) < 3 or points.shape[0] == 0:
         return None
     pose = np.asarray(start, dtype=float).copy()
     start_xy = pose[:2].copy()
+    hold_xy = start_xy if hold is None else np.asarray(hold, dtype=float)[:2]
     prior = np.asarray(prior, dtype=float)
     info_prior = np.array([1.0 / prior_sigma**2, 1.0 / prior_sigma**2, 1.0 / prior_sigma_angle**2])
     gates = np.geomspace(max_distance, min_distance, 3)
@@ -584,8 +588,11 @@ def refine_point_to_line(
             v = np.array([b, lo - a]) if abs(b) > 1e-12 * hi else (
                 np.array([1.0, 0.0]) if a <= c else np.array([0.0, 1.0]))
             v /= math.hypot(v[0], v[1])
+            # keep the start's value along v where it agrees with ``hold`` (the odometry)
+            # within ``hold_tolerance``, else the odometry's
+            target = start_xy if abs(float(v @ (start_xy - hold_xy))) <= hold_tolerance else hold_xy
             H[:2, :2] += hi * np.outer(v, v)
-            g[:2] += hi * v * float(v @ (pose[:2] - start_xy))
+            g[:2] += hi * v * float(v @ (pose[:2] - target))
         dp = pose - prior
         dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
         H[np.diag_indices(3)] += info_prior
@@ -608,21 +615,39 @@ def search_start(
     half_width: float,
     step: float,
     gate: float,
+    translation_half_width: float = 0.0,
+    translation_step: float = 0.2,
+    max_points: int = 60,
 ) -> tuple[FloatArray, float]:
     """A wider search where the prior cannot be trusted (an odometry jump, a failed match):
-    the rotations ``start[2] ± half_width`` in steps of ``step``, each scored by the fraction
-    of ``points`` that land within ``gate`` of a reference point (about the start's position,
-    each rotation turning the scan about the robot). Returns the best start and its score.
-    One KD-tree query over all candidates at once; no Python loop over points."""
+    rotations ``start[2] ± half_width`` in steps of ``step`` and translations within
+    ``± translation_half_width`` of the start's in steps of ``translation_step``, each scored by
+    the fraction of (at most ``max_points``, evenly picked) ``points`` that land within ``gate``
+    of a reference point. Returns the best start and its score. KD-tree queries over all
+    candidates at once, a chunk of rotations at a time; no Python loop over points."""
+    start = np.asarray(start, dtype=float)
     if len(reference) == 0 or points.shape[0] == 0:
-        return np.asarray(start, dtype=float), 0.0
+        return start, 0.0
+    pts = points[:: max(1, points.shape[0] // max_points)]
     k = int(round(half_width / step))
     thetas = start[2] + step * np.arange(-k, k + 1)
-    c, s = np.cos(thetas)[:, None], np.sin(thetas)[:, None]
-    qx = c * points[None, :, 0] - s * points[None, :, 1] + start[0]
-    qy = s * points[None, :, 0] + c * points[None, :, 1] + start[1]
-    dist, _ = reference.tree.query(np.stack((qx.ravel(), qy.ravel()), axis=1), distance_upper_bound=gate)
-    score = np.isfinite(dist).reshape(thetas.size, -1).mean(axis=1)
-    best = int(np.argmax(score))
-    out = np.array([start[0], start[1], thetas[best]], dtype=float)
-    return out, float(score[best])
+    m = int(round(translation_half_width / translation_step))
+    offs = translation_step * np.arange(-m, m + 1)
+    tx, ty = np.meshgrid(start[0] + offs, start[1] + offs, indexing="ij")
+    tx, ty = tx.ravel(), ty.ravel()
+    best_score, best = -1.0, start
+    chunk = max(1, 200_000 // (tx.size * pts.shape[0]))
+    for c0 in range(0, thetas.size, chunk):  # bounded memory: a chunk of rotations at a time
+        th = thetas[c0 : c0 + chunk]
+        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        rx = c * pts[None, :, 0] - s * pts[None, :, 1]  # (rotations, points)
+        ry = s * pts[None, :, 0] + c * pts[None, :, 1]
+        qx = rx[:, None, :] + tx[None, :, None]  # (rotations, translations, points)
+        qy = ry[:, None, :] + ty[None, :, None]
+        dist, _ = reference.tree.query(np.stack((qx.ravel(), qy.ravel()), axis=1), distance_upper_bound=gate)
+        score = np.isfinite(dist).reshape(th.size, tx.size, -1).mean(axis=2)
+        i = int(np.argmax(score))
+        if score.flat[i] > best_score:
+            r, t = divmod(i, tx.size)
+            best_score, best = float(score.flat[i]), np.array([tx[t], ty[t], th[r]])
+    return best, best_score

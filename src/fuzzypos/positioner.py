@@ -14,10 +14,11 @@ from dataclasses import dataclass, replace
 from typing import Iterable, Iterator, Sized, cast
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .config import Config
 from .features import Features, FeaturePoints, Lines, extract_features
-from .geometry import Pose2D, compose, relative
+from .geometry import Pose2D, compose, relative, transform_points
 from .matching import (
     SurfacePoints,
     estimate_increment,
@@ -85,6 +86,7 @@ class Positioner:
         self._key_pose = np.zeros(3)
         self._key_odom: Pose2D | None = None
         self._key_surface: SurfacePoints | None = None
+        self._recent: list[tuple[SurfacePoints, np.ndarray]] = []
         self._prev_stamp: float | None = None
         self._last_dt = 0.0
         #: odometry increments rejected as jumps so far
@@ -156,7 +158,10 @@ class Positioner:
         if cfg.refinement.enabled and not lines_suffice:
             start = key_prior if from_key is None else from_key
             refine_from_start = from_key is not None and cfg.refinement.prior_from_features
-            better = self._refine(features, start, start if refine_from_start else key_prior, rejected)
+            gap = dt > cfg.odometry.search_after_gap
+            better = self._refine(
+                features, start, start if refine_from_start else key_prior, key_prior, rejected, gap
+            )
             if better is not None:
                 from_key, refined = better, True
                 if n_pairs == 0:
@@ -202,17 +207,16 @@ class Positioner:
         )
 
     def _refine(
-        self, features: Features, start: np.ndarray, prior: np.ndarray, wide: bool
+        self, features: Features, start: np.ndarray, prior: np.ndarray, hold: np.ndarray,
+        wide: bool, gap: bool,
     ) -> np.ndarray | None:
         """The point-to-line refinement of ``start`` against the keyframe; None where too few
-        points pair or it moves further than ``max_correction``."""
+        points pair or it moves further than ``max_correction``. After an odometry jump
+        (``wide``), or where it fails after a gap in time (``gap``), a wider search of every
+        rotation and of translations within ``jump_search_distance`` gives the start too."""
         r = self.config.refinement
         if self._key_surface is None:
-            kf = cast(Features, self._key_features)
-            self._key_surface = surface_points(
-                kf.points, kf.ranges, kf.uncertainty, r.neighbour_distance, r.neighbour_step,
-                r.neighbour_ratio, r.max_bend_angle,
-            )
+            self._key_surface = self._local_map()
         # every valid point: the paper's filter (§3.1) drops grazing points that still tell
         # where a wall is
         pts = features.points
@@ -220,32 +224,42 @@ class Positioner:
             return None
         weights = np.clip(1.0 - features.uncertainty, 0.05, 1.0)
         o = self.config.odometry
-        best = self._refine_from(pts, weights, start, prior, o.jump_search_distance if wide else r.max_distance)
-        if best is None or wide:
-            # a wider search: the prior is a jump, or nothing near it matched
+        best = self._refine_from(
+            pts, weights, start, prior, o.jump_search_distance if wide else r.max_distance, hold
+        )
+        if wide or best is None:
+            # a wider search: the prior is a jump or came after a gap in time (every rotation),
+            # or nothing near it matched (a narrower one)
+            full = wide or gap
             searched, score = search_start(
-                self._key_surface, pts, start, o.search_angle, o.search_angle_step, o.jump_search_distance / 2
+                self._key_surface, pts, start,
+                o.search_angle if full else o.failure_search_angle, o.search_angle_step,
+                o.search_gate, o.jump_search_distance if full else o.failure_search_distance,
+                o.search_translation_step,
             )
             if best is None or score > best[1]:
-                found = self._refine_from(pts, weights, searched, searched, o.jump_search_distance, weak_prior=True)
+                found = self._refine_from(
+                    pts, weights, searched, searched, o.jump_search_distance, hold, weak_prior=True
+                )
                 if found is not None and (best is None or found[1] > best[1]):
                     best = found
         return None if best is None else best[0]
 
     def _refine_from(
         self, pts: np.ndarray, weights: np.ndarray, start: np.ndarray, prior: np.ndarray,
-        max_distance: float, weak_prior: bool = False,
+        max_distance: float, hold: np.ndarray, weak_prior: bool = False,
     ) -> tuple[np.ndarray, float] | None:
         r = self.config.refinement
         res = refine_point_to_line(
             cast(SurfacePoints, self._key_surface), pts, weights, start, prior,
             max_distance=max_distance, min_distance=r.min_distance, iterations=r.iterations,
             residual_scale=r.residual_scale, point_sigma=r.point_sigma,
-            degenerate_ratio=r.degenerate_ratio,
+            degenerate_ratio=r.degenerate_ratio, hold=hold, hold_tolerance=r.hold_tolerance,
             prior_sigma=r.prior_sigma * (100.0 if weak_prior else 1.0),
             prior_sigma_angle=r.prior_sigma_angle * (100.0 if weak_prior else 1.0),
         )
-        if res is None or res.n_paired < r.min_points or res.inlier_fraction < r.min_inlier_fraction:
+        min_fraction = self.config.odometry.search_min_inlier_fraction if weak_prior else r.min_inlier_fraction
+        if res is None or res.n_paired < r.min_points or res.inlier_fraction < min_fraction:
             return None
         limit = self.config.odometry.jump_search_distance if weak_prior else r.max_correction
         if math.hypot(res.increment[0] - start[0], res.increment[1] - start[1]) > limit:
@@ -257,6 +271,31 @@ class Positioner:
         self._key_pose = pose
         self._key_odom = odom
         self._key_surface = None
+        r = self.config.refinement
+        surface = surface_points(
+            features.points, features.ranges, features.uncertainty, r.neighbour_distance,
+            r.neighbour_step, r.neighbour_ratio, r.max_bend_angle,
+        )
+        # the local map: the surfaces of the last ``local_map_keyframes`` keyframes, each with
+        # the pose it was seen from
+        self._recent.append((surface, np.asarray(pose, dtype=float)))
+        del self._recent[: -r.local_map_keyframes]
+
+    def _local_map(self) -> SurfacePoints:
+        """The recent keyframes' surface points in the current keyframe's frame, one KD-tree."""
+        parts = self._recent
+        if len(parts) == 1:
+            return parts[0][0]
+        xy, normal, weight = [], [], []
+        for surf, pose in parts:
+            rel = relative(self._key_pose, pose)
+            xy.append(transform_points(rel, surf.xy))
+            c, s_ = math.cos(rel[2]), math.sin(rel[2])
+            n = surf.normal
+            normal.append(np.stack((c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]), axis=1))
+            weight.append(surf.weight)
+        all_xy = np.concatenate(xy)
+        return SurfacePoints(all_xy, np.concatenate(normal), np.concatenate(weight), cKDTree(all_xy))
 
     def _motion(
         self, prev: Features, features: Features, prior: np.ndarray
