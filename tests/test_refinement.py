@@ -184,3 +184,28 @@ def test_search_start_finds_a_large_rotation() -> None:
     # the prior's own rotation scores far worse
     _, at_prior = search_start(surf, fb.points, np.zeros(3), 0.0, math.radians(1.0), 0.3)
     assert at_prior < score - 0.3
+
+
+def test_a_local_map_of_keyframes_tracks_a_known_arc() -> None:
+    truth = sim.arc_path(Pose2D(-1.0, -0.5, 0.2), 40, 0.06, 2.0)
+    odom = sim.drifting_odometry(truth, scale=1.03, rotation_bias_deg=0.3)
+    for k in (1, 3):
+        cfg = Config().with_overrides({"refinement": {"local_map_keyframes": k}, "matching": {"keyframe_distance": 0.5}})
+        pos, est = room_run(truth, odom, noise=0.01, config=cfg)
+        assert len(pos._recent) == min(k, len(pos._recent)) <= k
+        d = relative(truth[-1].as_array(), est[-1].pose.as_array())
+        assert math.hypot(d[0], d[1]) < 0.03 and abs(d[2]) < math.radians(0.5), (k, d)
+
+
+def test_a_turn_during_a_gap_is_found_by_the_wide_search() -> None:
+    """The robot turns 70° during a 3 s gap while the odometry says 20° (aces, scan 2,945)."""
+    truth = [Pose2D(0.0, 0.0, 0.0), Pose2D(0.02, 0.0, 0.0), Pose2D(0.05, 0.02, math.radians(70.0))]
+    odom = [truth[0], truth[1], Pose2D(0.05, 0.02, math.radians(20.0))]
+    stamps = [0.0, 0.2, 3.2]
+    _, est = room_run(truth, odom, noise=0.005, stamps=stamps)
+    d = relative(truth[-1].as_array(), est[-1].pose.as_array())
+    assert not est[-1].degraded and abs(math.degrees(d[2])) < 0.5 and math.hypot(d[0], d[1]) < 0.02, d
+    # without the gap the failure search stays within 30° of the odometry and cannot find it
+    _, est2 = room_run(truth, odom, noise=0.005, stamps=[0.0, 0.2, 0.4])
+    d2 = relative(truth[-1].as_array(), est2[-1].pose.as_array())
+    assert abs(math.degrees(d2[2])) > 10.0

@@ -552,6 +552,7 @@ def refine_point_to_line(
     info_prior = np.array([1.0 / prior_sigma**2, 1.0 / prior_sigma**2, 1.0 / prior_sigma_angle**2])
     gates = np.geomspace(max_distance, min_distance, 3)
     paired = 0
+    trimming = False
     for it in range(iterations):
         gate = gates[min(it, gates.size - 1)]
         c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -569,18 +570,20 @@ def refine_point_to_line(
         jt = nx * (-ry[ok]) + ny * rx[ok]  # d r / d θ
         absr = np.abs(r)
         huber = np.where(absr <= residual_scale, 1.0, residual_scale / np.maximum(absr, 1e-12))
-        # pairs far beyond the residuals' robust spread are false (a far wall's point next to
-        # a nearer object): they get no weight, never with a tighter cut than 2 mm
-        m = absr.size // 2
-        cut = max(3.0 * 1.4826 * float(np.partition(absr, m)[m]), 0.002)
-        huber[absr > cut] = 0.0
         w = weights[ok] * reference.weight[j] * huber / point_sigma**2
         J = np.stack((nx, ny, jt))  # (3, m)
-        H = (J * w) @ J.T
-        g = (J * w) @ r
         # degeneracy (a corridor): where the points fix the translation in one direction only,
         # the other direction, which only the noise of the normals speaks for, stays at start
-        a, b, c = H[0, 0], H[0, 1], H[1, 1]
+        a, b, c = (J[0] * w) @ J[0], (J[0] * w) @ J[1], (J[1] * w) @ J[1]
+        if trimming:
+            # once converged: pairs far beyond the residuals' robust spread are false (a far
+            # wall's point next to a nearer object) and get no weight (never a tighter cut
+            # than 2 mm)
+            m = absr.size // 2
+            cut = max(3.0 * 1.4826 * float(np.partition(absr, m)[m]), 0.002)
+            w = np.where(absr > cut, 0.0, w)
+        H = (J * w) @ J.T
+        g = (J * w) @ r
         half = math.hypot(0.5 * (a - c), b)
         lo, hi = 0.5 * (a + c) - half, 0.5 * (a + c) + half  # eigenvalues of the 2×2 block
         if lo < degenerate_ratio * hi:
@@ -603,7 +606,9 @@ def refine_point_to_line(
             return None
         pose += delta
         if it >= gates.size - 1 and abs(delta[0]) + abs(delta[1]) < 1e-4 and abs(delta[2]) < 1e-5:
-            break
+            if trimming:
+                break
+            trimming = True  # converged: trim the false pairs and converge again
     pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
     return Refinement(pose, paired, paired / points.shape[0])
 
