@@ -238,3 +238,10 @@ def test_benchmark_a_stretch_of_each_shared_log(tmp_path):
         assert r["all_matched"] > 0 and r["scans"] == 300
     odo = next(r for r in rows if r["log"] == "aces.clf.gz" and r["config"] == "odometry")
     assert 0 < odo["all_trans_mean_m"] < 1.0
+
+
+def test_plot_scan_on_a_ros1_bag(tmp_path):
+    bag = make_bag(tmp_path, "ros1", standard)
+    out = tmp_path / "figs"
+    ok(["plot-scan", str(bag), "--index", "2", "--out", str(out)])
+    assert len(list(out.glob("*.png"))) == 6

@@ -203,7 +203,7 @@ def config(
 
 @app.command("plot-scan")
 def plot_scan(
-    log: Annotated[Path, typer.Argument(help="a CARMEN log (plain or gzipped)")],
+    log: Annotated[Path, typer.Argument(help="a CARMEN log (plain or gzipped) or a ROS1/ROS2 bag")],
     index: Annotated[int, typer.Option("--index", "-n", help="the scan to plot, 0-based")],
     out: Annotated[
         Path | None,
@@ -214,7 +214,7 @@ def plot_scan(
 ) -> None:
     """Draw the paper's Figs. 13–18 (filtering … virtual angular points) for one scan of a log."""
     from .features import extract_features
-    from .io import read_carmen
+    from .logs import open_log
     from .plot import plot_feature_figures
 
     cfg = _load_config(preset, config_file)
@@ -222,7 +222,7 @@ def plot_scan(
         _fail(f"--index must be 0 or more, got {index}")
     try:
         record, count = None, 0
-        for rec in read_carmen(log):
+        for rec in open_log(log).records():
             if count == index:
                 record = rec
                 break
