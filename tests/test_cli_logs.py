@@ -19,7 +19,7 @@ from fuzzypos.io import read_tum, write_tum
 
 runner = CliRunner()
 
-DATA = Path("/work/shared/data")
+from shared_data import DATA  # noqa: E402
 INTEL = DATA / "intel" / "intel.clf.gz"
 ACES = DATA / "aces" / "aces.clf.gz"
 ACES_BAG = DATA / "aces" / "aces.bag"

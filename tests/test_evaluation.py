@@ -29,7 +29,7 @@ from fuzzypos.evaluation import (
 from fuzzypos.geometry import compose, inverse, relative
 from fuzzypos.io.relations import Relations
 
-DATA = Path("/work/shared/data")
+from shared_data import DATA  # noqa: E402
 
 
 def test_distance_along_a_square() -> None:

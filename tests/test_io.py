@@ -28,7 +28,9 @@ from fuzzypos.io import (
 )
 from fuzzypos.scan import LaserScan
 
-ACES = Path("/work/shared/data/aces/aces.clf.gz")
+from shared_data import DATA  # noqa: E402
+
+ACES = DATA / "aces" / "aces.clf.gz"
 DEG = math.pi / 180.0
 
 

@@ -1,6 +1,6 @@
 """fuzzypos.io.carmen on the shared real logs (intel, aces): whole-file checks.
 
-The logs live in /work/shared/data (read-only, never copied here); every test skips, with
+The logs live in ../shared/data (read-only, never copied here); every test skips, with
 the reason, where they are absent. Each reads a whole log (intel: 16 MB of text, ~2-3 s).
 """
 
@@ -15,7 +15,7 @@ import pytest
 
 from fuzzypos.io import CarmenReader
 
-DATA = Path("/work/shared/data")
+from shared_data import DATA  # noqa: E402
 INTEL = DATA / "intel" / "intel.clf.gz"
 ACES = DATA / "aces" / "aces.clf.gz"
 DEG = math.pi / 180.0

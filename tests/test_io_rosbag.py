@@ -31,7 +31,9 @@ from fuzzypos.io.rosbag import (
     read_bag,
 )
 
-ACES_BAG = Path("/work/shared/data/aces/aces.bag")
+from shared_data import DATA  # noqa: E402
+
+ACES_BAG = DATA / "aces" / "aces.bag"
 
 SCAN = "sensor_msgs/msg/LaserScan"
 ODOM = "nav_msgs/msg/Odometry"

@@ -18,7 +18,7 @@ from fuzzypos.evaluation import relations_errors
 from fuzzypos.geometry import relative
 from fuzzypos.io import BagReader, read_carmen, read_relations
 
-DATA = Path("/work/shared/data")
+from shared_data import DATA  # noqa: E402
 INTEL, ACES, ACES_BAG = (DATA / "intel/intel.clf.gz", DATA / "aces/aces.clf.gz", DATA / "aces/aces.bag")
 pytestmark = pytest.mark.skipif(
     not all(p.exists() for p in (INTEL, ACES, ACES_BAG)),

@@ -12,7 +12,7 @@ import pytest
 from fuzzypos.io import LogFormatError
 from fuzzypos.io.relations import Relations, RelationsFormatError, read_relations
 
-DATA = Path("/work/shared/data")
+from shared_data import DATA  # noqa: E402
 
 GOOD = """\
 # t1 t2 x y z roll pitch yaw
