@@ -34,6 +34,7 @@ ANGLES_DEG = {
     ("matching", "line_trim_angle"): 0.2,
     ("refinement", "prior_sigma_angle"): 2.0,
     ("refinement", "max_bend_angle"): 30.0,
+    ("refinement", "both_angle"): 1.0,
     ("odometry", "max_jump_angle"): 20.0,
     ("odometry", "search_angle"): 180.0,
     ("odometry", "search_angle_step"): 2.0,

@@ -507,12 +507,14 @@ def surface_points(
 
 @dataclass(frozen=True)
 class Refinement:
-    """The refined increment, how many points paired at the last iteration, and the fraction
-    of the scan's points that did."""
+    """The refined increment, how many points paired at the last iteration, the fraction of
+    the scan's points that did, and the fraction that lay within half the Huber scale of
+    their surface (the finer score when two refinements are compared)."""
 
     increment: FloatArray
     n_paired: int
     inlier_fraction: float
+    close_fraction: float = 0.0
 
 
 def refine_point_to_line(
@@ -610,7 +612,8 @@ def refine_point_to_line(
                 break
             trimming = True  # converged: trim the false pairs and converge again
     pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
-    return Refinement(pose, paired, paired / points.shape[0])
+    close = int(np.count_nonzero(absr < 0.5 * residual_scale))
+    return Refinement(pose, paired, paired / points.shape[0], close / points.shape[0])
 
 
 def search_start(

@@ -227,6 +227,16 @@ class Positioner:
         best = self._refine_from(
             pts, weights, start, prior, o.jump_search_distance if wide else r.max_distance, hold
         )
+        differ = start - hold
+        if not wide and r.also_from_odometry and (
+            math.hypot(differ[0], differ[1]) > r.both_distance or abs(differ[2]) > r.both_angle
+        ):
+            # the features' motion and the odometry's disagree: refine from both starts (with
+            # the same prior), keep the one that puts more of the scan close to its surfaces (a
+            # refinement can settle where it starts)
+            other = self._refine_from(pts, weights, hold, prior, r.max_distance, hold)
+            if other is not None and (best is None or other[2] > best[2]):
+                best = other
         if wide or best is None:
             # a wider search: the prior is a jump or came after a gap in time (every rotation),
             # or nothing near it matched (a narrower one)
@@ -248,7 +258,7 @@ class Positioner:
     def _refine_from(
         self, pts: np.ndarray, weights: np.ndarray, start: np.ndarray, prior: np.ndarray,
         max_distance: float, hold: np.ndarray, weak_prior: bool = False,
-    ) -> tuple[np.ndarray, float] | None:
+    ) -> tuple[np.ndarray, float, float] | None:
         r = self.config.refinement
         res = refine_point_to_line(
             cast(SurfacePoints, self._key_surface), pts, weights, start, prior,
@@ -264,7 +274,7 @@ class Positioner:
         limit = self.config.odometry.jump_search_distance if weak_prior else r.max_correction
         if math.hypot(res.increment[0] - start[0], res.increment[1] - start[1]) > limit:
             return None
-        return res.increment, res.inlier_fraction
+        return res.increment, res.inlier_fraction, res.close_fraction
 
     def _set_keyframe(self, features: Features, pose: np.ndarray, odom: Pose2D | None) -> None:
         self._key_features = features
