@@ -231,11 +231,11 @@ class Positioner:
         if not wide and r.also_from_odometry and (
             math.hypot(differ[0], differ[1]) > r.both_distance or abs(differ[2]) > r.both_angle
         ):
-            # the features' motion and the odometry's disagree: refine from both starts (with
-            # the same prior), keep the one that puts more of the scan close to its surfaces (a
-            # refinement can settle where it starts)
-            other = self._refine_from(pts, weights, hold, prior, r.max_distance, hold)
-            if other is not None and (best is None or other[2] > best[2]):
+            # the features' motion and the odometry's disagree: refine from the odometry's too
+            # (with it as the prior) and keep that one where it puts clearly more of the scan
+            # (2 % of its points) close to its surfaces (a refinement settles where it starts)
+            other = self._refine_from(pts, weights, hold, hold, r.max_distance, hold)
+            if other is not None and (best is None or other[2] > best[2] + 0.02):
                 best = other
         if wide or best is None:
             # a wider search: the prior is a jump or came after a gap in time (every rotation),
