@@ -6,7 +6,7 @@ measured worst case rounded up (stated in the README):
 
 | run | default final / mean (m), seeds 0–2 | odometry final / mean (m) |
 | --- | --- | --- |
-| gym, 4 m circle, ½ lap | 0.103 / 0.045, 0.106 / 0.047, 0.081 / 0.037 | 0.33–0.35 / 0.15–0.16 |
+| gym, 4 m circle, ½ lap | 0.103 / 0.045, 0.114 / 0.047, 0.081 / 0.036 | 0.33–0.35 / 0.15–0.16 |
 | office corridor, 16 m | 0.124 / 0.079, 0.094 / 0.046, 0.108 / 0.052 | 0.31–0.32 / 0.15–0.16 |
 
 (``python benchmarks/bench_sim_runs.py`` prints these runs, with the paper preset.)
