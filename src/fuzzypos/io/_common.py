@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import gzip
 import io
+import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, NamedTuple, Union
 
@@ -51,6 +52,34 @@ class LogFormatError(ValueError):
 
     def __reduce__(self) -> tuple[type, tuple[str, int, str]]:  # picklable across processes
         return (type(self), (self.path, self.line, self.reason))
+
+
+def numeric_rows(
+    path: PathLike, names: tuple[str, ...], error: type[LogFormatError]
+) -> Iterator[tuple[int, list[float]]]:
+    """``(line number, values)`` for every line of a text file (plain or gzip) holding exactly
+    ``len(names)`` finite numbers; ``#`` comments and blank lines are skipped. Anything else
+    raises ``error`` naming the file, the line and the field (by ``names``)."""
+    with open_text(path) as fh:
+        for lineno, line in enumerate(fh, start=1):
+            s = line.strip()
+            if not s or s.startswith("#"):
+                continue
+            tok = s.split()
+            if len(tok) != len(names):
+                raise error(
+                    path, lineno, f"expected {len(names)} fields ({' '.join(names)}), got {len(tok)}"
+                )
+            vals = []
+            for what, f in zip(names, tok):
+                try:
+                    v = float(f)
+                except ValueError:
+                    raise error(path, lineno, f"{what} is not a number: {f!r}") from None
+                if not math.isfinite(v):
+                    raise error(path, lineno, f"{what} must be finite, got {f!r}")
+                vals.append(v)
+            yield lineno, vals
 
 
 # -- files ---------------------------------------------------------------------------------

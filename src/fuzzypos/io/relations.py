@@ -23,13 +23,12 @@ order is kept; ``yaw`` is wrapped to ``[-π, π)``. Plain or gzip, by magic byte
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..geometry import wrap_angle
-from ._common import FloatArray, LogFormatError, PathLike, open_text
+from ._common import FloatArray, LogFormatError, PathLike, numeric_rows
 
 __all__ = ["PLANAR_TOLERANCE", "Relations", "RelationsFormatError", "read_relations"]
 
@@ -101,38 +100,18 @@ def read_relations(path: PathLike) -> Relations:
     t1: list[float] = []
     t2: list[float] = []
     rows: list[tuple[float, float, float]] = []
-    with open_text(path) as fh:
-        for lineno, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            tok = s.split()
-            if len(tok) != len(_FIELDS):
+    for lineno, vals in numeric_rows(path, _FIELDS, RelationsFormatError):
+        a, b, x, y, z, roll, pitch, yaw = vals
+        for what, v in (("z", z), ("roll", roll), ("pitch", pitch)):
+            if abs(v) > PLANAR_TOLERANCE:
                 raise RelationsFormatError(
-                    path, lineno, f"expected 8 fields (t1 t2 x y z roll pitch yaw), got {len(tok)}"
+                    path,
+                    lineno,
+                    f"relation is not planar: {what} = {v!r} (|{what}| must be <= {PLANAR_TOLERANCE:g})",
                 )
-            vals = []
-            for what, f in zip(_FIELDS, tok):
-                try:
-                    v = float(f)
-                except ValueError:
-                    raise RelationsFormatError(
-                        path, lineno, f"{what} is not a number: {f!r}"
-                    ) from None
-                if not math.isfinite(v):
-                    raise RelationsFormatError(path, lineno, f"{what} must be finite, got {f!r}")
-                vals.append(v)
-            a, b, x, y, z, roll, pitch, yaw = vals
-            for what, v in (("z", z), ("roll", roll), ("pitch", pitch)):
-                if abs(v) > PLANAR_TOLERANCE:
-                    raise RelationsFormatError(
-                        path,
-                        lineno,
-                        f"relation is not planar: {what} = {v!r} (|{what}| must be <= {PLANAR_TOLERANCE:g})",
-                    )
-            t1.append(a)
-            t2.append(b)
-            rows.append((x, y, yaw))
+        t1.append(a)
+        t2.append(b)
+        rows.append((x, y, yaw))
     motion = np.array(rows, dtype=np.float64).reshape(-1, 3)
     if motion.shape[0]:
         motion[:, 2] = wrap_angle(motion[:, 2])

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..geometry import Pose2D, wrap_angle
-from ._common import FloatArray, LogFormatError, PathLike, _write_atomically, open_text
+from ._common import FloatArray, LogFormatError, PathLike, _write_atomically, numeric_rows
 
 __all__ = ["TumFormatError", "read_tum", "write_tum"]
 
@@ -81,37 +81,19 @@ def read_tum(path: PathLike) -> tuple[FloatArray, FloatArray]:
     """
     stamps: list[float] = []
     rows: list[tuple[float, float, float]] = []
-    with open_text(path) as fh:
-        for lineno, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            tok = s.split()
-            if len(tok) != 8:
-                raise TumFormatError(
-                    path, lineno, f"expected 8 fields (t x y z qx qy qz qw), got {len(tok)}"
-                )
-            vals = []
-            for what, f in zip(("t", "x", "y", "z", "qx", "qy", "qz", "qw"), tok):
-                try:
-                    v = float(f)
-                except ValueError:
-                    raise TumFormatError(path, lineno, f"{what} is not a number: {f!r}") from None
-                if not math.isfinite(v):
-                    raise TumFormatError(path, lineno, f"{what} must be finite, got {f!r}")
-                vals.append(v)
-            t, x, y, _z, qx, qy, qz, qw = vals
-            norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-            if abs(norm - 1.0) > 1e-3:
-                raise TumFormatError(
-                    path,
-                    lineno,
-                    f"quaternion (qx qy qz qw) is not a unit quaternion: norm {norm:.6g}",
-                )
-            qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
-            yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-            stamps.append(t)
-            rows.append((x, y, yaw))
+    for lineno, vals in numeric_rows(path, ("t", "x", "y", "z", "qx", "qy", "qz", "qw"), TumFormatError):
+        t, x, y, _z, qx, qy, qz, qw = vals
+        norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+        if abs(norm - 1.0) > 1e-3:
+            raise TumFormatError(
+                path,
+                lineno,
+                f"quaternion (qx qy qz qw) is not a unit quaternion: norm {norm:.6g}",
+            )
+        qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
+        yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        stamps.append(t)
+        rows.append((x, y, yaw))
     t_arr = np.array(stamps, dtype=np.float64)
     poses = np.array(rows, dtype=np.float64).reshape(-1, 3)
     if poses.shape[0]:
