@@ -84,7 +84,6 @@ class Positioner:
         # the keyframe: the scan the next ones are matched against, its pose and odometry
         self._key_features: Features | None = None
         self._key_pose = np.zeros(3)
-        self._key_odom: Pose2D | None = None
         self._key_surface: SurfacePoints | None = None
         self._recent: list[tuple[SurfacePoints, np.ndarray]] = []
         self._prev_stamp: float | None = None
@@ -111,7 +110,7 @@ class Positioner:
             self._pose = start
             self._prev_odom = odom
             self._prev_stamp = scan.stamp
-            self._set_keyframe(features, start, odom)
+            self._set_keyframe(features, start)
             zero = Pose2D()
             return Estimate(scan.stamp, Pose2D.from_array(start), zero, zero, 0, False, features)
 
@@ -179,7 +178,7 @@ class Positioner:
             or math.hypot(from_key[0], from_key[1]) >= m.keyframe_distance
             or abs(from_key[2]) >= m.keyframe_angle
         ):
-            self._set_keyframe(features, pose, odom)
+            self._set_keyframe(features, pose)
         self._pose = pose
         self._last_increment = increment
         self._last_dt = dt
@@ -276,12 +275,13 @@ class Positioner:
             return None
         return res.increment, res.inlier_fraction, res.close_fraction
 
-    def _set_keyframe(self, features: Features, pose: np.ndarray, odom: Pose2D | None) -> None:
+    def _set_keyframe(self, features: Features, pose: np.ndarray) -> None:
         self._key_features = features
         self._key_pose = pose
-        self._key_odom = odom
         self._key_surface = None
         r = self.config.refinement
+        if not r.enabled:
+            return
         surface = surface_points(
             features.points, features.ranges, features.uncertainty, r.neighbour_distance,
             r.neighbour_step, r.neighbour_ratio, r.max_bend_angle,
