@@ -4,7 +4,6 @@ logs and bags, their errors, and a stretch of each shared log (skipped where abs
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest

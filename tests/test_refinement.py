@@ -97,6 +97,12 @@ def test_nothing_to_pair_gives_none() -> None:
 
 
 # -- the positioner's trust in odometry ---------------------------------------------------------
+SEARCH_SCANS = tuple(
+    extract_features(sim.simulate_scan(sim.furnished_room(seed=1), p, scanner()), CFG)
+    for p in (Pose2D(0.0, 0.0, 0.0), Pose2D(0.05, 0.0, math.radians(-40.0)))
+)
+
+
 def room_run(poses, odom, noise=0.0, stamps=None, config=None):
     world = sim.furnished_room(seed=2)
     rng = np.random.default_rng(0)
@@ -186,6 +192,31 @@ def test_search_start_finds_a_large_rotation() -> None:
     assert at_prior < score - 0.3
 
 
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 6), st.floats(5.0, 40.0), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0),
+       st.floats(-180.0, 180.0))
+def test_search_starts_are_ranked_and_apart(k, separation_deg, x, y, start_deg) -> None:
+    """The best start of each of ``k`` rotations at least ``separation`` apart, best first; the
+    first is :func:`search_start`'s; a score is the fraction of points that landed."""
+    from fuzzypos.matching import search_start, search_starts
+
+    fa, fb = SEARCH_SCANS
+    surf = surface_points(fa.points, fa.ranges, fa.uncertainty, 0.3, 2, 0.05)
+    start = np.array([x * 0.1, y * 0.1, math.radians(start_deg)])
+    args = (surf, fb.points, start, math.pi, math.radians(3.0), 0.25, 0.2, 0.2)
+    found = search_starts(*args, candidates=k, separation=math.radians(separation_deg))
+    assert 1 <= len(found) <= k
+    scores = [sc for _, sc in found]
+    assert scores == sorted(scores, reverse=True) and all(0.0 <= sc <= 1.0 for sc in scores)
+    th = np.array([p[2] for p, _ in found])
+    gaps = np.abs(np.angle(np.exp(1j * (th[:, None] - th[None, :]))))
+    assert np.all(gaps[~np.eye(len(th), dtype=bool)] >= math.radians(separation_deg) - 1e-9)
+    best, best_score = search_start(*args)
+    np.testing.assert_allclose(found[0][0], best)
+    assert found[0][1] == best_score
+
+
+
 def test_a_local_map_of_keyframes_tracks_a_known_arc() -> None:
     truth = sim.arc_path(Pose2D(-1.0, -0.5, 0.2), 40, 0.06, 2.0)
     odom = sim.drifting_odometry(truth, scale=1.03, rotation_bias_deg=0.3)
@@ -209,3 +240,51 @@ def test_a_turn_during_a_gap_is_found_by_the_wide_search() -> None:
     _, est2 = room_run(truth, odom, noise=0.005, stamps=[0.0, 0.2, 0.4])
     d2 = relative(truth[-1].as_array(), est2[-1].pose.as_array())
     assert abs(math.degrees(d2[2])) > 10.0
+
+
+def ribbed_corridor(period: float = 0.2) -> sim.World:
+    """A corridor 2 m wide with a small rib every ``period`` along both walls: seen from
+    anywhere it looks the same one period further on."""
+    polys = [np.array([[-40.0, 1.0], [40.0, 1.0]]), np.array([[-40.0, -1.0], [40.0, -1.0]])]
+    for x in np.arange(-39.0, 39.0, period):
+        polys.append(sim.box_polygon(x, 0.95, 0.05, 0.1))
+        polys.append(sim.box_polygon(x, -0.95, 0.05, 0.1))
+    return sim.World.from_polygons(polys, closed=[False, False] + [True] * (len(polys) - 2))
+
+
+def test_a_failed_match_keeps_the_odometry_translation_along_a_ribbed_corridor(monkeypatch) -> None:
+    """The odometry turns 25° too far in one step (no jump: a robot can turn that fast), so
+    the match from it fails and the narrower search runs. Along a corridor whose ribs repeat
+    every 0.2 m the search finds the rotation, and the odometry's translation keeps the scan
+    from sliding one rib along (aces, scan 2,738: 0.3 m backwards along a corridor)."""
+    import fuzzypos.positioner as positioner_module
+
+    calls: list[float] = []
+    real = positioner_module.search_starts
+
+    def spy(*args, **kwargs):
+        calls.append(args[3])  # the half-width of the rotations searched
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(positioner_module, "search_starts", spy)
+    world = ribbed_corridor()
+    truth = sim.arc_path(Pose2D(-1.0, 0.0, 0.0), 10, 0.05, 0.0)
+    error = np.array([0.0, 0.0, math.radians(25.0)])
+    odom = truth[:6] + [Pose2D.from_array(compose(p.as_array(), error)) for p in truth[6:]]
+
+    def run(config: Config) -> tuple[Positioner, list]:
+        rng = np.random.default_rng(1)
+        pos = Positioner(config)
+        return pos, [pos.update(sim.simulate_scan(world, p, scanner(0.005), rng, stamp=0.2 * k), o)
+                     for k, (p, o) in enumerate(zip(truth, odom))]
+
+    pos, est = run(Config())
+    assert pos.odometry_jumps == 0
+    assert any(abs(w - CFG.odometry.failure_search_angle) < 1e-9 for w in calls), calls
+    for t, e in zip(truth, est):
+        d = relative(t.as_array(), e.pose.as_array())
+        assert math.hypot(d[0], d[1]) < 0.03 and abs(d[2]) < math.radians(1.0), (t, e.pose)
+    # without the search's pull toward the start the scan slides a rib along
+    _, slid = run(Config().with_overrides({"odometry": {"search_distance_penalty": 0.0}}))
+    d = relative(truth[6].as_array(), slid[6].pose.as_array())
+    assert math.hypot(d[0], d[1]) > 0.1, slid[6].pose

@@ -26,7 +26,7 @@ from .matching import (
     pair_features,
     pair_lines,
     refine_point_to_line,
-    search_start,
+    search_starts,
     surface_points,
 )
 from .scan import LaserScan
@@ -86,6 +86,8 @@ class Positioner:
         self._key_pose = np.zeros(3)
         self._key_surface: SurfacePoints | None = None
         self._recent: list[tuple[SurfacePoints, np.ndarray]] = []
+        # the previous scan's features where it is not the keyframe (its pose is ``_pose``)
+        self._prev_features: Features | None = None
         self._prev_stamp: float | None = None
         self._last_dt = 0.0
         #: odometry increments rejected as jumps so far
@@ -111,6 +113,7 @@ class Positioner:
             self._prev_odom = odom
             self._prev_stamp = scan.stamp
             self._set_keyframe(features, start)
+            self._prev_features = None
             zero = Pose2D()
             return Estimate(scan.stamp, Pose2D.from_array(start), zero, zero, 0, False, features)
 
@@ -179,6 +182,9 @@ class Positioner:
             or abs(from_key[2]) >= m.keyframe_angle
         ):
             self._set_keyframe(features, pose)
+            self._prev_features = None
+        else:
+            self._prev_features = features
         self._pose = pose
         self._last_increment = increment
         self._last_dt = dt
@@ -240,16 +246,29 @@ class Positioner:
             # a wider search: the prior is a jump or came after a gap in time (every rotation),
             # or nothing near it matched (a narrower one)
             full = wide or gap
-            searched, score = search_start(
-                self._key_surface, pts, start,
+            # after a jump or a gap the previous scan joins the map: the latest view of the
+            # place overlaps most with a scan taken after a fast turn (aces, scan 2,945)
+            surface = self._search_map() if full else self._key_surface
+            found_starts = search_starts(
+                surface, pts, start,
                 o.search_angle if full else o.failure_search_angle, o.search_angle_step,
                 o.search_gate, o.jump_search_distance if full else o.failure_search_distance,
-                o.search_translation_step,
+                o.search_translation_step, candidates=o.search_candidates if full else 1,
+                distance_penalty=o.search_distance_penalty,
             )
-            if best is None or score > best[1]:
-                found = self._refine_from(
-                    pts, weights, searched, searched, o.jump_search_distance, hold, weak_prior=True
-                )
+            for searched, score in found_starts:
+                if best is not None and score <= best[1]:
+                    continue
+                if full:  # after a jump or a gap the odometry has lost its say
+                    found = self._refine_from(
+                        pts, weights, searched, searched, o.jump_search_distance, hold,
+                        weak_prior=True, surface=surface,
+                    )
+                else:
+                    # after a failure it keeps it: the search only gives another start, and
+                    # the result must still agree with the odometry (a corridor's repeating
+                    # doors would otherwise pull the scan along it)
+                    found = self._refine_from(pts, weights, searched, hold, r.max_distance, hold)
                 if found is not None and (best is None or found[1] > best[1]):
                     best = found
         return None if best is None else best[0]
@@ -257,17 +276,23 @@ class Positioner:
     def _refine_from(
         self, pts: np.ndarray, weights: np.ndarray, start: np.ndarray, prior: np.ndarray,
         max_distance: float, hold: np.ndarray, weak_prior: bool = False,
+        surface: SurfacePoints | None = None,
     ) -> tuple[np.ndarray, float, float] | None:
+        """One refinement against ``surface`` (the keyframes' by default); ``weak_prior``: the
+        prior barely counts (after a wide search)."""
         r = self.config.refinement
         res = refine_point_to_line(
-            cast(SurfacePoints, self._key_surface), pts, weights, start, prior,
+            cast(SurfacePoints, self._key_surface if surface is None else surface), pts, weights,
+            start, prior,
             max_distance=max_distance, min_distance=r.min_distance, iterations=r.iterations,
             residual_scale=r.residual_scale, point_sigma=r.point_sigma,
             degenerate_ratio=r.degenerate_ratio, hold=hold, hold_tolerance=r.hold_tolerance,
             prior_sigma=r.prior_sigma * (100.0 if weak_prior else 1.0),
             prior_sigma_angle=r.prior_sigma_angle * (100.0 if weak_prior else 1.0),
         )
-        min_fraction = self.config.odometry.search_min_inlier_fraction if weak_prior else r.min_inlier_fraction
+        min_fraction = (
+            self.config.odometry.search_min_inlier_fraction if weak_prior else r.min_inlier_fraction
+        )
         if res is None or res.n_paired < r.min_points or res.inlier_fraction < min_fraction:
             return None
         limit = self.config.odometry.jump_search_distance if weak_prior else r.max_correction
@@ -282,20 +307,34 @@ class Positioner:
         r = self.config.refinement
         if not r.enabled:
             return
-        surface = surface_points(
-            features.points, features.ranges, features.uncertainty, r.neighbour_distance,
-            r.neighbour_step, r.neighbour_ratio, r.max_bend_angle,
-        )
+        surface = self._surface_of(features)
         # the local map: the surfaces of the last ``local_map_keyframes`` keyframes, each with
         # the pose it was seen from
         self._recent.append((surface, np.asarray(pose, dtype=float)))
         del self._recent[: -r.local_map_keyframes]
+
+    def _surface_of(self, features: Features) -> SurfacePoints:
+        r = self.config.refinement
+        return surface_points(
+            features.points, features.ranges, features.uncertainty, r.neighbour_distance,
+            r.neighbour_step, r.neighbour_ratio, r.max_bend_angle,
+        )
+
+    def _search_map(self) -> SurfacePoints:
+        """The local map and the previous scan (where it is not the keyframe)."""
+        if self._prev_features is None or self._prev_features.points.shape[0] == 0:
+            return cast(SurfacePoints, self._key_surface)
+        return self._map_of([*self._recent, (self._surface_of(self._prev_features), self._pose)])
 
     def _local_map(self) -> SurfacePoints:
         """The recent keyframes' surface points in the current keyframe's frame, one KD-tree."""
         parts = self._recent
         if len(parts) == 1:
             return parts[0][0]
+        return self._map_of(parts)
+
+    def _map_of(self, parts: list[tuple[SurfacePoints, np.ndarray]]) -> SurfacePoints:
+        """Surface points seen from the given poses, in the keyframe's frame, one KD-tree."""
         xy, normal, weight = [], [], []
         for surf, pose in parts:
             rel = relative(self._key_pose, pose)
