@@ -228,6 +228,15 @@ class Positioner:
         if pts.shape[0] < r.min_points:
             return None
         weights = np.clip(1.0 - features.uncertainty, 0.05, 1.0)
+        if r.range_weight_max > 1.0 and pts.shape[0] > 0:
+            # a beam's point stands for a stretch of surface as long as its range (the beams
+            # are evenly spread in angle): weighing it so makes the fit one over the surfaces'
+            # length, not over the beams, and dense clutter next to the robot (people, a
+            # desk) no longer outvotes the walls
+            ranges = np.asarray(features.ranges, dtype=float)
+            weights = weights * np.clip(
+                ranges / float(np.median(ranges)), 1.0 / r.range_weight_max, r.range_weight_max
+            )
         o = self.config.odometry
         best = self._refine_from(
             pts, weights, start, prior, o.jump_search_distance if wide else r.max_distance, hold
