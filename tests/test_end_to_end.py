@@ -6,8 +6,8 @@ measured worst case rounded up (stated in the README):
 
 | run | default final / mean (m), seeds 0–2 | odometry final / mean (m) |
 | --- | --- | --- |
-| gym, 4 m circle, ½ lap | 0.030 / 0.022, 0.069 / 0.037, 0.056 / 0.060 | 0.33–0.35 / 0.15–0.16 |
-| office corridor, 16 m | 0.125 / 0.078, 0.133 / 0.061, 0.056 / 0.041 | 0.31–0.32 / 0.15–0.16 |
+| gym, 4 m circle, ½ lap | 0.031 / 0.027, 0.011 / 0.014, 0.020 / 0.023 | 0.33–0.35 / 0.15–0.16 |
+| office corridor, 16 m | 0.117 / 0.073, 0.141 / 0.062, 0.042 / 0.037 | 0.31–0.32 / 0.15–0.16 |
 
 (``python benchmarks/bench_sim_runs.py`` prints these runs, with the paper preset.)
 """
@@ -40,7 +40,7 @@ def _run(world: sim.World, path: sim.CommandedPath, seed: int) -> tuple[Trajecto
 def test_gym_circle(seed: int) -> None:
     est, odo = _run(sim.gym(), sim.CommandedPath.circle(4.0, 0.5, 0.3), seed)
     assert est.scans_degraded == 0
-    assert est.final_position_error_m < 0.08 and est.mean_position_error_m < 0.07, est
+    assert est.final_position_error_m < 0.04 and est.mean_position_error_m < 0.03, est
     assert est.final_position_error_m < odo.final_position_error_m / 2, (est, odo)
     assert est.mean_position_error_m < odo.mean_position_error_m / 2, (est, odo)
 
@@ -49,6 +49,6 @@ def test_gym_circle(seed: int) -> None:
 def test_office_corridor(seed: int) -> None:
     est, odo = _run(sim.office(), sim.CommandedPath.waypoints([(-8.0, 0.0), (8.0, 0.0)], speed=0.3), seed)
     assert est.scans_degraded <= 2
-    assert est.final_position_error_m < 0.15 and est.mean_position_error_m < 0.10, est
+    assert est.final_position_error_m < 0.15 and est.mean_position_error_m < 0.08, est
     assert est.final_position_error_m < odo.final_position_error_m, (est, odo)
     assert est.mean_position_error_m < odo.mean_position_error_m, (est, odo)

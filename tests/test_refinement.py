@@ -180,7 +180,7 @@ def test_refinement_config_is_validated(key, value) -> None:
 
 
 @pytest.mark.parametrize("key, value", [
-    ("search_candidates", 0), ("search_distance_penalty", -0.1),
+    ("search_distance_penalty", -0.1),
     ("search_distance_penalty", float("inf")),
 ])
 def test_search_config_is_validated(key, value) -> None:
@@ -271,13 +271,13 @@ def test_a_failed_match_keeps_the_odometry_translation_along_a_ribbed_corridor(m
     import fuzzypos.positioner as positioner_module
 
     calls: list[float] = []
-    real = positioner_module.search_starts
+    real = positioner_module.search_start
 
     def spy(*args, **kwargs):
         calls.append(args[3])  # the half-width of the rotations searched
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(positioner_module, "search_starts", spy)
+    monkeypatch.setattr(positioner_module, "search_start", spy)
     world = ribbed_corridor()
     truth = sim.arc_path(Pose2D(-1.0, 0.0, 0.0), 10, 0.05, 0.0)
     error = np.array([0.0, 0.0, math.radians(25.0)])

@@ -692,9 +692,10 @@ def search_start(
     translation_half_width: float = 0.0,
     translation_step: float = 0.2,
     max_points: int = 60,
+    distance_penalty: float = 0.0,
 ) -> tuple[FloatArray, float]:
     """The best start of :func:`search_starts` and its score."""
     return search_starts(
         reference, points, start, half_width, step, gate, translation_half_width,
-        translation_step, max_points,
+        translation_step, max_points, distance_penalty=distance_penalty,
     )[0]

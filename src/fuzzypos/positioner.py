@@ -26,7 +26,7 @@ from .matching import (
     pair_features,
     pair_lines,
     refine_point_to_line,
-    search_starts,
+    search_start,
     surface_points,
 )
 from .scan import LaserScan
@@ -258,16 +258,13 @@ class Positioner:
             # after a jump or a gap the previous scan joins the map: the latest view of the
             # place overlaps most with a scan taken after a fast turn (aces, scan 2,945)
             surface = self._search_map() if full else self._key_surface
-            found_starts = search_starts(
+            searched, score = search_start(
                 surface, pts, start,
                 o.search_angle if full else o.failure_search_angle, o.search_angle_step,
                 o.search_gate, o.jump_search_distance if full else o.failure_search_distance,
-                o.search_translation_step, candidates=o.search_candidates if full else 1,
-                distance_penalty=o.search_distance_penalty,
+                o.search_translation_step, distance_penalty=o.search_distance_penalty,
             )
-            for searched, score in found_starts:
-                if best is not None and score <= best[1]:
-                    continue
+            if best is None or score > best[1]:
                 if full:  # after a jump or a gap the odometry has lost its say
                     found = self._refine_from(
                         pts, weights, searched, searched, o.jump_search_distance, hold,
