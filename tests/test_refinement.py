@@ -170,8 +170,8 @@ def test_refinement_beats_features_alone_with_noise() -> None:
 
 @pytest.mark.parametrize("key, value", [
     ("iterations", 0), ("min_points", 2), ("min_inlier_fraction", 1.5), ("residual_scale", 0.0),
-    ("neighbour_step", 0), ("min_distance", 9.0), ("range_weight_max", 0.5),
-    ("range_weight_max", float("nan")),
+    ("neighbour_step", 0), ("min_distance", 9.0), ("length_weight_max", 0.5),
+    ("length_weight_max", float("nan")), ("length_cap", 0.0),
 ])
 def test_refinement_config_is_validated(key, value) -> None:
     from fuzzypos.config import ConfigError
@@ -301,12 +301,11 @@ def test_a_failed_match_keeps_the_odometry_translation_along_a_ribbed_corridor(m
     assert math.hypot(d[0], d[1]) > 0.1, slid[6].pose
 
 
-def test_range_weighting_keeps_moving_clutter_next_to_the_robot_from_outvoting_the_walls() -> None:
+def test_length_weighting_keeps_moving_clutter_next_to_the_robot_from_outvoting_the_walls() -> None:
     """A box 0.5 m × 1.2 m right in front of the robot (a person, a trolley) moves 15 cm and
-    turns 8° between two scans: it takes a fifth of the beams. Weighing each point by its
-    range (the stretch of surface it stands for) lets the room's walls decide; weighing every
-    beam alike lets the box drag the estimate along (measured: 9 mm / 0.02° against 53 mm /
-    0.6°)."""
+    turns 8° between two scans: it takes a fifth of the beams. Weighing each point by the
+    stretch of surface it stands for lets the room's walls decide; weighing every beam alike
+    lets the box drag the estimate along (measured: 9 mm / 0.02° against 53 mm / 0.7°)."""
     room = sim.rectangular_room(10.0, 8.0)
 
     def with_box(cx: float, cy: float, theta: float) -> sim.World:
@@ -317,14 +316,56 @@ def test_range_weighting_keeps_moving_clutter_next_to_the_robot_from_outvoting_t
     world_a, world_b = with_box(0.7, 0.0, 0.0), with_box(0.75, 0.15, math.radians(8.0))
     odom_b = Pose2D(0.12, 0.0, 0.0)
     errors = {}
-    for limit in (R.range_weight_max, 1.0):
+    for limit in (R.length_weight_max, 1.0):
         rng = np.random.default_rng(0)
-        pos = Positioner(Config().with_overrides({"refinement": {"range_weight_max": limit}}))
+        pos = Positioner(Config().with_overrides({"refinement": {"length_weight_max": limit}}))
         pos.update(sim.simulate_scan(world_a, a, scanner(0.005), rng, stamp=0.0), a)
         est = pos.update(sim.simulate_scan(world_b, b, scanner(0.005), rng, stamp=0.2), odom_b)
         assert est.refined and not est.degraded
         d = relative(b.as_array(), est.pose.as_array())
         errors[limit] = (math.hypot(d[0], d[1]), abs(math.degrees(d[2])))
-    weighted, alike = errors[R.range_weight_max], errors[1.0]
+    weighted, alike = errors[R.length_weight_max], errors[1.0]
     assert weighted[0] < 0.02 and weighted[1] < 0.1, errors
     assert alike[0] > 2 * weighted[0] and alike[1] > 2 * weighted[1], errors
+
+
+def test_surface_lengths_of_a_wall_seen_square_on_and_at_grazing_incidence() -> None:
+    """A straight wall 2 m ahead: a point's stretch is the distance to its nearer neighbour,
+    which grows as 1/cos² of the incidence; capped at ``cap`` beam spacings at its range; at
+    a jump edge the nearer neighbour decides."""
+    from fuzzypos.matching import surface_lengths
+
+    inc = math.radians(1.0)
+    a = inc * np.arange(-60, 61)
+    ranges = 2.0 / np.cos(a)
+    pts = np.stack((2.0 * np.ones_like(a), 2.0 * np.tan(a)), axis=1)
+    length = surface_lengths(pts, ranges, inc, cap=100.0)
+    # exact: the nearer of the two chords to the neighbours
+    chords = np.diff(pts[:, 1])
+    np.testing.assert_allclose(length[1:-1], np.minimum(chords[:-1], chords[1:]), rtol=1e-12)
+    assert length[60] == pytest.approx(2.0 * math.tan(inc), rel=1e-9)
+    assert length[0] / length[60] == pytest.approx(1.0 / math.cos(math.radians(59.5)) ** 2, rel=0.05)
+    capped = surface_lengths(pts, ranges, inc, cap=1.5)
+    np.testing.assert_allclose(capped, np.minimum(length, 1.5 * ranges * inc))
+    # a point alone stands for one beam spacing; two points for their distance
+    assert surface_lengths(pts[:1], ranges[:1], inc, cap=3.0)[0] == pytest.approx(ranges[0] * inc)
+    two = surface_lengths(pts[59:61], ranges[59:61], -inc, cap=3.0)
+    np.testing.assert_allclose(two, [np.hypot(*(pts[60] - pts[59]))] * 2)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(1, 40), st.floats(-math.pi, math.pi), st.floats(-5.0, 5.0), st.floats(-5.0, 5.0),
+       st.integers(0, 2**31 - 1))
+def test_surface_lengths_are_bounded_and_do_not_depend_on_the_frame(n, th, tx, ty, seed) -> None:
+    from fuzzypos.matching import surface_lengths
+
+    rng = np.random.default_rng(seed)
+    ranges = rng.uniform(0.2, 20.0, n)
+    a = np.sort(rng.uniform(-math.pi / 2, math.pi / 2, n))
+    pts = np.stack((ranges * np.cos(a), ranges * np.sin(a)), axis=1)
+    inc = math.radians(0.5)
+    length = surface_lengths(pts, ranges, inc, cap=3.0)
+    assert length.shape == (n,) and np.all(length >= 0.0)
+    assert np.all(length <= 3.0 * ranges * inc + 1e-12)
+    moved = pts @ np.array([[math.cos(th), math.sin(th)], [-math.sin(th), math.cos(th)]]) + [tx, ty]
+    np.testing.assert_allclose(surface_lengths(moved, ranges, inc, cap=3.0), length, atol=1e-9)

@@ -381,13 +381,17 @@ class RefinementConfig:
         "1, intel 0.974 m against 1.101 m (fuzzypos benchmark); 3 gained no more",
         default=2,
     )
-    range_weight_max: float = _reason(
-        "each point's weight is multiplied by its range over the scan's median range, kept "
-        "within [1/N, N]: a point stands for a stretch of surface as long as its range, and "
-        "clutter next to the robot stops outvoting the walls; 5: intel all relations 0.974 m "
-        "and local rotation 0.228° against 1.398 m and 0.255° with 1 (off), aces 0.202 m and "
-        "0.398° against 0.257 m and 0.426°",
+    length_weight_max: float = _reason(
+        "each point's weight is multiplied by the stretch of surface it stands for (the "
+        "distance to its nearer neighbour) over the scan's median, kept within [1/N, N]: the "
+        "fit is one over the surfaces' length, and clutter next to the robot stops outvoting "
+        "the walls; 5 (1 turns it off): see the README's comparison",
         default=5.0,
+    )
+    length_cap: float = _reason(
+        "a point's stretch of surface is at most 3 beam spacings at its range (across a gap "
+        "or a jump edge its neighbour lies on another surface)",
+        default=3.0,
     )
     hold_tolerance: float = _reason(
         "along such a direction the features' motion stands where it lies within 3 cm of the "
@@ -867,8 +871,10 @@ def _validate(cfg: Config) -> None:
         raise ConfigError("refinement.iterations must be at least 1")
     if not 0 < cfg.refinement.max_bend_angle <= math.pi / 2:
         raise ConfigError("refinement.max_bend_angle must lie in (0°, 90°]")
-    if not (math.isfinite(cfg.refinement.range_weight_max) and cfg.refinement.range_weight_max >= 1.0):
-        raise ConfigError("refinement.range_weight_max must be a number >= 1 (1 turns it off)")
+    if not (math.isfinite(cfg.refinement.length_weight_max) and cfg.refinement.length_weight_max >= 1.0):
+        raise ConfigError("refinement.length_weight_max must be a number >= 1 (1 turns it off)")
+    if not (math.isfinite(cfg.refinement.length_cap) and cfg.refinement.length_cap > 0.0):
+        raise ConfigError("refinement.length_cap must be a positive number")
     if cfg.refinement.local_map_keyframes < 1:
         raise ConfigError("refinement.local_map_keyframes must be at least 1")
     if cfg.refinement.neighbour_step < 1:

@@ -41,6 +41,7 @@ __all__ = [
     "Refinement",
     "refine_point_to_line",
     "search_start",
+    "surface_lengths",
 ]
 
 
@@ -444,6 +445,26 @@ class SurfacePoints:
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
+
+
+def surface_lengths(points: FloatArray, ranges: FloatArray, angle_increment: float, cap: float) -> FloatArray:
+    """The stretch of surface each scan point stands for: the distance to its nearer neighbour
+    along the scan (``points`` in beam order), at most ``cap`` beam spacings at its range
+    (``cap · range · |angle_increment|``: across a gap or a jump edge the neighbour is on
+    another surface), and one beam spacing for a point alone. Points that sample a wall at
+    grazing incidence or far away stand for more of it than a dense patch of clutter next to
+    the robot."""
+    points = np.asarray(points, dtype=float)
+    ranges = np.asarray(ranges, dtype=float)
+    spacing = ranges * abs(float(angle_increment))
+    n = points.shape[0]
+    if n < 2:
+        return spacing.copy()
+    d = np.hypot(*np.diff(points, axis=0).T)  # between consecutive points
+    length = np.empty(n)
+    length[0], length[-1] = d[0], d[-1]
+    length[1:-1] = np.minimum(d[:-1], d[1:])
+    return np.minimum(length, cap * spacing)
 
 
 def surface_points(

@@ -27,6 +27,7 @@ from .matching import (
     pair_lines,
     refine_point_to_line,
     search_start,
+    surface_lengths,
     surface_points,
 )
 from .scan import LaserScan
@@ -162,7 +163,8 @@ class Positioner:
             refine_from_start = from_key is not None and cfg.refinement.prior_from_features
             gap = dt > cfg.odometry.search_after_gap
             better = self._refine(
-                features, start, start if refine_from_start else key_prior, key_prior, rejected, gap
+                features, start, start if refine_from_start else key_prior, key_prior, rejected, gap,
+                scan.angle_increment,
             )
             if better is not None:
                 from_key, refined = better, True
@@ -213,7 +215,7 @@ class Positioner:
 
     def _refine(
         self, features: Features, start: np.ndarray, prior: np.ndarray, hold: np.ndarray,
-        wide: bool, gap: bool,
+        wide: bool, gap: bool, angle_increment: float,
     ) -> np.ndarray | None:
         """The point-to-line refinement of ``start`` against the keyframe; None where too few
         points pair or it moves further than ``max_correction``. After an odometry jump
@@ -228,15 +230,16 @@ class Positioner:
         if pts.shape[0] < r.min_points:
             return None
         weights = np.clip(1.0 - features.uncertainty, 0.05, 1.0)
-        if r.range_weight_max > 1.0 and pts.shape[0] > 0:
-            # a beam's point stands for a stretch of surface as long as its range (the beams
-            # are evenly spread in angle): weighing it so makes the fit one over the surfaces'
-            # length, not over the beams, and dense clutter next to the robot (people, a
-            # desk) no longer outvotes the walls
-            ranges = np.asarray(features.ranges, dtype=float)
-            weights = weights * np.clip(
-                ranges / float(np.median(ranges)), 1.0 / r.range_weight_max, r.range_weight_max
-            )
+        if r.length_weight_max > 1.0:
+            # each point weighs the stretch of surface it stands for (over the scan's median):
+            # the fit is one over the surfaces' length, not over the beams, and dense clutter
+            # next to the robot (people, a desk) no longer outvotes the walls
+            length = surface_lengths(pts, features.ranges, angle_increment, r.length_cap)
+            median = float(np.median(length))
+            if median > 0.0:
+                weights = weights * np.clip(
+                    length / median, 1.0 / r.length_weight_max, r.length_weight_max
+                )
         o = self.config.odometry
         best = self._refine_from(
             pts, weights, start, prior, o.jump_search_distance if wide else r.max_distance, hold
