@@ -6,8 +6,8 @@ measured worst case rounded up (stated in the README):
 
 | run | default final / mean (m), seeds 0–2 | odometry final / mean (m) |
 | --- | --- | --- |
-| gym, 4 m circle, ½ lap | 0.031 / 0.027, 0.011 / 0.014, 0.020 / 0.023 | 0.33–0.35 / 0.15–0.16 |
-| office corridor, 16 m | 0.117 / 0.073, 0.141 / 0.062, 0.042 / 0.037 | 0.31–0.32 / 0.15–0.16 |
+| gym, 4 m circle, ½ lap | 0.030 / 0.026, 0.034 / 0.021, 0.024 / 0.023 | 0.33–0.35 / 0.15–0.16 |
+| office corridor, 16 m | 0.131 / 0.075, 0.127 / 0.058, 0.051 / 0.035 | 0.31–0.32 / 0.15–0.16 |
 
 (``python benchmarks/bench_sim_runs.py`` prints these runs, with the paper preset.)
 """
