@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from fuzzypos import sim
 from fuzzypos.config import Config
 from fuzzypos.features import extract_features
-from fuzzypos.geometry import Pose2D, compose, relative
+from fuzzypos.geometry import Pose2D, compose, relative, transform_points
 from fuzzypos.matching import refine_point_to_line, surface_points
 from fuzzypos.positioner import Positioner
 
@@ -204,27 +204,27 @@ def test_search_start_finds_a_large_rotation() -> None:
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.integers(1, 6), st.floats(5.0, 40.0), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0),
-       st.floats(-180.0, 180.0))
-def test_search_starts_are_ranked_and_apart(k, separation_deg, x, y, start_deg) -> None:
-    """The best start of each of ``k`` rotations at least ``separation`` apart, best first; the
-    first is :func:`search_start`'s; a score is the fraction of points that landed."""
-    from fuzzypos.matching import search_start, search_starts
+@given(st.floats(0.0, 0.5), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-180.0, 180.0))
+def test_search_start_scores_the_fraction_of_points_that_land(penalty, x, y, start_deg) -> None:
+    """The start found lies on the searched grid; its score is the fraction of the (evenly
+    picked) points within the gate of a reference point there, without the penalty (checked
+    against a direct KD-tree query); with a penalty the found start is never further from the
+    search's start than without one."""
+    from fuzzypos.matching import search_start
 
     fa, fb = SEARCH_SCANS
     surf = surface_points(fa.points, fa.ranges, fa.uncertainty, 0.3, 2, 0.05)
     start = np.array([x * 0.1, y * 0.1, math.radians(start_deg)])
     args = (surf, fb.points, start, math.pi, math.radians(3.0), 0.25, 0.2, 0.2)
-    found = search_starts(*args, candidates=k, separation=math.radians(separation_deg))
-    assert 1 <= len(found) <= k
-    scores = [sc for _, sc in found]
-    assert scores == sorted(scores, reverse=True) and all(0.0 <= sc <= 1.0 for sc in scores)
-    th = np.array([p[2] for p, _ in found])
-    gaps = np.abs(np.angle(np.exp(1j * (th[:, None] - th[None, :]))))
-    assert np.all(gaps[~np.eye(len(th), dtype=bool)] >= math.radians(separation_deg) - 1e-9)
-    best, best_score = search_start(*args)
-    np.testing.assert_allclose(found[0][0], best)
-    assert found[0][1] == best_score
+    found, score = search_start(*args, distance_penalty=penalty)
+    steps = (found - start) / np.array([0.2, 0.2, math.radians(3.0)])
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
+    assert np.all(np.abs(found[:2] - start[:2]) <= 0.2 + 1e-9)
+    pts = fb.points[:: max(1, fb.points.shape[0] // 60)]
+    dist, _ = surf.tree.query(transform_points(found, pts), distance_upper_bound=0.25)
+    assert score == pytest.approx(float(np.isfinite(dist).mean()), abs=1e-12)
+    free, _ = search_start(*args)
+    assert np.hypot(*(found[:2] - start[:2])) <= np.hypot(*(free[:2] - start[:2])) + 1e-9
 
 
 

@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 
 from .config import FusionConfig
 from .features import FeaturePoints, Lines
-from .geometry import circular_mean, inverse, stack_columns, transform_points, wrap_angle
+from .geometry import circular_mean, inverse, stack_columns, transform_points
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -637,72 +637,6 @@ def refine_point_to_line(
     return Refinement(pose, paired, paired / points.shape[0], close / points.shape[0])
 
 
-def search_starts(
-    reference: SurfacePoints,
-    points: FloatArray,
-    start: FloatArray,
-    half_width: float,
-    step: float,
-    gate: float,
-    translation_half_width: float = 0.0,
-    translation_step: float = 0.2,
-    max_points: int = 60,
-    candidates: int = 1,
-    separation: float = math.radians(10.0),
-    distance_penalty: float = 0.0,
-) -> list[tuple[FloatArray, float]]:
-    """A wider search where the prior cannot be trusted (an odometry jump, a failed match):
-    rotations ``start[2] ± half_width`` in steps of ``step`` and translations within
-    ``± translation_half_width`` of the start's in steps of ``translation_step``, each scored by
-    the fraction of (at most ``max_points``, evenly picked) ``points`` that land within ``gate``
-    of a reference point. Returns up to ``candidates`` starts with their scores, best first:
-    the best translation of each rotation, rotations at least ``separation`` apart (a coarse
-    grid's best is not always the true motion's basin, so a caller refines several). Each
-    translation's score is lowered by ``distance_penalty`` per metre from the start's, so that
-    of near-equal scores (a corridor's repeating doors) the one nearest the start wins. KD-tree
-    queries over all candidates at once, a chunk of rotations at a time; no Python loop over
-    points."""
-    start = np.asarray(start, dtype=float)
-    if len(reference) == 0 or points.shape[0] == 0:
-        return [(start, 0.0)]
-    pts = points[:: max(1, points.shape[0] // max_points)]
-    k = int(round(half_width / step))
-    thetas = start[2] + step * np.arange(-k, k + 1)
-    m = int(round(translation_half_width / translation_step))
-    offs = translation_step * np.arange(-m, m + 1)
-    tx, ty = np.meshgrid(start[0] + offs, start[1] + offs, indexing="ij")
-    tx, ty = tx.ravel(), ty.ravel()
-    penalty = distance_penalty * np.hypot(tx - start[0], ty - start[1])
-    best_score = np.empty(thetas.size)  # per rotation: its best translation's score and index
-    best_t = np.empty(thetas.size, dtype=np.intp)
-    chunk = max(1, 200_000 // (tx.size * pts.shape[0]))
-    for c0 in range(0, thetas.size, chunk):  # bounded memory: a chunk of rotations at a time
-        th = thetas[c0 : c0 + chunk]
-        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
-        rx = c * pts[None, :, 0] - s * pts[None, :, 1]  # (rotations, points)
-        ry = s * pts[None, :, 0] + c * pts[None, :, 1]
-        qx = rx[:, None, :] + tx[None, :, None]  # (rotations, translations, points)
-        qy = ry[:, None, :] + ty[None, :, None]
-        dist, _ = reference.tree.query(np.stack((qx.ravel(), qy.ravel()), axis=1), distance_upper_bound=gate)
-        score = np.isfinite(dist).reshape(th.size, tx.size, -1).mean(axis=2) - penalty[None, :]
-        best_t[c0 : c0 + th.size] = np.argmax(score, axis=1)
-        best_score[c0 : c0 + th.size] = score[np.arange(th.size), best_t[c0 : c0 + th.size]]
-    order = np.argsort(-best_score, kind="stable")
-    picked: list[int] = []
-    for i in order:  # the best rotations, each at least ``separation`` from those picked
-        if len(picked) >= max(1, candidates):
-            break
-        if not picked or np.all(np.abs(wrap_angle(thetas[i] - thetas[picked])) >= separation):
-            picked.append(int(i))
-    return [  # the score without the penalty: the fraction of points that landed
-        (
-            np.array([tx[best_t[i]], ty[best_t[i]], thetas[i]]),
-            float(best_score[i] + penalty[best_t[i]]),
-        )
-        for i in picked
-    ]
-
-
 def search_start(
     reference: SurfacePoints,
     points: FloatArray,
@@ -715,8 +649,41 @@ def search_start(
     max_points: int = 60,
     distance_penalty: float = 0.0,
 ) -> tuple[FloatArray, float]:
-    """The best start of :func:`search_starts` and its score."""
-    return search_starts(
-        reference, points, start, half_width, step, gate, translation_half_width,
-        translation_step, max_points, distance_penalty=distance_penalty,
-    )[0]
+    """A wider search where the prior cannot be trusted (an odometry jump, a failed match):
+    rotations ``start[2] ± half_width`` in steps of ``step`` and translations within
+    ``± translation_half_width`` of the start's in steps of ``translation_step``, each scored by
+    the fraction of (at most ``max_points``, evenly picked) ``points`` that land within ``gate``
+    of a reference point, less ``distance_penalty`` per metre of translation from the start's
+    (of near-equal scores, e.g. along a corridor's repeating doors, the one nearest the start
+    wins). Returns the best start and its score (the fraction, without the penalty). KD-tree
+    queries over all candidates at once, a chunk of rotations at a time; no Python loop over
+    points."""
+    start = np.asarray(start, dtype=float)
+    if len(reference) == 0 or points.shape[0] == 0:
+        return start, 0.0
+    pts = points[:: max(1, points.shape[0] // max_points)]
+    k = int(round(half_width / step))
+    thetas = start[2] + step * np.arange(-k, k + 1)
+    m = int(round(translation_half_width / translation_step))
+    offs = translation_step * np.arange(-m, m + 1)
+    tx, ty = np.meshgrid(start[0] + offs, start[1] + offs, indexing="ij")
+    tx, ty = tx.ravel(), ty.ravel()
+    penalty = distance_penalty * np.hypot(tx - start[0], ty - start[1])
+    best_score, best_fraction, best = -np.inf, 0.0, start
+    chunk = max(1, 200_000 // (tx.size * pts.shape[0]))
+    for c0 in range(0, thetas.size, chunk):  # bounded memory: a chunk of rotations at a time
+        th = thetas[c0 : c0 + chunk]
+        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        rx = c * pts[None, :, 0] - s * pts[None, :, 1]  # (rotations, points)
+        ry = s * pts[None, :, 0] + c * pts[None, :, 1]
+        qx = rx[:, None, :] + tx[None, :, None]  # (rotations, translations, points)
+        qy = ry[:, None, :] + ty[None, :, None]
+        dist, _ = reference.tree.query(np.stack((qx.ravel(), qy.ravel()), axis=1), distance_upper_bound=gate)
+        fraction = np.isfinite(dist).reshape(th.size, tx.size, -1).mean(axis=2)
+        score = fraction - penalty[None, :]
+        i = int(np.argmax(score))
+        if score.flat[i] > best_score:
+            r, t = divmod(i, tx.size)
+            best_score, best_fraction = float(score.flat[i]), float(fraction.flat[i])
+            best = np.array([tx[t], ty[t], th[r]])
+    return best, best_fraction

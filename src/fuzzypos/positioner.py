@@ -114,7 +114,6 @@ class Positioner:
             self._prev_odom = odom
             self._prev_stamp = scan.stamp
             self._set_keyframe(features, start)
-            self._prev_features = None
             zero = Pose2D()
             return Estimate(scan.stamp, Pose2D.from_array(start), zero, zero, 0, False, features)
 
@@ -184,7 +183,6 @@ class Positioner:
             or abs(from_key[2]) >= m.keyframe_angle
         ):
             self._set_keyframe(features, pose)
-            self._prev_features = None
         else:
             self._prev_features = features
         self._pose = pose
@@ -313,6 +311,7 @@ class Positioner:
         self._key_features = features
         self._key_pose = pose
         self._key_surface = None
+        self._prev_features = None  # the latest scan is the keyframe itself
         r = self.config.refinement
         if not r.enabled:
             return
