@@ -52,7 +52,11 @@ def main() -> None:
     print("| noise | estimate | mean | median | 90th pct | max | degraded |")
     print("|---|---|---:|---:|---:|---:|---:|")
     for noise in (0.0, 0.01):
-        for name, cfg in (("odometry", None), ("paper", Config.preset("paper")), ("default", Config())):
+        for name, cfg in (
+            ("odometry", None),
+            ("paper", Config.preset("paper")),
+            ("default", Config()),
+        ):
             t, r, deg = errors(cfg, noise)
             cells = [
                 f"{1e3 * f(t):.2f} / {f(r):.3f}"

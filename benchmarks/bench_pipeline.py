@@ -36,7 +36,9 @@ def main() -> None:
     args = ap.parse_args()
     world = office()
     truth = arc_path(Pose2D(-8.0, 0.0, 0.0), args.scans, step=0.05, turn_deg=0.0)
-    odom = drifting_odometry(truth, scale=1.02, rotation_bias_deg=0.05, rng=np.random.default_rng(1))
+    odom = drifting_odometry(
+        truth, scale=1.02, rotation_bias_deg=0.05, rng=np.random.default_rng(1)
+    )
     rows = []
     for beams in (180, 360):
         scanner = ScannerModel(n_beams=beams, range_max=8.0, range_noise_std=0.01)
@@ -49,7 +51,7 @@ def main() -> None:
                 t0 = time.perf_counter()
                 for s in scans:
                     # every stage, the point features too (they are computed on first use)
-                    extract_features(s, cfg).points_of_interest
+                    _ = extract_features(s, cfg).points_of_interest
                 t_feat.append(time.perf_counter() - t0)
                 pos = Positioner(cfg)
                 t0 = time.perf_counter()
@@ -57,11 +59,26 @@ def main() -> None:
                     pos.update(s, o)
                 t_upd.append(time.perf_counter() - t0)
             n = len(scans)
-            rows.append((beams, preset, n / min(t_feat), 1e3 * min(t_feat) / n, n / min(t_upd), 1e3 * min(t_upd) / n))
-    print(f"fuzzypos pipeline speed, one thread, {platform.python_implementation()} {platform.python_version()}, numpy {np.__version__}")
+            rows.append(
+                (
+                    beams,
+                    preset,
+                    n / min(t_feat),
+                    1e3 * min(t_feat) / n,
+                    n / min(t_upd),
+                    1e3 * min(t_upd) / n,
+                )
+            )
+    print(
+        "fuzzypos pipeline speed, one thread, "
+        f"{platform.python_implementation()} {platform.python_version()}, numpy {np.__version__}"
+    )
     print(f"{args.scans} scans of the simulated office, best of {args.repeat}")
     print()
-    print("| beams | config | extract_features scans/s | ms/scan | Positioner.update scans/s | ms/scan |")
+    print(
+        "| beams | config | extract_features scans/s | ms/scan "
+        "| Positioner.update scans/s | ms/scan |"
+    )
     print("|---:|---|---:|---:|---:|---:|")
     for beams, preset, fs, fms, us, ums in rows:
         print(f"| {beams} | {preset} | {fs:,.0f} | {fms:.2f} | {us:,.0f} | {ums:.2f} |")

@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from fuzzypos import Config, Positioner
+from fuzzypos.benchmark import find_benchmark_logs
 from fuzzypos.evaluation import relations_errors
 from fuzzypos.io.relations import read_relations
 from fuzzypos.logs import open_log
-from fuzzypos.results import find_benchmark_logs
 
 VARIANTS: dict[str, dict[str, dict[str, object]]] = {
     "default": {},
@@ -58,7 +58,10 @@ def main() -> None:
     jobs = [(os.fspath(lg), os.fspath(rel), v) for lg, rel in pairs for v in VARIANTS]
     with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as ex:
         rows = list(ex.map(run_one, *zip(*jobs)))
-    print("| log | variant | all trans m | all rot ° | local trans m / median | local rot ° | scans/s (Positioner) |")
+    print(
+        "| log | variant | all trans m | all rot ° | local trans m / median | local rot ° "
+        "| scans/s (Positioner) |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|")
     for log, variant, s, rate in rows:
         print(

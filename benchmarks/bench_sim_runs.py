@@ -23,7 +23,10 @@ RUNS = {
 
 
 def main() -> None:
-    print("| run | seed | odometry final / mean (m) | paper final / mean (m) | default final / mean (m) |")
+    print(
+        "| run | seed | odometry final / mean (m) | paper final / mean (m) "
+        "| default final / mean (m) |"
+    )
     print("|---|---:|---:|---:|---:|")
     for name, (world, path) in RUNS.items():
         for seed in (0, 1, 2):
@@ -33,7 +36,10 @@ def main() -> None:
             cells.append(f"{odo.final_position_error_m:.3f} / {odo.mean_position_error_m:.3f}")
             for preset in ("paper", "default"):
                 pos = Positioner(Config.preset(preset))
-                poses = [pos.update(s, run.odometry_pose(k)).pose.as_array() for k, s in enumerate(run.scans)]
+                poses = [
+                    pos.update(s, run.odometry_pose(k)).pose.as_array()
+                    for k, s in enumerate(run.scans)
+                ]
                 e = trajectory_errors(run.true_poses, np.array(poses))
                 cells.append(f"{e.final_position_error_m:.3f} / {e.mean_position_error_m:.3f}")
             print(f"| {name} | {seed} | " + " | ".join(cells) + " |", flush=True)

@@ -25,8 +25,11 @@ def test_demo_writes_the_papers_figures_and_a_summary(tmp_path) -> None:
     for name in ("odometry", "paper", "default"):
         e = summary[name]
         assert set(e) == {
-            "final_position_error_m", "mean_position_error_m", "max_position_error_m",
-            "mean_heading_error_deg", "scans_degraded",
+            "final_position_error_m",
+            "mean_position_error_m",
+            "max_position_error_m",
+            "mean_heading_error_deg",
+            "scans_degraded",
         }
         assert e["max_position_error_m"] >= e["mean_position_error_m"] >= 0
     assert summary["odometry"]["scans_degraded"] == 0
@@ -36,8 +39,24 @@ def test_demo_writes_the_papers_figures_and_a_summary(tmp_path) -> None:
 def test_simulate_writes_a_carmen_log_with_truth_and_a_tum_file(tmp_path) -> None:
     log, tum = tmp_path / "run.clf", tmp_path / "truth.tum"
     res = runner.invoke(
-        app, ["simulate", "--out", str(log), "--tum", str(tum), "--world", "office",
-              "--path", "circle", "--size", "1.0", "--laps", "0.1", "--seed", "3"],
+        app,
+        [
+            "simulate",
+            "--out",
+            str(log),
+            "--tum",
+            str(tum),
+            "--world",
+            "office",
+            "--path",
+            "circle",
+            "--size",
+            "1.0",
+            "--laps",
+            "0.1",
+            "--seed",
+            "3",
+        ],
     )
     assert res.exit_code == 0, res.output
     records = list(read_carmen(log))
@@ -63,7 +82,9 @@ def test_same_seed_gives_the_same_log_byte_for_byte(tmp_path) -> None:
 
 def test_simulate_follows_waypoints(tmp_path) -> None:
     log = tmp_path / "wp.clf"
-    res = runner.invoke(app, ["simulate", "--out", str(log), "--world", "office", "--path", "-8,0;-5,0"])
+    res = runner.invoke(
+        app, ["simulate", "--out", str(log), "--world", "office", "--path", "-8,0;-5,0"]
+    )
     assert res.exit_code == 0, res.output
     truth = np.array([r.truth.as_array() for r in read_carmen(log)])
     np.testing.assert_allclose(truth[0, :2], [-8.0, 0.0], atol=1e-9)

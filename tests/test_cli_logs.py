@@ -7,18 +7,15 @@ import json
 
 import numpy as np
 import pytest
-from test_io_rosbag import SCAN_T, make_bag, standard
-from test_logs import write_sim_log
-from test_results import write_relations
 from typer.testing import CliRunner
 
 from fuzzypos.cli import app
 from fuzzypos.config import Config
 from fuzzypos.io import read_tum, write_tum
+from helpers import DATA, SCAN_T, make_bag, standard, write_relations, write_sim_log
 
 runner = CliRunner()
 
-from shared_data import DATA  # noqa: E402
 INTEL = DATA / "intel" / "intel.clf.gz"
 ACES = DATA / "aces" / "aces.clf.gz"
 ACES_BAG = DATA / "aces" / "aces.bag"
@@ -93,8 +90,22 @@ def test_run_default_folder_stretch_and_config_file(sim_log, tmp_path, monkeypat
     monkeypatch.chdir(tmp_path)
     cfg = tmp_path / "c.toml"
     cfg.write_text("[matching]\nmutual = false\n")
-    ok(["run", str(path), "--config", str(cfg), "--start", "0.5", "--end", "1.5",
-        "--max-scans", "4", "--laser-offset", "0.1,0,0"])
+    ok(
+        [
+            "run",
+            str(path),
+            "--config",
+            str(cfg),
+            "--start",
+            "0.5",
+            "--end",
+            "1.5",
+            "--max-scans",
+            "4",
+            "--laser-offset",
+            "0.1,0,0",
+        ]
+    )
     out = tmp_path / "results" / "sim"
     stamps, _ = read_tum(out / "trajectory.tum")
     assert len(stamps) == 4 and stamps[0] == pytest.approx(0.5)
@@ -139,8 +150,9 @@ def test_errors_are_one_line_and_exit_2(sim_log, tmp_path):
     one_line_error(["run", str(tmp_path)], "without metadata.yaml")
     one_line_error(["run", str(empty), "--results", r], "no scans")
     for offset in ("1,2", "a,b,c", "1,2,inf"):
-        one_line_error(["run", str(path), "--laser-offset", offset, "--results", r],
-                       "--laser-offset")
+        one_line_error(
+            ["run", str(path), "--laser-offset", offset, "--results", r], "--laser-offset"
+        )
     one_line_error(["run", str(path), "--preset", "nope", "--results", r], "unknown preset")
     one_line_error(["run", str(path), "--config", str(tmp_path / "no.toml")], "no.toml")
     one_line_error(["run", str(path), "--odometry", "magic", "--results", r], "odometry")
@@ -194,10 +206,13 @@ def test_benchmark_on_a_temporary_data_dir(sim_log, tmp_path):
     rows = json.loads((out / "benchmark.json").read_text())["rows"]
     assert [r["config"] for r in rows] == ["odometry", "paper", "default"]
     assert all(r["all_matched"] == len(st) - 2 for r in rows)
-    env_rows = json.loads(runner.invoke(
-        app, ["benchmark", "--out", str(tmp_path / "b2"), "--json"],
-        env={"FUZZYPOS_DATA": str(tmp_path / "data")},
-    ).output)
+    env_rows = json.loads(
+        runner.invoke(
+            app,
+            ["benchmark", "--out", str(tmp_path / "b2"), "--json"],
+            env={"FUZZYPOS_DATA": str(tmp_path / "data")},
+        ).output
+    )
     assert len(env_rows) == 3
 
 
@@ -209,9 +224,19 @@ def test_run_and_evaluate_a_stretch_of_intel(tmp_path):
     assert "300 scans" in res.output
     stamps, _ = read_tum(out / "trajectory.tum")
     assert len(stamps) == 300
-    data = json.loads(ok(["evaluate", str(out / "trajectory.tum"), "--relations",
-                          str(INTEL.with_name("intel.relations")), "--reference",
-                          str(INTEL.with_name("intel.keyframes.tum")), "--json"]).output)
+    data = json.loads(
+        ok(
+            [
+                "evaluate",
+                str(out / "trajectory.tum"),
+                "--relations",
+                str(INTEL.with_name("intel.relations")),
+                "--reference",
+                str(INTEL.with_name("intel.keyframes.tum")),
+                "--json",
+            ]
+        ).output
+    )
     assert data["relations"]["all_matched"] > 0 and data["ate"]["matched"] > 0
 
 
@@ -227,8 +252,11 @@ def test_info_on_the_aces_bag_and_log_agree():
 @needs_data
 def test_benchmark_a_stretch_of_each_shared_log(tmp_path):
     out = tmp_path / "bench"
-    rows = json.loads(ok(["benchmark", "--data", str(DATA), "--out", str(out),
-                          "--max-scans", "300", "--json"]).output)
+    rows = json.loads(
+        ok(
+            ["benchmark", "--data", str(DATA), "--out", str(out), "--max-scans", "300", "--json"]
+        ).output
+    )
     logs = {r["log"] for r in rows}
     assert logs == {"intel.clf.gz", "aces.clf.gz", "aces.bag"}
     assert len(rows) == 9

@@ -22,7 +22,9 @@ from fuzzypos.demo import DemoSettings
 from fuzzypos.evaluation import TrajectoryErrors, trajectory_errors
 
 
-def _run(world: sim.World, path: sim.CommandedPath, seed: int) -> tuple[TrajectoryErrors, TrajectoryErrors]:
+def _run(
+    world: sim.World, path: sim.CommandedPath, seed: int
+) -> tuple[TrajectoryErrors, TrajectoryErrors]:
     run = sim.simulate_run(world, path, DemoSettings().scanner, sim.SlipModel(), seed)
     pos = Positioner(Config())
     poses, degraded = [], 0
@@ -47,7 +49,9 @@ def test_gym_circle(seed: int) -> None:
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_office_corridor(seed: int) -> None:
-    est, odo = _run(sim.office(), sim.CommandedPath.waypoints([(-8.0, 0.0), (8.0, 0.0)], speed=0.3), seed)
+    est, odo = _run(
+        sim.office(), sim.CommandedPath.waypoints([(-8.0, 0.0), (8.0, 0.0)], speed=0.3), seed
+    )
     assert est.scans_degraded <= 2
     assert est.final_position_error_m < 0.15 and est.mean_position_error_m < 0.08, est
     assert est.final_position_error_m < odo.final_position_error_m, (est, odo)

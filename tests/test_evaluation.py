@@ -27,8 +27,7 @@ from fuzzypos.evaluation import (
 )
 from fuzzypos.geometry import compose, inverse, relative
 from fuzzypos.io.relations import Relations
-
-from shared_data import DATA  # noqa: E402
+from helpers import DATA
 
 
 def test_distance_along_a_square() -> None:
@@ -38,7 +37,7 @@ def test_distance_along_a_square() -> None:
 
 def test_errors_of_a_shifted_and_turned_path() -> None:
     truth = np.column_stack([np.arange(5.0), np.zeros(5), np.zeros(5)])
-    est = truth + [0.0, 0.3, math.radians(2)]
+    est = truth + np.array([0.0, 0.3, math.radians(2)])
     est[-1, 1] = 0.5
     d, h = position_errors(truth, est)
     np.testing.assert_allclose(d, [0.3, 0.3, 0.3, 0.3, 0.5])

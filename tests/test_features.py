@@ -455,7 +455,7 @@ def test_axis_aligned_room_gives_vertical_and_horizontal_lines() -> None:
     f = F.extract_features(sim.simulate_scan(ROOM, Pose2D(), FULL))
     expected = {(1, 0, 4.0), (-1, 0, 4.0), (0, 1, 3.0), (0, -1, 3.0)}
     got = {
-        (int(round(n[0])), int(round(n[1])), round(float(d), 9))
+        (round(n[0]), round(n[1]), round(float(d), 9))
         for n, d in zip(f.lines.normal, f.lines.distance)
     }
     assert got == expected
@@ -572,7 +572,8 @@ def test_virtual_points_are_intersections_of_their_lines(
         tuple(sorted((int(a), int(b))))
         for a in range(len(lines))
         for b in range(len(lines))
-        if a != b and np.linalg.norm(lines.end[a] - lines.start[b]) < 1e-9
+        if a != b
+        and np.linalg.norm(lines.end[a] - lines.start[b]) < 1e-9
         and nearest(lines.end[a][None], f.angular_points.xy)[0] < 1e-9
     }
     assert joined  # the scene has such corners
@@ -606,6 +607,7 @@ def test_virtual_point_thresholds_select_subsets() -> None:
 def test_virtual_points_of_parallel_and_near_parallel_lines_do_not_exist() -> None:
     """virtual_angular_points on hand-made lines: parallel lines and lines 20° apart (< 30°) give
     nothing; a 90° pair gives its intersection."""
+
     def lines(angles_deg: list[float], dists: list[float]) -> F.Lines:
         k = len(angles_deg)
         nrm = np.vstack([_unit(math.radians(a)) for a in angles_deg])
@@ -614,14 +616,23 @@ def test_virtual_points_of_parallel_and_near_parallel_lines_do_not_exist() -> No
         start = nrm * d[:, None] - tangent
         end = nrm * d[:, None] + tangent
         return F.Lines(
-            nrm, d, start, end, 0.5 * (start + end), np.full(k, 10), np.zeros(k),
-            np.zeros(k), np.zeros(k), np.arange(k), np.zeros(k, dtype=np.int64),
+            nrm,
+            d,
+            start,
+            end,
+            0.5 * (start + end),
+            np.full(k, 10),
+            np.zeros(k),
+            np.zeros(k),
+            np.zeros(k),
+            np.arange(k),
+            np.zeros(k, dtype=np.int64),
         )
 
     bases = F.rule_bases(CFG.fuzzy)
     vp, vl, _ = F.virtual_angular_points(lines([0.0, 0.0, 180.0, 20.0], [1, 2, 1, 1]), bases, CFG)
     assert len(vp) == 0
-    vp, vl, dv = F.virtual_angular_points(lines([0.0, 90.0], [1.0, 1.5]), bases, CFG)
+    vp, vl, _ = F.virtual_angular_points(lines([0.0, 90.0], [1.0, 1.5]), bases, CFG)
     assert len(vp) == 1
     np.testing.assert_allclose(vp.xy[0], [1.0, 1.5], atol=1e-12)
     np.testing.assert_array_equal(vl, [[0, 1]])

@@ -77,7 +77,8 @@ def table3_composed(fl1: int, fl2: int, dv: int) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# The default fuzzy sets (SPEC, "Default fuzzy sets"), literally; symmetric (a = peak, b = half width)
+# The default fuzzy sets (SPEC, "Default fuzzy sets"), literally; symmetric
+# (a = peak, b = half width)
 # ---------------------------------------------------------------------------------------------
 HALF_PI = math.pi / 2
 SPEC_SETS = {
@@ -138,7 +139,9 @@ def test_sets_sum_to_one_on_a_dense_grid(name: str) -> None:
     np.testing.assert_allclose(mu.sum(axis=1), 1.0, rtol=0, atol=1e-12)
     # each set is 1 at its own peak and 0 at every other peak
     peaks = np.asarray(SPEC_SETS[name][3])
-    np.testing.assert_allclose(triangular_memberships(peaks, sets_of(name)), np.eye(len(peaks)), atol=1e-12)
+    np.testing.assert_allclose(
+        triangular_memberships(peaks, sets_of(name)), np.eye(len(peaks)), atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("name", VARS)
@@ -353,7 +356,9 @@ def test_product_firing_strengths_sum_to_one() -> None:
     w = point_rule_base(CFG).firing_strengths(rng.uniform(-1, 9, 200), rng.uniform(-0.2, 1.8, 200))
     assert w.shape == (200, 15)
     np.testing.assert_allclose(w.sum(axis=1), 1.0, atol=1e-12)
-    w = virtual_point_rule_base(CFG).firing_strengths(*rng.uniform(0, 1, (2, 50)), rng.uniform(0, 4, 50))
+    w = virtual_point_rule_base(CFG).firing_strengths(
+        *rng.uniform(0, 1, (2, 50)), rng.uniform(0, 4, 50)
+    )
     assert w.shape == (50, 45)
     np.testing.assert_allclose(w.sum(axis=1), 1.0, atol=1e-12)
 
@@ -373,7 +378,9 @@ def test_product_firing_strengths_sum_to_one() -> None:
     ],
 )
 def test_point_uncertainty_at_rule_peaks(rho: float, beta_deg: float, expected: float) -> None:
-    assert point_rule_base(CFG)(rho, math.radians(beta_deg))[0] == pytest.approx(expected, abs=1e-12)
+    assert point_rule_base(CFG)(rho, math.radians(beta_deg))[0] == pytest.approx(
+        expected, abs=1e-12
+    )
 
 
 def test_point_uncertainty_between_peaks() -> None:
@@ -409,13 +416,17 @@ def test_line_uncertainty_at_rule_peaks(inputs: tuple[float, float], expected: f
         ((0.0, 0.0, 3.0), 0.5),  # upper S; lower B,S -> M
     ],
 )
-def test_virtual_uncertainty_at_rule_peaks(inputs: tuple[float, float, float], expected: float) -> None:
+def test_virtual_uncertainty_at_rule_peaks(
+    inputs: tuple[float, float, float], expected: float
+) -> None:
     assert virtual_point_rule_base(CFG)(*inputs)[0] == pytest.approx(expected, abs=1e-12)
 
 
 def test_rule_base_inputs_outside_range_are_clamped() -> None:
     rb = point_rule_base(CFG)
-    np.testing.assert_array_equal(rb([-3.0, 30.0, 5.0], [1.0, 0.5, -1.0]), rb([0.0, 8.0, 5.0], [1.0, 0.5, 0.0]))
+    np.testing.assert_array_equal(
+        rb([-3.0, 30.0, 5.0], [1.0, 0.5, -1.0]), rb([0.0, 8.0, 5.0], [1.0, 0.5, 0.0])
+    )
     np.testing.assert_array_equal(rb(5.0, 3.0), rb(5.0, HALF_PI))
     lb = line_rule_base(CFG)
     np.testing.assert_array_equal(lb([1.5, -0.5], [0.2, -1.0]), lb([1.0, 0.0], [0.05, 0.0]))
@@ -467,7 +478,9 @@ def test_point_uncertainty_never_falls_with_distance(r1: float, r2: float, beta:
 
 @PROPS
 @given(b1=st.floats(0.0, HALF_PI), b2=st.floats(0.0, HALF_PI), rho=st.floats(0.0, 8.0))
-def test_point_uncertainty_never_rises_with_detection_angle(b1: float, b2: float, rho: float) -> None:
+def test_point_uncertainty_never_rises_with_detection_angle(
+    b1: float, b2: float, rho: float
+) -> None:
     lo, hi = sorted((b1, b2))
     u = point_rule_base(CFG)([rho, rho], [lo, hi])
     assert u[0] + TOL >= u[1]
@@ -486,7 +499,11 @@ def test_point_uncertainty_monotone_on_a_grid() -> None:
 
 
 @PROPS
-@given(x=st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 1)), which=st.integers(0, 2), step=st.floats(0, 1))
+@given(
+    x=st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 1)),
+    which=st.integers(0, 2),
+    step=st.floats(0, 1),
+)
 def test_virtual_uncertainty_never_falls_as_any_input_grows(
     x: tuple[float, float, float], which: int, step: float
 ) -> None:
@@ -500,7 +517,9 @@ def test_virtual_uncertainty_never_falls_as_any_input_grows(
 
 @PROPS
 @given(d=st.floats(0, 1), s=st.floats(0, 0.05), dd=st.floats(0, 1), ds=st.floats(0, 0.05))
-def test_line_uncertainty_never_falls_as_inputs_grow(d: float, s: float, dd: float, ds: float) -> None:
+def test_line_uncertainty_never_falls_as_inputs_grow(
+    d: float, s: float, dd: float, ds: float
+) -> None:
     u = line_rule_base(CFG)([d, min(1.0, d + dd)], [s, min(0.05, s + ds)])
     assert u[0] <= u[1] + TOL
 
@@ -588,7 +607,9 @@ def test_mamdani_matches_scikit_fuzzy(case: str) -> None:
     rng = np.random.default_rng(sum(map(ord, case)))
     samples = np.array([rng.uniform(*range_of(v), N_SAMPLES) for v in variables])  # (d, n)
     # include some exact peaks / range ends, where sets switch on and off
-    peaks = np.array([[SPEC_SETS[v][3][k % len(SPEC_SETS[v][3])] for v in variables] for k in (0, 1, 2, 4)]).T
+    peaks = np.array(
+        [[SPEC_SETS[v][3][k % len(SPEC_SETS[v][3])] for v in variables] for k in (0, 1, 2, 4)]
+    ).T
     samples = np.concatenate([samples, peaks], axis=1)
 
     got = ours(*samples)
@@ -703,7 +724,17 @@ def test_bilinear_shortcut_equals_the_rule_sum() -> None:
         assert rb._grids is not None  # the shortcut is taken
         x1, x2 = rng.uniform(-0.5, hi[0], 500), rng.uniform(-0.1, hi[1], 500)
         w = rb.firing_strengths(x1, x2)
-        np.testing.assert_allclose(rb(x1, x2), (w @ rb._centres) / w.sum(axis=1), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            rb(x1, x2), (w @ rb._centres) / w.sum(axis=1), rtol=0, atol=1e-12
+        )
     # sets that are not a partition of unity go the general way
-    odd = FuzzyConfig(distance_sets=((0.0, 0.0, 3.0), (0.0, 2.0, 4.0), (2.0, 4.0, 6.0), (4.0, 6.0, 8.0), (6.0, 8.0, 8.0)))
+    odd = FuzzyConfig(
+        distance_sets=(
+            (0.0, 0.0, 3.0),
+            (0.0, 2.0, 4.0),
+            (2.0, 4.0, 6.0),
+            (4.0, 6.0, 8.0),
+            (6.0, 8.0, 8.0),
+        )
+    )
     assert RuleBases.from_config(odd).points._grids is None

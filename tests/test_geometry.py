@@ -171,15 +171,15 @@ def test_array_ops_match_pose2d_loop(A, data):
     B = data.draw(arrays(np.float64, (n, 3), elements=st.floats(-10.0, 10.0, allow_nan=False)))
     P = data.draw(arrays(np.float64, (n, 2), elements=st.floats(-10.0, 10.0, allow_nan=False)))
     C = compose(A, B)
-    I = inverse(A)
+    Inv = inverse(A)
     R = relative(A, B)
     T = transform_points(A, P)  # one pose per point
-    assert C.shape == I.shape == R.shape == (n, 3)
+    assert C.shape == Inv.shape == R.shape == (n, 3)
     assert T.shape == (n, 2)
     for k in range(n):
         a, b = Pose2D.from_array(A[k]), Pose2D.from_array(B[k])
         assert_pose_close(C[k], (a @ b).as_array())
-        assert_pose_close(I[k], a.inverse().as_array())
+        assert_pose_close(Inv[k], a.inverse().as_array())
         assert_pose_close(R[k], b.relative_to(a).as_array())
         np.testing.assert_allclose(T[k], a.transform_points(P[k]), atol=1e-9)
 

@@ -18,6 +18,7 @@ from fuzzypos.io import (
     CarmenFormatError,
     CarmenReader,
     CarmenRecord,
+    CarmenWriter,
     LogFormatError,
     TumFormatError,
     carmen_beam_geometry,
@@ -27,8 +28,7 @@ from fuzzypos.io import (
     write_tum,
 )
 from fuzzypos.scan import LaserScan
-
-from shared_data import DATA  # noqa: E402
+from helpers import DATA
 
 ACES = DATA / "aces" / "aces.clf.gz"
 DEG = math.pi / 180.0
@@ -242,6 +242,62 @@ def test_writer_keeps_an_existing_file_on_error(tmp_path):
         write_carmen(path, recs())
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["log.clf"]
+
+
+# -- CarmenWriter: the one writer behind write_carmen and the run's trajectory.clf ----------
+def test_carmen_writer_streams_what_write_carmen_writes(tmp_path):
+    recs = _records(count=4)
+    whole, streamed = tmp_path / "whole.clf.gz", tmp_path / "streamed.clf.gz"
+    write_carmen(whole, recs, hostname="robo", header_comment="run 7")
+    with CarmenWriter(streamed, hostname="robo", header_comment="run 7") as w:
+        for rec in recs:
+            w.write(rec.scan, rec.odometry, rec.truth)
+            assert not streamed.exists()  # a temporary file until closed
+    assert w.written == len(recs)
+    assert streamed.read_bytes() == whole.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["streamed.clf.gz", "whole.clf.gz"]
+
+
+def test_carmen_writer_pose_fields_and_abort(tmp_path):
+    scan = make_scan(stamp=2.5, sensor_pose=Pose2D())
+    path = tmp_path / "est.clf"
+    w = CarmenWriter(path)
+    w.write(scan, Pose2D(1.0, 2.0, 0.5), Pose2D(3.0, 4.0, 0.25), pose=Pose2D(7.0, 8.0, 0.125))
+    w.write(scan, None, pose=Pose2D(9.0, 9.5, 0.0))  # no odometry: the pose in both
+    with pytest.raises(ValueError, match="no pose"):
+        w.write(scan, None)
+    assert w.close() and w.written == 2
+    lines = [ln.split() for ln in path.read_text().splitlines() if not ln.startswith(("#", "P"))]
+    assert [t[0] for t in lines] == ["FLASER", "TRUEPOS", "FLASER"]
+    assert lines[0][182:188] == ["7.0", "8.0", "0.125", "1.0", "2.0", "0.5"]
+    assert lines[1][1:7] == ["3.0", "4.0", "0.25", "1.0", "2.0", "0.5"]
+    assert lines[2][182:188] == ["9.0", "9.5", "0.0", "9.0", "9.5", "0.0"]
+    with pytest.raises(ValueError, match="closed"):
+        w.write(scan, Pose2D())
+    w2 = CarmenWriter(tmp_path / "gone.clf")
+    w2.write(scan, Pose2D())
+    w2.abort()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["est.clf"]
+
+
+def test_carmen_writer_estimate_mode_follows_the_first_scan(tmp_path):
+    a0, inc = carmen_beam_geometry(180, convention="span")
+    mount = Pose2D(0.2, 0.05, 0.1)
+    first = LaserScan(np.full(180, 2.0), a0, inc, range_max=8.0, stamp=1.0, sensor_pose=mount)
+    other = make_scan(stamp=2.0)  # 1° steps: does not fit the first scan's span geometry
+    path = tmp_path / "trajectory.clf"
+    w = CarmenWriter(path, estimate_of="some.log", field_of_view_deg=90.0)  # fov not used
+    w.write(first, Pose2D(), pose=Pose2D(1.0, 0.0, 0.0))
+    w.write(other, Pose2D(), pose=Pose2D(2.0, 0.0, 0.0))
+    assert w.close() and (w.written, w.skipped) == (1, 1)
+    text = path.read_text()
+    assert "from some.log" in text and "convention 'span'" in text and "--laser-offset" in text
+    assert [n.split(":")[0] for n in w.notes] == ["trajectory.clf", "trajectory.clf"]
+    assert "1 scans have beam angles FLASER cannot describe" in w.notes[1]
+    (back,) = read_carmen(path, convention="span", laser_offset=mount)
+    assert back.scan.stamp == 1.0 and back.odometry == Pose2D()
+    empty = CarmenWriter(tmp_path / "none.clf", estimate_of="x")
+    assert not empty.close() and not (tmp_path / "none.clf").exists()
 
 
 # -- reader: formats and skipping ----------------------------------------------------------

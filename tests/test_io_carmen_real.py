@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from fuzzypos.io import CarmenReader
+from helpers import DATA
 
-from shared_data import DATA  # noqa: E402
 INTEL = DATA / "intel" / "intel.clf.gz"
 ACES = DATA / "aces" / "aces.clf.gz"
 DEG = math.pi / 180.0

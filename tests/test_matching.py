@@ -165,7 +165,7 @@ def test_pairing_with_the_exact_increment_pairs_each_point_with_its_image() -> N
     perm = np.array([4, 0, 6, 2, 5, 1, 3])  # scan k+1 lists its points in another order
     curr_xy = scan_k1(PREV_XY)[perm]
     prev, curr = fp(PREV_XY), fp(curr_xy, unc=np.linspace(0.5, 0.8, 7))
-    pairs = M.pair_features(prev, curr, INCREMENT, 0.5)
+    pairs = M.pair_features(prev, curr, INCREMENT, 0.5, same_kind_only=False, mutual=False)
     assert len(pairs) == len(PREV_XY)
     inv_perm = np.argsort(perm)
     np.testing.assert_array_equal(pairs.curr_index, inv_perm[pairs.prev_index])
@@ -182,15 +182,19 @@ def test_pairing_maps_with_the_inverse_increment() -> None:
     """With the increment's inverse as the prior (eq. 17 as printed) the points land 0.9 m off
     their images for this motion and nothing pairs at T = 0.5 m: the direction matters."""
     curr = fp(scan_k1(PREV_XY))
-    wrong = M.pair_features(fp(PREV_XY), curr, inverse(INCREMENT), 0.5)
-    right = M.pair_features(fp(PREV_XY), curr, INCREMENT, 0.5)
+    wrong = M.pair_features(
+        fp(PREV_XY), curr, inverse(INCREMENT), 0.5, same_kind_only=False, mutual=False
+    )
+    right = M.pair_features(fp(PREV_XY), curr, INCREMENT, 0.5, same_kind_only=False, mutual=False)
     assert len(right) == 7
     assert len(wrong) < 7
 
 
 def test_pairing_tolerates_an_odometry_error_below_t() -> None:
     noisy_prior = INCREMENT + np.array([0.08, -0.05, 0.02])
-    pairs = M.pair_features(fp(PREV_XY), fp(scan_k1(PREV_XY)), noisy_prior, 0.5)
+    pairs = M.pair_features(
+        fp(PREV_XY), fp(scan_k1(PREV_XY)), noisy_prior, 0.5, same_kind_only=False, mutual=False
+    )
     np.testing.assert_array_equal(pairs.prev_index, pairs.curr_index)
     assert len(pairs) == 7
 
@@ -201,21 +205,24 @@ def test_a_point_with_two_candidates_is_left_unpaired() -> None:
     curr_xy = scan_k1(PREV_XY)
     extra = curr_xy[2] + np.array([0.2, 0.1])  # within T = 0.5 of point 2's image
     curr = fp(np.vstack([curr_xy, extra]))
-    pairs = M.pair_features(fp(PREV_XY), curr, INCREMENT, 0.5)
+    pairs = M.pair_features(fp(PREV_XY), curr, INCREMENT, 0.5, same_kind_only=False, mutual=False)
     assert 2 not in pairs.prev_index.tolist()
     assert sorted(pairs.prev_index.tolist()) == [0, 1, 3, 4, 5, 6]
     np.testing.assert_array_equal(pairs.prev_index, pairs.curr_index)
     # beyond T the extra point is no candidate
     far = fp(np.vstack([curr_xy, curr_xy[2] + np.array([0.6, 0.0])]))
-    assert len(M.pair_features(fp(PREV_XY), far, INCREMENT, 0.5)) == 7
+    assert (
+        len(M.pair_features(fp(PREV_XY), far, INCREMENT, 0.5, same_kind_only=False, mutual=False))
+        == 7
+    )
 
 
 def test_pairing_distance_is_strict_and_uses_t() -> None:
     prev = fp([[2.0, 0.0]])
     curr = fp([[2.3, 0.0]])
     zero = np.zeros(3)
-    assert len(M.pair_features(prev, curr, zero, 0.31)) == 1
-    assert len(M.pair_features(prev, curr, zero, 0.29)) == 0
+    assert len(M.pair_features(prev, curr, zero, 0.31, same_kind_only=False, mutual=False)) == 1
+    assert len(M.pair_features(prev, curr, zero, 0.29, same_kind_only=False, mutual=False)) == 0
 
 
 def test_same_kind_only() -> None:
@@ -224,16 +231,19 @@ def test_same_kind_only() -> None:
     kinds_curr = [ANGULAR_POINT] * 7
     kinds_curr[1] = VIRTUAL_ANGULAR_POINT  # point 1 is seen as another kind in scan k+1
     prev, curr = fp(PREV_XY, kinds_prev), fp(curr_xy, kinds_curr)
-    mixed = M.pair_features(prev, curr, INCREMENT, 0.5, same_kind_only=False)
+    mixed = M.pair_features(prev, curr, INCREMENT, 0.5, same_kind_only=False, mutual=False)
     assert len(mixed) == 7
-    same = M.pair_features(prev, curr, INCREMENT, 0.5, same_kind_only=True)
+    same = M.pair_features(prev, curr, INCREMENT, 0.5, same_kind_only=True, mutual=False)
     assert sorted(same.prev_index.tolist()) == [0, 2, 3, 4, 5, 6]
     # an ambiguous second candidate of another kind does not count when kinds must agree
-    extra = fp(
-        np.vstack([curr_xy, curr_xy[2] + np.array([0.2, 0.0])]), kinds_prev + [BREAK_POINT]
+    extra = fp(np.vstack([curr_xy, curr_xy[2] + np.array([0.2, 0.0])]), kinds_prev + [BREAK_POINT])
+    assert (
+        2
+        not in M.pair_features(
+            prev, extra, INCREMENT, 0.5, same_kind_only=False, mutual=False
+        ).prev_index.tolist()
     )
-    assert 2 not in M.pair_features(prev, extra, INCREMENT, 0.5).prev_index.tolist()
-    kinds_agree = M.pair_features(prev, extra, INCREMENT, 0.5, same_kind_only=True)
+    kinds_agree = M.pair_features(prev, extra, INCREMENT, 0.5, same_kind_only=True, mutual=False)
     assert 2 in kinds_agree.prev_index.tolist()
 
 
@@ -244,10 +254,10 @@ def test_mutual() -> None:
     prev_xy = np.array([[3.0, 0.0], [3.0, 0.4], [-2.0, 2.0]])
     curr_xy = scan_k1(np.array([[3.0, 0.2], [-2.0, 2.0]]))
     prev, curr = fp(prev_xy), fp(curr_xy)
-    plain = M.pair_features(prev, curr, INCREMENT, 0.5, mutual=False)
+    plain = M.pair_features(prev, curr, INCREMENT, 0.5, mutual=False, same_kind_only=False)
     got = sorted(zip(plain.prev_index.tolist(), plain.curr_index.tolist()))
     assert got == [(0, 0), (1, 0), (2, 1)]
-    mutual = M.pair_features(prev, curr, INCREMENT, 0.5, mutual=True)
+    mutual = M.pair_features(prev, curr, INCREMENT, 0.5, mutual=True, same_kind_only=False)
     assert list(zip(mutual.prev_index.tolist(), mutual.curr_index.tolist())) == [(2, 1)]
 
 
@@ -255,7 +265,7 @@ def test_pairing_with_no_points() -> None:
     empty = FeaturePoints.empty()
     some = fp(PREV_XY)
     for a, b in ((empty, some), (some, empty), (empty, empty)):
-        pairs = M.pair_features(a, b, INCREMENT, 0.5)
+        pairs = M.pair_features(a, b, INCREMENT, 0.5, same_kind_only=False, mutual=False)
         assert len(pairs) == 0
         assert pairs.prev.shape == (0, 2) and pairs.curr.shape == (0, 2)
         assert pairs.uncertainty.shape == (0, 2)
@@ -365,8 +375,16 @@ def test_least_squares_matches_brute_force_on_noisy_pairs(seed: int) -> None:
 TRUE_INC = np.array([0.35, -0.12, 0.21])
 GOOD_CURR = np.array(
     [
-        [3.0, 0.0], [2.0, 2.5], [-1.0, 3.0], [-3.0, -1.0], [0.5, -2.5],
-        [4.0, 3.5], [1.5, 1.0], [-2.5, 2.0], [3.5, -2.0], [-0.5, -4.0],
+        [3.0, 0.0],
+        [2.0, 2.5],
+        [-1.0, 3.0],
+        [-3.0, -1.0],
+        [0.5, -2.5],
+        [4.0, 3.5],
+        [1.5, 1.0],
+        [-2.5, 2.0],
+        [3.5, -2.0],
+        [-0.5, -4.0],
     ]
 )
 
@@ -385,13 +403,13 @@ def _pairs_with_outliers() -> M.Pairs:
 def test_robust_fusion_rejects_gross_outliers(method: str) -> None:
     pairs = _pairs_with_outliers()
     cfg = FusionConfig(method=method, robust=True)
-    pose, n_used = M.estimate_increment(pairs, cfg, min_separation=0.3)
+    pose, n_used = M.estimate_increment(pairs, cfg, 0.3, 2)
     assert pose is not None
     np.testing.assert_allclose(pose[:2], TRUE_INC[:2], atol=1e-9)
     assert angle_diff(pose[2], TRUE_INC[2]) < 1e-9
     assert n_used == 10
     # without robustness the two outliers drag the estimate (the test can tell the difference)
-    plain, _ = M.estimate_increment(pairs, FusionConfig(method=method, robust=False), 0.3)
+    plain, _ = M.estimate_increment(pairs, FusionConfig(method=method, robust=False), 0.3, 2)
     assert plain is not None
     assert np.abs(plain[:2] - TRUE_INC[:2]).max() > 0.01
 
@@ -400,7 +418,7 @@ def test_robust_fusion_rejects_gross_outliers(method: str) -> None:
 def test_estimate_increment_exact_without_outliers(method: str) -> None:
     pairs = rigid_pairs(TRUE_INC, GOOD_CURR, np.random.default_rng(3).uniform(0, 0.8, (10, 2)))
     for robust in (True, False):
-        pose, n = M.estimate_increment(pairs, FusionConfig(method=method, robust=robust), 0.3)
+        pose, n = M.estimate_increment(pairs, FusionConfig(method=method, robust=robust), 0.3, 2)
         assert pose is not None and n == 10
         np.testing.assert_allclose(pose[:2], TRUE_INC[:2], atol=1e-9)
         assert angle_diff(pose[2], TRUE_INC[2]) < 1e-9
@@ -408,24 +426,26 @@ def test_estimate_increment_exact_without_outliers(method: str) -> None:
 
 def test_estimate_increment_without_enough_pairs() -> None:
     one = rigid_pairs(TRUE_INC, GOOD_CURR[:1])
-    assert M.estimate_increment(one, FusionConfig(), 0.3) == (None, 1)
+    assert M.estimate_increment(one, FusionConfig(), 0.3, 2) == (None, 1)
     none = rigid_pairs(TRUE_INC, GOOD_CURR[:0])
-    assert M.estimate_increment(none, FusionConfig(), 0.3)[0] is None
+    assert M.estimate_increment(none, FusionConfig(), 0.3, 2)[0] is None
     # two pairs whose primed points nearly coincide: no well-conditioned solution
     close = rigid_pairs(TRUE_INC, np.array([[1.0, 1.0], [1.0, 1.1]]))
-    assert M.estimate_increment(close, FusionConfig(), 0.3)[0] is None
+    assert M.estimate_increment(close, FusionConfig(), 0.3, 2)[0] is None
     # two well-separated pairs fix a pose (eq. 19–22) ...
     two = rigid_pairs(TRUE_INC, GOOD_CURR[:2])
     for method in ("least_squares", "weighted_mean"):
-        pose, n = M.estimate_increment(two, FusionConfig(method=method, robust=False), 0.3)
+        pose, n = M.estimate_increment(two, FusionConfig(method=method, robust=False), 0.3, 2)
         assert pose is not None and n == 2
         np.testing.assert_allclose(pose[:2], TRUE_INC[:2], atol=1e-9)
     # ... and robust fusion needs its minimum number of consistent pairs
     cfg = FusionConfig()
     k = max(2, getattr(cfg, "min_inliers", 2))
     few = rigid_pairs(TRUE_INC, GOOD_CURR[:k])
-    pose, n = M.estimate_increment(few, cfg, 0.3)
+    pose, n = M.estimate_increment(few, cfg, 0.3, 2)
     assert pose is not None and n == k
     np.testing.assert_allclose(pose[:2], TRUE_INC[:2], atol=1e-9)
     if k > 2:
-        assert M.estimate_increment(rigid_pairs(TRUE_INC, GOOD_CURR[: k - 1]), cfg, 0.3)[0] is None
+        assert (
+            M.estimate_increment(rigid_pairs(TRUE_INC, GOOD_CURR[: k - 1]), cfg, 0.3, 2)[0] is None
+        )

@@ -7,9 +7,10 @@ Every random draw comes from a fixed seed, so every number below is reproducible
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ import pytest
 from fuzzypos import sim
 from fuzzypos.config import Config
 from fuzzypos.geometry import Pose2D, compose, relative
-from fuzzypos.positioner import Estimate, Positioner
+from fuzzypos.pipeline import Estimate, Positioner, Reason
 from fuzzypos.scan import LaserScan
 
 WORLD = sim.furnished_room(0)
@@ -39,7 +40,8 @@ def config(name: str) -> Config:
 
 
 def pose_error(true: np.ndarray, est: np.ndarray) -> tuple[float, float]:
-    """(translational error in metres, |rotational error| in degrees) of ``est`` against ``true``."""
+    """(translational error in metres, |rotational error| in degrees) of ``est`` against
+    ``true``."""
     e = relative(np.asarray(true, float), np.asarray(est, float))
     return float(math.hypot(e[0], e[1])), abs(math.degrees(float(e[2])))
 
@@ -52,7 +54,7 @@ TRIAL_SEED = 20240601
 NOISE_SEED = 7
 
 
-@lru_cache(maxsize=None)
+@cache
 def motion_trials(noise: float) -> tuple[sim.MotionTrial, ...]:
     """``N_TRIALS`` random rigid motions (|t| <= 0.5 m, |θ| <= 20°) from random start poses in
     the free central area (|x| <= 1.5, |y| <= 1, any heading) of ``furnished_room(0)``.
@@ -75,9 +77,10 @@ class MotionErrors:
     degraded: np.ndarray
 
 
-@lru_cache(maxsize=None)
+@cache
 def motion_errors(config_name: str, noise: float) -> MotionErrors:
-    """Errors of the increment estimated from two scans, for every trial of :func:`motion_trials`."""
+    """Errors of the increment estimated from two scans, for every trial of
+    :func:`motion_trials`."""
     sc = scanner(noise)
     cfg = config(config_name)
     out = []
@@ -97,7 +100,8 @@ def motion_errors(config_name: str, noise: float) -> MotionErrors:
 
 def summary(e: MotionErrors) -> str:
     return (
-        f"trans mm: median {1e3 * np.median(e.trans):.3f} p90 {1e3 * np.percentile(e.trans, 90):.3f} "
+        f"trans mm: median {1e3 * np.median(e.trans):.3f} "
+        f"p90 {1e3 * np.percentile(e.trans, 90):.3f} "
         f"max {1e3 * e.trans.max():.3f}; rot deg: median {np.median(e.rot):.4f} "
         f"p90 {np.percentile(e.rot, 90):.4f} max {e.rot.max():.4f}"
     )
@@ -188,8 +192,12 @@ def test_default_beats_paper_preset(noise: float) -> None:
 # ---------------------------------------------------------------------------------------------
 # 2. a trajectory with drifting odometry
 # ---------------------------------------------------------------------------------------------
-def arc_poses(n: int = 60, start: tuple[float, float, float] = (-1.6, -1.2, 0.0),
-              step: float = 0.05, turn_deg: float = 1.0) -> list[np.ndarray]:
+def arc_poses(
+    n: int = 60,
+    start: tuple[float, float, float] = (-1.6, -1.2, 0.0),
+    step: float = 0.05,
+    turn_deg: float = 1.0,
+) -> list[np.ndarray]:
     """A gentle arc: ``step`` metres forward and ``turn_deg`` left per scan."""
     poses = [np.array(start, dtype=float)]
     for _ in range(n - 1):
@@ -197,17 +205,21 @@ def arc_poses(n: int = 60, start: tuple[float, float, float] = (-1.6, -1.2, 0.0)
     return poses
 
 
-def drifting_odometry(poses: list[np.ndarray], scale: float = 1.03, extra_turn_deg: float = 0.2) -> list[Pose2D]:
+def drifting_odometry(
+    poses: list[np.ndarray], scale: float = 1.03, extra_turn_deg: float = 0.2
+) -> list[Pose2D]:
     """Odometry from the first true pose whose every increment is the true one with its
     translation scaled by ``scale`` and ``extra_turn_deg`` more rotation."""
     odo = [poses[0]]
-    for a, b in zip(poses[:-1], poses[1:]):
+    for a, b in itertools.pairwise(poses):
         u = relative(a, b)
-        odo.append(compose(odo[-1], [scale * u[0], scale * u[1], u[2] + math.radians(extra_turn_deg)]))
+        odo.append(
+            compose(odo[-1], [scale * u[0], scale * u[1], u[2] + math.radians(extra_turn_deg)])
+        )
     return [Pose2D.from_array(o) for o in odo]
 
 
-@lru_cache(maxsize=None)
+@cache
 def arc_run(keep_features: bool) -> tuple[list[np.ndarray], list[Pose2D], list[Estimate]]:
     poses = arc_poses()
     scans = sim.simulate_scans(WORLD, poses, scanner(0.01), np.random.default_rng(11))
@@ -231,7 +243,7 @@ def test_trajectory_final_error_below_a_third_of_odometry() -> None:
 
 
 def test_trajectory_first_estimate_and_composition() -> None:
-    poses, odoms, ests = arc_run(False)
+    _, odoms, ests = arc_run(False)
     first = ests[0]
     assert first.pose == odoms[0]
     assert first.increment == Pose2D(0.0, 0.0, 0.0)
@@ -269,7 +281,9 @@ def test_update_returns_features() -> None:
 # ---------------------------------------------------------------------------------------------
 # 3. no odometry
 # ---------------------------------------------------------------------------------------------
-def straight_poses(n: int, step: float, start: tuple[float, float, float] = (-1.0, -0.5, 0.3)) -> list[np.ndarray]:
+def straight_poses(
+    n: int, step: float, start: tuple[float, float, float] = (-1.0, -0.5, 0.3)
+) -> list[np.ndarray]:
     return [compose(np.array(start), [k * step, 0.0, 0.0]) for k in range(n)]
 
 
@@ -285,7 +299,7 @@ def test_no_odometry_slow_straight_motion() -> None:
     ests = Positioner().run(scans)
     assert ests[0].pose == Pose2D(0.0, 0.0, 0.0)  # no odometry: the trajectory starts at the origin
     assert ests[1].prior == Pose2D(0.0, 0.0, 0.0)
-    for prev, e in zip(ests[1:], ests[2:]):
+    for prev, e in itertools.pairwise(ests[1:]):
         assert e.prior == prev.increment
     assert not any(e.degraded for e in ests)
     # compare in the frame of the first scan
@@ -294,16 +308,20 @@ def test_no_odometry_slow_straight_motion() -> None:
         assert t < NO_ODOM_MAX_TRANS and r < NO_ODOM_MAX_ROT, (t, r)
 
 
-
 # ---------------------------------------------------------------------------------------------
 # 4./5. bad input: degraded estimates that fall back to the prior
 # ---------------------------------------------------------------------------------------------
 def blank(ranges: np.ndarray | list[float], like: LaserScan | None = None) -> LaserScan:
     """A scan with the 180-beam scanner's metadata and the given ranges (any number of beams)."""
     sc = scanner()
-    return LaserScan(np.asarray(ranges, dtype=float), angle_min=sc.angle_min,
-                     angle_increment=sc.angle_increment, range_min=sc.range_min,
-                     range_max=sc.range_max, stamp=0.0 if like is None else like.stamp)
+    return LaserScan(
+        np.asarray(ranges, dtype=float),
+        angle_min=sc.angle_min,
+        angle_increment=sc.angle_increment,
+        range_min=sc.range_min,
+        range_max=sc.range_max,
+        stamp=0.0 if like is None else like.stamp,
+    )
 
 
 BAD_SCANS = {
@@ -396,7 +414,9 @@ def test_blind_scans_in_the_middle(with_odometry: bool, noise: float) -> None:
     assert not any(e.degraded for e in ests[:10])
     for k in range(10, 15):
         if with_odometry:
-            assert_fell_back(ests[k - 1], ests[k], relative(odoms[k - 1].as_array(), odoms[k].as_array()))
+            assert_fell_back(
+                ests[k - 1], ests[k], relative(odoms[k - 1].as_array(), odoms[k].as_array())
+            )
         else:
             assert_fell_back(ests[k - 1], ests[k], ests[k - 1].increment.as_array())
     assert not any(e.degraded for e in ests[16:])
@@ -446,3 +466,24 @@ def test_office_corridor_does_not_drift_along_the_corridor() -> None:
     assert not any(e.degraded for e in est)
     assert final < 0.2
     assert final < odo_final / 20
+
+
+def test_every_estimate_says_why_it_is_what_it_is() -> None:
+    """The first scan, standing still, a match and a fall-back each carry their reason (a
+    string enum, equal to its value)."""
+    room = sim.rectangular_room(8.0, 6.0)
+    scanner = sim.ScannerModel(
+        n_beams=360, field_of_view_deg=360.0, angle_min_deg=-180.0, range_max=20.0
+    )
+    poses = [Pose2D(0.0, 0.0, 0.0), Pose2D(0.0, 0.0, 0.0), Pose2D(0.1, 0.0, 0.0)]
+    scans = [sim.simulate_scan(room, p, scanner, stamp=0.1 * k) for k, p in enumerate(poses)]
+    empty = LaserScan(np.full(360, np.inf), -math.pi, math.radians(1.0), stamp=0.3)
+    est = Positioner().run([*scans, empty], [*poses, Pose2D(0.2, 0.0, 0.0)])
+    assert [e.reason for e in est] == [
+        Reason.FIRST_SCAN,
+        Reason.STANDING_STILL,
+        Reason.MATCHED,
+        Reason.TOO_FEW_FEATURES,
+    ]
+    assert est[3].degraded and not any(e.degraded for e in est[:3])
+    assert est[1].reason == "standing still" and str(est[2].reason) == "matched"

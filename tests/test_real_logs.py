@@ -7,26 +7,30 @@ from __future__ import annotations
 
 import itertools
 import math
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fuzzypos import Config, Positioner
+from fuzzypos import Config, Positioner, Reason
 from fuzzypos.evaluation import relations_errors
 from fuzzypos.geometry import relative
 from fuzzypos.io import BagReader, read_carmen, read_relations
+from helpers import DATA
 
-from shared_data import DATA  # noqa: E402
-INTEL, ACES, ACES_BAG = (DATA / "intel/intel.clf.gz", DATA / "aces/aces.clf.gz", DATA / "aces/aces.bag")
+INTEL, ACES, ACES_BAG = (
+    DATA / "intel/intel.clf.gz",
+    DATA / "aces/aces.clf.gz",
+    DATA / "aces/aces.bag",
+)
 pytestmark = pytest.mark.skipif(
     not all(p.exists() for p in (INTEL, ACES, ACES_BAG)),
     reason=f"the shared logs are not in {DATA} (see its README.md; CI has them)",
 )
 
 
-@lru_cache(maxsize=None)
+@cache
 def run(path: Path, start: int, stop: int, preset: str = "default"):
     """(stamps, odometry poses, estimated poses, estimates) of scans [start, stop) of a log."""
     recs = list(itertools.islice(read_carmen(path), start, stop))
@@ -50,7 +54,9 @@ def _subset(rel, keep):
     return Relations(rel.t1[keep], rel.t2[keep], rel.motion[keep])
 
 
-@pytest.mark.parametrize("path, start, stop", [(INTEL, 0, 2500), (ACES, 0, 2500)], ids=["intel", "aces"])
+@pytest.mark.parametrize(
+    "path, start, stop", [(INTEL, 0, 2500), (ACES, 0, 2500)], ids=["intel", "aces"]
+)
 def test_local_relations_beat_odometry(path: Path, start: int, stop: int) -> None:
     stamps, odo, est, _, _ = run(path, start, stop)
     rel = inside(path, stamps)
@@ -70,7 +76,7 @@ def test_aces_odometry_jump_is_rejected_and_the_turn_found() -> None:
     one before while the odometry says 22°; the odometry catches up a scan later with a jump of
     -60.6° in 0.16 s. The estimate finds the turn in the scans and rejects the jump, so from
     2,944 to 2,946 it turns as much as the odometry does in all (-82.8°), within a few degrees."""
-    stamps, odo, est, estimates, pos = run(ACES, 2900, 3000)
+    _, odo, est, estimates, pos = run(ACES, 2900, 3000)
     assert pos.odometry_jumps == 1
     assert estimates[46].odometry_rejected  # scan 2,946
     turn_est = math.degrees(relative(est[44], est[46])[2])
@@ -81,11 +87,11 @@ def test_aces_odometry_jump_is_rejected_and_the_turn_found() -> None:
 
 
 def test_aces_standing_still_does_not_drift() -> None:
-    stamps, odo, est, estimates, _ = run(ACES, 0, 2500)
+    _, odo, est, estimates, _ = run(ACES, 0, 2500)
     same = np.all(odo[1:] == odo[:-1], axis=1)
     assert same.sum() > 500
     assert np.all(est[1:][same] == est[:-1][same])
-    assert all(estimates[k + 1].reason == "standing still" for k in np.nonzero(same)[0])
+    assert all(estimates[k + 1].reason is Reason.STANDING_STILL for k in np.nonzero(same)[0])
 
 
 def test_the_bag_and_the_carmen_copy_of_aces_agree() -> None:
@@ -93,10 +99,14 @@ def test_the_bag_and_the_carmen_copy_of_aces_agree() -> None:
     odometry is the ODOM stream interpolated at the scan stamps. Over 1,000 scans the two
     estimates' motions between scans 2 s apart agree to centimetres and a fraction of a degree."""
     n = 1000
-    stamps, _, est_clf, _, _ = run(ACES, 0, n)
+    _, _, est_clf, _, _ = run(ACES, 0, n)
     pos = Positioner()
-    est_bag = np.array([pos.update(r.scan, r.odometry).pose.as_array()
-                        for r in itertools.islice(BagReader(ACES_BAG).records(), n)])
+    est_bag = np.array(
+        [
+            pos.update(r.scan, r.odometry).pose.as_array()
+            for r in itertools.islice(BagReader(ACES_BAG).records(), n)
+        ]
+    )
     step = 12  # about 2 s
     d_clf = relative(est_clf[:-step], est_clf[step:])
     d_bag = relative(est_bag[:-step], est_bag[step:])

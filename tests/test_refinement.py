@@ -5,6 +5,7 @@ known."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,33 +17,48 @@ from fuzzypos.config import Config
 from fuzzypos.features import extract_features
 from fuzzypos.geometry import Pose2D, compose, relative, transform_points
 from fuzzypos.matching import refine_point_to_line, surface_points
-from fuzzypos.positioner import Positioner
+from fuzzypos.pipeline import Positioner, Reason
+from fuzzypos.pipeline.prior import OdometryPrior
 
 CFG = Config()
 R = CFG.refinement
 
 
 def scanner(noise: float = 0.0) -> sim.ScannerModel:
-    return sim.ScannerModel(n_beams=360, field_of_view_deg=360.0, angle_min_deg=-180.0,
-                            range_max=20.0, range_noise_std=noise)
+    return sim.ScannerModel(
+        n_beams=360,
+        field_of_view_deg=360.0,
+        angle_min_deg=-180.0,
+        range_max=20.0,
+        range_noise_std=noise,
+    )
 
 
-def refine(ref_scan, scan, start, prior, **kw):
+def refine(ref_scan, scan, start, prior, max_distance=0.5, **kw):
+    """The refinement of ``scan`` against ``ref_scan`` from ``start`` (held to ``prior``),
+    with the default refinement settings but for ``kw`` (30 iterations, pairing down to
+    0.3 m unless given)."""
     fr, fc = extract_features(ref_scan, CFG), extract_features(scan, CFG)
-    surf = surface_points(fr.points, fr.ranges, fr.uncertainty, R.neighbour_distance,
-                          R.neighbour_step, R.neighbour_ratio)
-    args = dict(max_distance=0.5, min_distance=0.3, iterations=30, residual_scale=R.residual_scale,
-                prior_sigma=R.prior_sigma, prior_sigma_angle=R.prior_sigma_angle)
-    args.update(kw)
-    return refine_point_to_line(surf, fc.points, np.ones(len(fc.points)), np.asarray(start),
-                                np.asarray(prior), **args)
+    surf = surface_points(fr.points, fr.ranges, fr.uncertainty, R)
+    settings = replace(R, **{"min_distance": 0.3, "iterations": 30, **kw})
+    return refine_point_to_line(
+        surf,
+        fc.points,
+        np.ones(len(fc.points)),
+        np.asarray(start),
+        np.asarray(prior),
+        np.asarray(start),
+        settings,
+        max_distance=max_distance,
+        prior_scale=1.0,
+    )
 
 
 def test_surface_normals_are_the_walls_normals() -> None:
     room = sim.rectangular_room(8.0, 6.0)
     scan = sim.simulate_scan(room, Pose2D(0.5, -0.3, 0.2), scanner())
     f = extract_features(scan, CFG)
-    s = surface_points(f.points, f.ranges, f.uncertainty, 0.3, 2, 0.05)
+    s = surface_points(f.points, f.ranges, f.uncertainty, R)
     assert len(s) > 300
     # in the robot frame the walls' normals are at -0.2 + k·90°: |n · wall direction| ~ 0
     ang = np.arctan2(s.normal[:, 1], s.normal[:, 0]) + 0.2
@@ -54,8 +70,12 @@ def test_surface_normals_are_the_walls_normals() -> None:
 
 @settings(max_examples=25, deadline=None)
 @given(
-    dx=st.floats(-0.3, 0.3), dy=st.floats(-0.3, 0.3), dth=st.floats(-0.15, 0.15),
-    ex=st.floats(-0.1, 0.1), ey=st.floats(-0.1, 0.1), eth=st.floats(-0.05, 0.05),
+    dx=st.floats(-0.3, 0.3),
+    dy=st.floats(-0.3, 0.3),
+    dth=st.floats(-0.15, 0.15),
+    ex=st.floats(-0.1, 0.1),
+    ey=st.floats(-0.1, 0.1),
+    eth=st.floats(-0.05, 0.05),
 )
 def test_recovers_a_known_motion_from_a_wrong_start(dx, dy, dth, ex, ey, eth) -> None:
     world = sim.furnished_room(seed=1)
@@ -109,7 +129,9 @@ def room_run(poses, odom, noise=0.0, stamps=None, config=None):
     pos = Positioner(config or Config())
     out = []
     for k, (p, o) in enumerate(zip(poses, odom)):
-        scan = sim.simulate_scan(world, p, scanner(noise), rng, stamp=0.2 * k if stamps is None else stamps[k])
+        scan = sim.simulate_scan(
+            world, p, scanner(noise), rng, stamp=0.2 * k if stamps is None else stamps[k]
+        )
         out.append(pos.update(scan, o))
     return pos, out
 
@@ -125,8 +147,12 @@ def test_an_odometry_jump_is_rejected_and_the_motion_found() -> None:
     final = relative(truth[-1].as_array(), est[-1].pose.as_array())
     assert math.hypot(final[0], final[1]) < 0.02 and abs(final[2]) < math.radians(0.5), est[-1]
     # without the check and without the wider search the estimate follows the jump
-    trusting = Config().with_overrides({"odometry": {
-        "max_jump_angle": math.pi, "max_jump_distance": 5.0, "search_angle": math.radians(1.0)}})
+    trusting = Config().with_overrides(
+        {
+            "odometry": {"max_jump_angle": math.pi, "max_jump_distance": 5.0},
+            "search": {"angle": math.radians(1.0)},
+        }
+    )
     pos2, est2 = room_run(truth, odom, noise=0.005, config=trusting)
     assert pos2.odometry_jumps == 0
     bad = relative(truth[-1].as_array(), est2[-1].pose.as_array())
@@ -134,22 +160,23 @@ def test_an_odometry_jump_is_rejected_and_the_motion_found() -> None:
 
 
 def test_plausible_fast_motion_is_not_a_jump() -> None:
-    pos = Positioner()
+    prior = OdometryPrior(CFG.odometry)
     # 0.3 m and 25° in 0.5 s: 0.6 m/s and 0.87 rad/s
-    assert not pos._is_jump(np.array([0.3, 0.0, math.radians(25.0)]), 0.5)
-    assert pos._is_jump(np.array([0.38, 0.0, math.radians(-60.6)]), 0.16)
-    assert pos._is_jump(np.array([2.0, 0.0, 0.0]), 0.5)  # 4 m/s
+    assert not prior.is_jump(np.array([0.3, 0.0, math.radians(25.0)]), 0.5)
+    assert prior.is_jump(np.array([0.38, 0.0, math.radians(-60.6)]), 0.16)
+    assert prior.is_jump(np.array([2.0, 0.0, 0.0]), 0.5)  # 4 m/s
 
 
 def test_standing_still_does_not_drift() -> None:
     still = [Pose2D(0.3, -0.2, 0.4)] * 40
-    pos, est = room_run(still, still, noise=0.02)
+    _, est = room_run(still, still, noise=0.02)
     poses = np.array([e.pose.as_array() for e in est])
     assert np.ptp(poses, axis=0).max() == 0.0
-    assert all(e.reason == "standing still" for e in est[1:])
+    assert est[0].reason is Reason.FIRST_SCAN
+    assert all(e.reason is Reason.STANDING_STILL for e in est[1:])
     # the same noisy scans without trusting the stand-still jitter
     cfg = Config().with_overrides({"odometry": {"trust_stand_still": False}})
-    pos2, est2 = room_run(still, still, noise=0.02, config=cfg)
+    _, est2 = room_run(still, still, noise=0.02, config=cfg)
     poses2 = np.array([e.pose.as_array() for e in est2])
     assert np.ptp(poses2[:, :2], axis=0).max() < 0.03  # small (2 cm noise), but not zero
     assert np.ptp(poses2, axis=0).max() > 0.0
@@ -168,25 +195,39 @@ def test_refinement_beats_features_alone_with_noise() -> None:
     assert errs["refined"] <= errs["features"] + 0.005, errs
 
 
-@pytest.mark.parametrize("key, value", [
-    ("iterations", 0), ("min_points", 2), ("min_inlier_fraction", 1.5), ("residual_scale", 0.0),
-    ("neighbour_step", 0), ("min_distance", 9.0), ("length_weight_max", 0.5),
-    ("length_weight_max", float("nan")), ("length_cap", 0.0),
-])
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("iterations", 0),
+        ("min_points", 2),
+        ("min_inlier_fraction", 1.5),
+        ("residual_scale", 0.0),
+        ("neighbour_step", 0),
+        ("min_distance", 9.0),
+        ("length_weight_max", 0.5),
+        ("length_weight_max", float("nan")),
+        ("length_cap", 0.0),
+    ],
+)
 def test_refinement_config_is_validated(key, value) -> None:
     from fuzzypos.config import ConfigError
+
     with pytest.raises(ConfigError, match=key):
         Config().with_overrides({"refinement": {key: value}})
 
 
-@pytest.mark.parametrize("key, value", [
-    ("search_distance_penalty", -0.1),
-    ("search_distance_penalty", float("inf")),
-])
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("distance_penalty", -0.1),
+        ("distance_penalty", float("inf")),
+    ],
+)
 def test_search_config_is_validated(key, value) -> None:
     from fuzzypos.config import ConfigError
+
     with pytest.raises(ConfigError, match=key):
-        Config().with_overrides({"odometry": {key: value}})
+        Config().with_overrides({"search": {key: value}})
 
 
 def test_search_start_finds_a_large_rotation() -> None:
@@ -195,11 +236,21 @@ def test_search_start_finds_a_large_rotation() -> None:
     world = sim.furnished_room(seed=1)
     a, b = Pose2D(0.0, 0.0, 0.0), Pose2D(0.05, 0.0, math.radians(-40.0))
     fa, fb = (extract_features(sim.simulate_scan(world, p, scanner()), CFG) for p in (a, b))
-    surf = surface_points(fa.points, fa.ranges, fa.uncertainty, 0.3, 2, 0.05)
-    start, score = search_start(surf, fb.points, np.zeros(3), math.radians(60.0), math.radians(1.0), 0.3)
+    surf = surface_points(fa.points, fa.ranges, fa.uncertainty, R)
+    search = replace(CFG.search, angle_step=math.radians(1.0), gate=0.3, distance_penalty=0.0)
+    start, score = search_start(
+        surf,
+        fb.points,
+        np.zeros(3),
+        search,
+        half_width=math.radians(60.0),
+        translation_half_width=0.0,
+    )
     assert abs(math.degrees(start[2]) + 40.0) <= 2.0 and score > 0.8, (start, score)
     # the prior's own rotation scores far worse
-    _, at_prior = search_start(surf, fb.points, np.zeros(3), 0.0, math.radians(1.0), 0.3)
+    _, at_prior = search_start(
+        surf, fb.points, np.zeros(3), search, half_width=0.0, translation_half_width=0.0
+    )
     assert at_prior < score - 0.3
 
 
@@ -213,28 +264,42 @@ def test_search_start_scores_the_fraction_of_points_that_land(penalty, x, y, sta
     from fuzzypos.matching import search_start
 
     fa, fb = SEARCH_SCANS
-    surf = surface_points(fa.points, fa.ranges, fa.uncertainty, 0.3, 2, 0.05)
+    surf = surface_points(fa.points, fa.ranges, fa.uncertainty, R)
     start = np.array([x * 0.1, y * 0.1, math.radians(start_deg)])
-    args = (surf, fb.points, start, math.pi, math.radians(3.0), 0.25, 0.2, 0.2)
-    found, score = search_start(*args, distance_penalty=penalty)
+    search = replace(
+        CFG.search, angle_step=math.radians(3.0), gate=0.25, translation_step=0.2, max_points=60
+    )
+
+    def run(distance_penalty: float):
+        return search_start(
+            surf,
+            fb.points,
+            start,
+            replace(search, distance_penalty=distance_penalty),
+            half_width=math.pi,
+            translation_half_width=0.2,
+        )
+
+    found, score = run(penalty)
     steps = (found - start) / np.array([0.2, 0.2, math.radians(3.0)])
     np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
     assert np.all(np.abs(found[:2] - start[:2]) <= 0.2 + 1e-9)
     pts = fb.points[:: max(1, fb.points.shape[0] // 60)]
     dist, _ = surf.tree.query(transform_points(found, pts), distance_upper_bound=0.25)
     assert score == pytest.approx(float(np.isfinite(dist).mean()), abs=1e-12)
-    free, _ = search_start(*args)
+    free, _ = run(0.0)
     assert np.hypot(*(found[:2] - start[:2])) <= np.hypot(*(free[:2] - start[:2])) + 1e-9
-
 
 
 def test_a_local_map_of_keyframes_tracks_a_known_arc() -> None:
     truth = sim.arc_path(Pose2D(-1.0, -0.5, 0.2), 40, 0.06, 2.0)
     odom = sim.drifting_odometry(truth, scale=1.03, rotation_bias_deg=0.3)
     for k in (1, 3):
-        cfg = Config().with_overrides({"refinement": {"local_map_keyframes": k}, "matching": {"keyframe_distance": 0.5}})
+        cfg = Config().with_overrides(
+            {"refinement": {"local_map_keyframes": k}, "matching": {"keyframe_distance": 0.5}}
+        )
         pos, est = room_run(truth, odom, noise=0.01, config=cfg)
-        assert len(pos._recent) == min(k, len(pos._recent)) <= k
+        assert 1 <= pos.local_map.keyframes <= k
         d = relative(truth[-1].as_array(), est[-1].pose.as_array())
         assert math.hypot(d[0], d[1]) < 0.03 and abs(d[2]) < math.radians(0.5), (k, d)
 
@@ -246,7 +311,9 @@ def test_a_turn_during_a_gap_is_found_by_the_wide_search() -> None:
     stamps = [0.0, 0.2, 3.2]
     _, est = room_run(truth, odom, noise=0.005, stamps=stamps)
     d = relative(truth[-1].as_array(), est[-1].pose.as_array())
-    assert not est[-1].degraded and abs(math.degrees(d[2])) < 0.5 and math.hypot(d[0], d[1]) < 0.02, d
+    assert (
+        not est[-1].degraded and abs(math.degrees(d[2])) < 0.5 and math.hypot(d[0], d[1]) < 0.02
+    ), d
     # without the gap the failure search stays within 30° of the odometry and cannot find it
     _, est2 = room_run(truth, odom, noise=0.005, stamps=[0.0, 0.2, 0.4])
     d2 = relative(truth[-1].as_array(), est2[-1].pose.as_array())
@@ -268,16 +335,16 @@ def test_a_failed_match_keeps_the_odometry_translation_along_a_ribbed_corridor(m
     the match from it fails and the narrower search runs. Along a corridor whose ribs repeat
     every 0.2 m the search finds the rotation, and the odometry's translation keeps the scan
     from sliding one rib along (aces, scan 2,738: 0.3 m backwards along a corridor)."""
-    import fuzzypos.positioner as positioner_module
+    import fuzzypos.pipeline.search as search_module
 
     calls: list[float] = []
-    real = positioner_module.search_start
+    real = search_module.search_start
 
     def spy(*args, **kwargs):
-        calls.append(args[3])  # the half-width of the rotations searched
+        calls.append(kwargs["half_width"])  # the half-width of the rotations searched
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(positioner_module, "search_start", spy)
+    monkeypatch.setattr(search_module, "search_start", spy)
     world = ribbed_corridor()
     truth = sim.arc_path(Pose2D(-1.0, 0.0, 0.0), 10, 0.05, 0.0)
     error = np.array([0.0, 0.0, math.radians(25.0)])
@@ -286,17 +353,19 @@ def test_a_failed_match_keeps_the_odometry_translation_along_a_ribbed_corridor(m
     def run(config: Config) -> tuple[Positioner, list]:
         rng = np.random.default_rng(1)
         pos = Positioner(config)
-        return pos, [pos.update(sim.simulate_scan(world, p, scanner(0.005), rng, stamp=0.2 * k), o)
-                     for k, (p, o) in enumerate(zip(truth, odom))]
+        return pos, [
+            pos.update(sim.simulate_scan(world, p, scanner(0.005), rng, stamp=0.2 * k), o)
+            for k, (p, o) in enumerate(zip(truth, odom))
+        ]
 
     pos, est = run(Config())
     assert pos.odometry_jumps == 0
-    assert any(abs(w - CFG.odometry.failure_search_angle) < 1e-9 for w in calls), calls
+    assert any(abs(w - CFG.search.failure_angle) < 1e-9 for w in calls), calls
     for t, e in zip(truth, est):
         d = relative(t.as_array(), e.pose.as_array())
         assert math.hypot(d[0], d[1]) < 0.03 and abs(d[2]) < math.radians(1.0), (t, e.pose)
     # without the search's pull toward the start the scan slides a rib along
-    _, slid = run(Config().with_overrides({"odometry": {"search_distance_penalty": 0.0}}))
+    _, slid = run(Config().with_overrides({"search": {"distance_penalty": 0.0}}))
     d = relative(truth[6].as_array(), slid[6].pose.as_array())
     assert math.hypot(d[0], d[1]) > 0.1, slid[6].pose
 
@@ -344,7 +413,9 @@ def test_surface_lengths_of_a_wall_seen_square_on_and_at_grazing_incidence() -> 
     chords = np.diff(pts[:, 1])
     np.testing.assert_allclose(length[1:-1], np.minimum(chords[:-1], chords[1:]), rtol=1e-12)
     assert length[60] == pytest.approx(2.0 * math.tan(inc), rel=1e-9)
-    assert length[0] / length[60] == pytest.approx(1.0 / math.cos(math.radians(59.5)) ** 2, rel=0.05)
+    assert length[0] / length[60] == pytest.approx(
+        1.0 / math.cos(math.radians(59.5)) ** 2, rel=0.05
+    )
     capped = surface_lengths(pts, ranges, inc, cap=1.5)
     np.testing.assert_allclose(capped, np.minimum(length, 1.5 * ranges * inc))
     # a point alone stands for one beam spacing; two points for their distance
@@ -354,8 +425,13 @@ def test_surface_lengths_of_a_wall_seen_square_on_and_at_grazing_incidence() -> 
 
 
 @settings(max_examples=50, deadline=None)
-@given(st.integers(1, 40), st.floats(-math.pi, math.pi), st.floats(-5.0, 5.0), st.floats(-5.0, 5.0),
-       st.integers(0, 2**31 - 1))
+@given(
+    st.integers(1, 40),
+    st.floats(-math.pi, math.pi),
+    st.floats(-5.0, 5.0),
+    st.floats(-5.0, 5.0),
+    st.integers(0, 2**31 - 1),
+)
 def test_surface_lengths_are_bounded_and_do_not_depend_on_the_frame(n, th, tx, ty, seed) -> None:
     from fuzzypos.matching import surface_lengths
 

@@ -11,8 +11,7 @@ import pytest
 
 from fuzzypos.io import LogFormatError
 from fuzzypos.io.relations import Relations, RelationsFormatError, read_relations
-
-from shared_data import DATA  # noqa: E402
+from helpers import DATA
 
 GOOD = """\
 # t1 t2 x y z roll pitch yaw

@@ -1,4 +1,6 @@
-"""fuzzypos.results: the run job and its results folder, scoring files, the benchmark."""
+"""The run job and its results folder (fuzzypos.run), scoring trajectory files
+(fuzzypos.scoring), provenance (fuzzypos.provenance), the benchmark (fuzzypos.benchmark), and
+the fuzzypos.results compatibility names."""
 
 from __future__ import annotations
 
@@ -6,39 +8,22 @@ import hashlib
 import json
 import math
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
-from test_logs import write_sim_log
 
-from fuzzypos import results as results_mod
+from fuzzypos.benchmark import BENCHMARK_CONFIGS, find_benchmark_logs, run_benchmark
 from fuzzypos.config import Config
-from fuzzypos.geometry import Pose2D, relative
+from fuzzypos.geometry import Pose2D
 from fuzzypos.io import CarmenReader, LogRecord, read_tum
 from fuzzypos.logs import open_log
-from fuzzypos.results import (
-    evaluate_trajectory,
-    file_sha256,
-    find_benchmark_logs,
-    git_hash,
-    log_name,
-    run_benchmark,
-    run_log,
-    write_estimate_clf,
-)
+from fuzzypos.provenance import file_sha256, git_hash
+from fuzzypos.run import log_name, run_log, write_estimate_clf
 from fuzzypos.scan import LaserScan
+from fuzzypos.scoring import evaluate_trajectory
+from helpers import write_relations, write_sim_log
 
 FILES = {"trajectory.tum", "trajectory.clf", "config.toml", "path.png", "summary.json"}
-
-
-def write_relations(path: Path, stamps: np.ndarray, poses: np.ndarray, pairs) -> None:
-    """A relations file: the motion of ``poses`` between each pair of scan indices."""
-    lines = []
-    for i, j in pairs:
-        x, y, th = (float(v) for v in relative(poses[i], poses[j]))
-        lines.append(f"{float(stamps[i])!r} {float(stamps[j])!r} {x!r} {y!r} 0 0 0 {th!r}")
-    path.write_text("\n".join(lines) + "\n")
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +41,7 @@ def test_run_log_writes_every_file_and_they_parse(sim_log, tmp_path):
     out = tmp_path / "res"
     extra = tmp_path / "copy.tum"
     res = run_log(open_log(path), cfg, results_dir=out, out_tum=extra, preset="paper")
-    assert FILES <= {p.name for p in out.iterdir()}
+    assert {p.name for p in out.iterdir()} >= FILES
     assert not list(out.glob(".*tmp"))
     n = len(run)
     assert res.scans == n and res.poses.shape == (n, 3)
@@ -72,9 +57,21 @@ def test_run_log_writes_every_file_and_they_parse(sim_log, tmp_path):
 
     # summary.json
     s = json.loads((out / "summary.json").read_text())
-    for key in ("fuzzypos_version", "git_hash", "input", "scans", "scans_degraded",
-                "odometry_jumps_rejected", "seconds", "scans_per_second", "config",
-                "bad_lines_skipped", "truth_errors", "positioner_ms_per_scan", "notes"):
+    for key in (
+        "fuzzypos_version",
+        "git_hash",
+        "input",
+        "scans",
+        "scans_degraded",
+        "odometry_jumps_rejected",
+        "seconds",
+        "scans_per_second",
+        "config",
+        "bad_lines_skipped",
+        "truth_errors",
+        "positioner_ms_per_scan",
+        "notes",
+    ):
         assert key in s, key
     assert s["scans"] == n and s["config"]["preset"] == "paper"
     assert s["input"]["kind"] == "carmen"
@@ -95,10 +92,13 @@ def test_run_log_writes_every_file_and_they_parse(sim_log, tmp_path):
         np.testing.assert_allclose(
             rec.scan.ranges[rec.scan.valid], run.scans[k].ranges[run.scans[k].valid], atol=6e-5
         )
-    flaser = [ln.split() for ln in (out / "trajectory.clf").read_text().splitlines()
-              if ln.startswith("FLASER")]
+    flaser = [
+        ln.split()
+        for ln in (out / "trajectory.clf").read_text().splitlines()
+        if ln.startswith("FLASER")
+    ]
     nb = int(flaser[0][1])
-    xyz = np.array([[float(v) for v in f[2 + nb:5 + nb]] for f in flaser])
+    xyz = np.array([[float(v) for v in f[2 + nb : 5 + nb]] for f in flaser])
     np.testing.assert_array_equal(xyz, res.poses)
 
 
@@ -106,7 +106,7 @@ def test_run_log_with_a_stretch(sim_log, tmp_path):
     path, run = sim_log
     res = run_log(path, Config(), results_dir=tmp_path / "a", start=1.0, max_scans=5, plot=False)
     first = next(k for k, t in enumerate(run.stamps) if t - run.stamps[0] >= 1.0)
-    assert res.scans == 5 and res.stamps.tolist() == list(run.stamps[first:first + 5])
+    assert res.scans == 5 and res.stamps.tolist() == list(run.stamps[first : first + 5])
     assert "path.png" not in res.files
     s = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert s["selection"] == {"start_s": 1.0, "end_s": None, "max_scans": 5}
@@ -160,8 +160,9 @@ def test_write_estimate_clf_keeps_a_span_geometry_and_an_odd_mount(tmp_path):
     for k in range(4):
         r = np.full(n, 2.0 + 0.1 * k)
         r[3], r[4] = np.nan, 50.0
-        scan = LaserScan(r, -math.pi / 2, inc, range_max=50.0, stamp=1.0 + 0.001 * k,
-                         sensor_pose=mount)
+        scan = LaserScan(
+            r, -math.pi / 2, inc, range_max=50.0, stamp=1.0 + 0.001 * k, sensor_pose=mount
+        )
         recs.append((scan, Pose2D(k, 0.0, 0.0), None if k == 2 else Pose2D(0, k, 0), None))
     p = tmp_path / "e.clf"
     assert write_estimate_clf(p, recs) == 4
@@ -264,7 +265,9 @@ def test_run_benchmark_on_a_simulated_log(sim_log, tmp_path):
     out = tmp_path / "bench"
     res = run_benchmark(tmp_path / "data", out, plot=False)
     assert [(r["log"], r["config"]) for r in res.rows] == [
-        ("sim.clf", "odometry"), ("sim.clf", "paper"), ("sim.clf", "default")
+        ("sim.clf", "odometry"),
+        ("sim.clf", "paper"),
+        ("sim.clf", "default"),
     ]
     for r in res.rows:
         assert "error" not in r and r["all_matched"] == len(st) - 2
@@ -292,4 +295,30 @@ def test_a_benchmark_stretch_with_no_relation_is_not_scored(sim_log, tmp_path):
 
 def test_records_keep_their_type():
     assert LogRecord._fields == ("scan", "odometry", "truth")
-    assert results_mod.BENCHMARK_CONFIGS == ("odometry", "paper", "default")
+    assert BENCHMARK_CONFIGS == ("odometry", "paper", "default")
+
+
+# -- fuzzypos.results: the names it had before the split (the README names them) ----------------
+def test_the_results_compatibility_names_are_the_new_modules_objects():
+    import fuzzypos.results as results_mod
+    from fuzzypos import benchmark, provenance, scoring
+    from fuzzypos import run as run_mod
+
+    home = {
+        "BENCHMARK_CONFIGS": benchmark,
+        "BenchmarkResult": benchmark,
+        "find_benchmark_logs": benchmark,
+        "run_benchmark": benchmark,
+        "Evaluation": scoring,
+        "evaluate_trajectory": scoring,
+        "file_sha256": provenance,
+        "git_hash": provenance,
+        "RunSummary": run_mod,
+        "default_results_dir": run_mod,
+        "log_name": run_mod,
+        "run_log": run_mod,
+        "write_estimate_clf": run_mod,
+    }
+    assert sorted(results_mod.__all__) == sorted(home)
+    for name, module in home.items():
+        assert getattr(results_mod, name) is getattr(module, name), name

@@ -13,8 +13,10 @@ from hypothesis import strategies as st
 from fuzzypos.geometry import Pose2D
 from fuzzypos.scan import LaserScan, ScanError
 
+ONE_DEGREE = math.radians(1.0)
 
-def make(ranges, angle_min=-math.pi / 2, angle_increment=math.radians(1.0), **kw):
+
+def make(ranges, angle_min=-math.pi / 2, angle_increment=ONE_DEGREE, **kw):
     return LaserScan(ranges, angle_min, angle_increment, **kw)
 
 
@@ -22,8 +24,14 @@ def make(ranges, angle_min=-math.pi / 2, angle_increment=math.radians(1.0), **kw
 def test_fields_order_defaults_and_storage():
     src = [1, 2, 3]
     s = LaserScan(src, 0.0, 0.1)
-    assert [f for f in LaserScan.__dataclass_fields__] == [
-        "ranges", "angle_min", "angle_increment", "range_min", "range_max", "stamp", "sensor_pose",
+    assert list(LaserScan.__dataclass_fields__) == [
+        "ranges",
+        "angle_min",
+        "angle_increment",
+        "range_min",
+        "range_max",
+        "stamp",
+        "sensor_pose",
     ]
     assert s.ranges.dtype == np.float64
     assert s.ranges.shape == (3,)
@@ -139,7 +147,9 @@ def test_default_sensor_pose_robot_equals_sensor():
 
 
 @given(
-    st.floats(-5, 5), st.floats(-5, 5), st.floats(-math.pi, math.pi),
+    st.floats(-5, 5),
+    st.floats(-5, 5),
+    st.floats(-math.pi, math.pi),
     st.lists(st.floats(0.1, 30.0), min_size=1, max_size=50),
 )
 def test_sensor_pose_preserves_distances_to_sensor(x, y, th, ranges):
@@ -243,8 +253,17 @@ def test_full_circle_360_beams_of_one_degree():
 
 @pytest.mark.parametrize(
     "n, inc_deg, full",
-    [(180, 1.0, False), (181, 1.0, False), (359, 1.0, False), (360, 1.0, True), (361, 1.0, True),
-     (1080, 0.25, False), (1440, 0.25, True), (720, 0.5, True), (541, 0.5, False)],
+    [
+        (180, 1.0, False),
+        (181, 1.0, False),
+        (359, 1.0, False),
+        (360, 1.0, True),
+        (361, 1.0, True),
+        (1080, 0.25, False),
+        (1440, 0.25, True),
+        (720, 0.5, True),
+        (541, 0.5, False),
+    ],
 )
 def test_full_circle_detection(n, inc_deg, full):
     s = LaserScan(np.ones(n), 0.0, math.radians(inc_deg))
@@ -254,8 +273,15 @@ def test_full_circle_detection(n, inc_deg, full):
 
 # -- with_ranges / from_angles --------------------------------------------------------------------
 def test_with_ranges():
-    s = LaserScan([1.0, 2.0, 3.0], 0.1, 0.2, range_min=0.5, range_max=4.0, stamp=7.5,
-                  sensor_pose=Pose2D(1.0, 0.0, 0.0))
+    s = LaserScan(
+        [1.0, 2.0, 3.0],
+        0.1,
+        0.2,
+        range_min=0.5,
+        range_max=4.0,
+        stamp=7.5,
+        sensor_pose=Pose2D(1.0, 0.0, 0.0),
+    )
     t = s.with_ranges([3.0, 0.2, 4.0])
     assert t is not s
     np.testing.assert_array_equal(t.ranges, [3.0, 0.2, 4.0])

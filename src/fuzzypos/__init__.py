@@ -1,12 +1,11 @@
 """fuzzypos: fuzzy-based positioning of a mobile robot from 2D laser scans and odometry."""
 
+from ._version import __version__
 from .config import Config, ConfigError
 from .features import Features, extract_features
 from .geometry import Pose2D
-from .positioner import Estimate, Positioner
+from .pipeline import Estimate, Positioner, Reason
 from .scan import LaserScan, ScanError
-
-__version__ = "0.1.0"
 
 __all__ = [
     "Config",
@@ -16,6 +15,7 @@ __all__ = [
     "LaserScan",
     "Pose2D",
     "Positioner",
+    "Reason",
     "ScanError",
     "extract_features",
     "__version__",

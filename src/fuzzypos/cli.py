@@ -20,7 +20,7 @@ from rich.progress import Progress, TaskID
 from rich.table import Table
 from rich.text import Text
 
-from . import __version__
+from ._version import __version__
 from .config import Config, ConfigError
 
 if TYPE_CHECKING:
@@ -40,35 +40,43 @@ def _fail(message: str) -> NoReturn:
 
 
 def _load_config(preset: str, config: Path | None) -> Config:
+    """``--preset``, overridden by ``--config``, loaded as ``Config.from_toml`` loads a file.
+
+    A ``preset = "..."`` line in the file picks the base unless ``--preset`` names another
+    than the default (then the two must agree). Keys of older files are read with a warning.
+    """
     try:
         base = Config.preset(preset)
         if config is None:
             return base
-        return Config.from_dict(_read_toml(config), base=base, source=str(config))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", FutureWarning)
+            data = _read_toml(config)
+            cfg = Config.from_dict(
+                data, base=None if preset == "default" else base, source=str(config)
+            )
+        for w in caught:
+            if issubclass(w.category, FutureWarning):
+                typer.echo(f"fuzzypos: warning: {w.message}", err=True)
+            else:  # pragma: no cover - nothing else warns while loading
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        return cfg
     except ConfigError as exc:
         _fail(str(exc))
 
 
 def _read_toml(path: Path) -> dict:
-    import sys
+    """The parsed file, as ``Config.from_toml`` reads it (errors name the file)."""
+    from ._config_schema import read_toml
 
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read config: {exc.strerror or exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: invalid TOML: {exc}") from None
+    return read_toml(path)
 
 
 @app.command()
 def demo(
-    out: Annotated[
-        Path, typer.Option(help="folder for the figures and summary.json")
-    ] = Path("demo-output"),
+    out: Annotated[Path, typer.Option(help="folder for the figures and summary.json")] = Path(
+        "demo-output"
+    ),
     seed: Annotated[int, typer.Option(help="random seed of the simulation")] = 0,
     laps: Annotated[float, typer.Option(help="laps of the 4 m circle")] = 2.0,
 ) -> None:
@@ -107,8 +115,11 @@ def demo(
     for name in ("odometry", "paper", "default"):
         e = result.errors[name]
         table.add_row(
-            name, f"{e.final_position_error_m:.3f}", f"{e.mean_position_error_m:.3f}",
-            f"{e.max_position_error_m:.3f}", f"{e.mean_heading_error_deg:.2f}",
+            name,
+            f"{e.final_position_error_m:.3f}",
+            f"{e.mean_position_error_m:.3f}",
+            f"{e.max_position_error_m:.3f}",
+            f"{e.mean_heading_error_deg:.2f}",
             str(e.scans_degraded),
         )
     console.print(table)
@@ -120,9 +131,7 @@ def simulate(
     out: Annotated[
         Path, typer.Option("--out", "-o", help="the CARMEN log to write (.gz: gzipped)")
     ],
-    tum: Annotated[
-        Path | None, typer.Option(help="also write the true trajectory as TUM")
-    ] = None,
+    tum: Annotated[Path | None, typer.Option(help="also write the true trajectory as TUM")] = None,
     world: Annotated[
         str,
         typer.Option(help="gym, office, furnished_room, rectangular_room, or a world file"),
@@ -170,7 +179,8 @@ def simulate(
             for k, scan in enumerate(run.scans)
         )
         n = write_carmen(
-            out, records,
+            out,
+            records,
             header_comment=f"fuzzypos simulate: {commanded.name} in {w.name}, seed {seed}",
         )
         if tum is not None:
@@ -195,8 +205,9 @@ def config(
     """Print a configuration as TOML (or why each value is what it is)."""
     cfg = _load_config(preset, config_file)
     if reasons:
-        for key, why in Config.reasons().items():
-            typer.echo(f"{key}: {why}")
+        for key, spec in Config.schema().items():
+            what = spec.describe()
+            typer.echo(f"{key}{f' [{what}]' if what else ''}: {spec.reason}")
         return
     typer.echo(cfg.to_toml())
 
@@ -267,9 +278,15 @@ def _open(
     try:
         offset = None if laser_offset is None else parse_laser_offset(laser_offset)
         return open_log(
-            log, scan_topic=scan_topic, odom_topic=odom_topic, laser_offset=offset,
-            skip_bad_lines=skip_bad_lines, odometry=odometry, field_of_view_deg=fov,
-            max_range=max_range, convention=convention,
+            log,
+            scan_topic=scan_topic,
+            odom_topic=odom_topic,
+            laser_offset=offset,
+            skip_bad_lines=skip_bad_lines,
+            odometry=odometry,
+            field_of_view_deg=fov,
+            max_range=max_range,
+            convention=convention,
         )
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
@@ -347,8 +364,14 @@ def info(
     """
     from .logs import describe_log
 
-    opened = _open(log, scan_topic=scan_topic, odom_topic=odom_topic,
-                   skip_bad_lines=skip_bad_lines, fov=fov, convention=convention)
+    opened = _open(
+        log,
+        scan_topic=scan_topic,
+        odom_topic=odom_topic,
+        skip_bad_lines=skip_bad_lines,
+        fov=fov,
+        convention=convention,
+    )
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -416,13 +439,17 @@ def run(
     config_file: Annotated[Path | None, _CONFIG_FILE] = None,
     start: Annotated[
         float | None,
-        typer.Option(help="begin at the first scan (in file order) at least this many seconds "
-                     "after the first scan's stamp"),
+        typer.Option(
+            help="begin at the first scan (in file order) at least this many seconds "
+            "after the first scan's stamp"
+        ),
     ] = None,
     end: Annotated[
         float | None,
-        typer.Option(help="stop before the first scan (in file order, after the start) more "
-                     "than this many seconds after the first scan's stamp"),
+        typer.Option(
+            help="stop before the first scan (in file order, after the start) more "
+            "than this many seconds after the first scan's stamp"
+        ),
     ] = None,
     max_scans: Annotated[
         int | None, typer.Option("--max-scans", help="run at most this many scans")
@@ -444,12 +471,20 @@ def run(
     (versions, input hash, scans, degraded scans, odometry jumps, speed, errors against the
     log's truth where it has some). Prints the scan rate and where the results are.
     """
-    from .results import default_results_dir, run_log
+    from .run import default_results_dir, run_log
 
     cfg = _load_config(preset, config_file)
-    opened = _open(log, scan_topic=scan_topic, odom_topic=odom_topic, laser_offset=laser_offset,
-                   skip_bad_lines=skip_bad_lines, odometry=odometry, fov=fov,
-                   max_range=max_range, convention=convention)
+    opened = _open(
+        log,
+        scan_topic=scan_topic,
+        odom_topic=odom_topic,
+        laser_offset=laser_offset,
+        skip_bad_lines=skip_bad_lines,
+        odometry=odometry,
+        fov=fov,
+        max_range=max_range,
+        convention=convention,
+    )
     folder = results if results is not None else default_results_dir(log)
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -461,8 +496,15 @@ def run(
                     progress.update(task, completed=done, total=total)
 
                 summary = run_log(
-                    opened, cfg, results_dir=folder, out_tum=out, progress=report,
-                    start=start, end=end, max_scans=max_scans, preset=preset,
+                    opened,
+                    cfg,
+                    results_dir=folder,
+                    out_tum=out,
+                    progress=report,
+                    start=start,
+                    end=end,
+                    max_scans=max_scans,
+                    preset=preset,
                     config_file=config_file,
                 )
     except (ValueError, OSError) as exc:
@@ -494,9 +536,7 @@ def evaluate(
         Path | None,
         typer.Option(help="a relations file (t1 t2 x y z roll pitch yaw per line) of the log"),
     ] = None,
-    reference: Annotated[
-        Path | None, typer.Option(help="a reference trajectory (TUM)")
-    ] = None,
+    reference: Annotated[Path | None, typer.Option(help="a reference trajectory (TUM)")] = None,
     json_out: Annotated[bool, _JSON] = False,
 ) -> None:
     """Score a trajectory against relations and/or a reference trajectory.
@@ -506,7 +546,7 @@ def evaluate(
     many matched. --reference: the ATE (RMSE after SE(2) alignment) and the RPE over 1 frame
     and over 1 m. Give one of them or both.
     """
-    from .results import evaluate_trajectory
+    from .scoring import evaluate_trajectory
 
     if relations is None and reference is None:
         _fail("evaluate needs --relations FILE and/or --reference REF.tum")
@@ -566,7 +606,7 @@ def benchmark(
     the runs' results folders under --out. On the full shared logs this takes minutes
     (intel has 13,631 scans); --max-scans runs a stretch.
     """
-    from .results import run_benchmark
+    from .benchmark import run_benchmark
 
     if max_scans is not None and max_scans < 1:
         _fail(f"--max-scans must be at least 1, got {max_scans}")
@@ -590,8 +630,18 @@ def benchmark(
         return
     title = "relations metric" + (f" (first {max_scans} scans of each log)" if max_scans else "")
     table = Table(title=title)
-    for col in ("log", "config", "all trans m", "all rot °", "local trans m / median",
-                "local rot °", "matched all/local", "scans/s", "degraded", "jumps"):
+    for col in (
+        "log",
+        "config",
+        "all trans m",
+        "all rot °",
+        "local trans m / median",
+        "local rot °",
+        "matched all/local",
+        "scans/s",
+        "degraded",
+        "jumps",
+    ):
         left = col in ("log", "config")
         table.add_column(col, justify="left" if left else "right", no_wrap=left)
     problems: list[str] = []
@@ -605,7 +655,8 @@ def benchmark(
         sps = r.get("scans_per_second")
         med = r.get("local_trans_median_m")
         table.add_row(
-            r["log"], r["config"],
+            r["log"],
+            r["config"],
             _pm(r.get("all_trans_mean_m"), r.get("all_trans_std_m"), ".3f"),
             _pm(r.get("all_rot_mean_deg"), r.get("all_rot_std_deg"), ".2f"),
             _pm(r.get("local_trans_mean_m"), r.get("local_trans_std_m"), ".3f")

@@ -10,16 +10,16 @@ the figures of the paper are written: the stages of feature extraction on the 25
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from .config import Config
 from .evaluation import TrajectoryErrors, position_errors, trajectory_errors
 from .features import extract_features
-from .positioner import Positioner
+from .pipeline import Positioner
 from .sim import CommandedPath, ScannerModel, SimulatedRun, SlipModel, gym, simulate_run
 
 __all__ = ["DemoSettings", "DemoResult", "simulate_gym_circle", "run_demo", "FEATURE_SCAN_INDEX"]
@@ -41,8 +41,11 @@ class DemoSettings:
     speed: float = 0.3
     seed: int = 0
     slip: SlipModel = field(default_factory=SlipModel)
-    scanner: ScannerModel = field(default_factory=lambda: ScannerModel.sick_lms200(
-        range_max=30.0, range_noise_per_metre=0.001))
+    scanner: ScannerModel = field(
+        default_factory=lambda: ScannerModel.sick_lms200(
+            range_max=30.0, range_noise_per_metre=0.001
+        )
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,7 +66,9 @@ def simulate_gym_circle(settings: DemoSettings = DemoSettings()) -> SimulatedRun
     return simulate_run(gym(), path, settings.scanner, settings.slip, settings.seed)
 
 
-def _estimate(run: SimulatedRun, config: Config, name: str, progress: Progress | None) -> tuple[np.ndarray, int]:
+def _estimate(
+    run: SimulatedRun, config: Config, name: str, progress: Progress | None
+) -> tuple[np.ndarray, int]:
     pos = Positioner(config)
     poses = np.empty((len(run), 3))
     degraded = 0
@@ -106,14 +111,20 @@ def run_demo(
         files[f"fig{number}"] = path
     files["fig19"] = out / "fig19_paths.png"
     plot.plot_paths(
-        truth, odometry, estimates, path=files["fig19"], world=run.world,
+        truth,
+        odometry,
+        estimates,
+        path=files["fig19"],
+        world=run.world,
         title="Fig. 19 — true path, odometry and fuzzy-based positioning",
     )
     curves = {"odometry": position_errors(truth, odometry)[0]}
     curves.update({name: position_errors(truth, estimates[name])[0] for name in PRESETS})
     files["fig20"] = out / "fig20_position_error.png"
     plot.plot_errors_vs_distance(
-        distance, curves, path=files["fig20"],
+        distance,
+        curves,
+        path=files["fig20"],
         title="Fig. 20 — position error against distance travelled",
     )
     summary: dict[str, object] = {
@@ -126,13 +137,23 @@ def run_demo(
             "world": run.world.name,
             "path": run.path.name,
             "seed": settings.seed,
-            "slip": {k: getattr(settings.slip, k) for k in ("radial_gain", "longitudinal", "angular",
-                                                              "translation_noise", "rotation_noise")},
-            "scanner": {"beams": settings.scanner.n_beams, "range_max_m": settings.scanner.range_max,
-                        "rate_hz": settings.scanner.rate_hz},
+            "slip": {
+                k: getattr(settings.slip, k)
+                for k in (
+                    "radial_gain",
+                    "longitudinal",
+                    "angular",
+                    "translation_noise",
+                    "rotation_noise",
+                )
+            },
+            "scanner": {
+                "beams": settings.scanner.n_beams,
+                "range_max_m": settings.scanner.range_max,
+                "rate_hz": settings.scanner.rate_hz,
+            },
         },
     }
     files["summary"] = out / "summary.json"
     files["summary"].write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return DemoResult(run, estimates, degraded, errors, summary, files)
-

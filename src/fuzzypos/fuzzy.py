@@ -13,8 +13,9 @@ Everything is vectorised over the inputs: one call grades every point of a scan.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -56,20 +57,30 @@ def _slopes(sets: ArrayLike) -> FloatArray:
     fall_w = np.where(right > peak, right - peak, np.where(peak >= hi, 1.0, 1e-12))
     left_eff = np.where(peak > left, left, peak - rise_w)
     right_eff = np.where(right > peak, right, peak + fall_w)
-    return np.stack([left_eff, 1.0 / rise_w, right_eff, 1.0 / fall_w, np.full_like(peak, lo), np.full_like(peak, hi)])
+    return np.stack(
+        [
+            left_eff,
+            1.0 / rise_w,
+            right_eff,
+            1.0 / fall_w,
+            np.full_like(peak, lo),
+            np.full_like(peak, hi),
+        ]
+    )
 
 
 def _partition_peaks(sets: FloatArray) -> FloatArray | None:
     """The peaks of triangles that form a partition of unity (each foot at the neighbouring
     peak, shoulders at the ends), else None."""
     s = np.asarray(sets, dtype=float)
-    peaks = s[:, 1]
+    peaks: FloatArray = s[:, 1]
     if len(peaks) < 2 or np.any(np.diff(peaks) <= 0):
         return None
     left = np.concatenate([[peaks[0]], peaks[:-1]])
     right = np.concatenate([peaks[1:], [peaks[-1]]])
     if np.array_equal(s[:, 0], left) and np.array_equal(s[:, 2], right):
-        return peaks.copy()
+        out: FloatArray = peaks.copy()
+        return out
     return None
 
 
@@ -77,7 +88,10 @@ def _memberships(x: FloatArray, slopes: FloatArray | tuple[FloatArray, ...]) -> 
     left, inv_rise, right, inv_fall, lo, hi = slopes
     # np.minimum/np.maximum rather than np.clip: the same result at a fraction of the overhead
     v = np.minimum(np.maximum(x, lo[0]), hi[0])[:, None]
-    return np.maximum(np.minimum(np.minimum((v - left) * inv_rise, (right - v) * inv_fall), 1.0), 0.0)
+    mu: FloatArray = np.maximum(
+        np.minimum(np.minimum((v - left) * inv_rise, (right - v) * inv_fall), 1.0), 0.0
+    )
+    return mu
 
 
 def triangular_memberships(x: ArrayLike, sets: ArrayLike) -> FloatArray:
@@ -106,6 +120,17 @@ class RuleBase:
     mode: str = "product"
     resolution: int = 1001
 
+    if TYPE_CHECKING:
+        # Derived in __post_init__ (object.__setattr__ on the frozen instance). Declared for
+        # the type checker only: at run time they are plain attributes, not dataclass fields.
+        _slopes: tuple[tuple[FloatArray, ...], ...] = field(init=False, repr=False)
+        _centres: FloatArray = field(init=False, repr=False)
+        _centre_lo: float = field(init=False, repr=False)
+        _centre_hi: float = field(init=False, repr=False)
+        _grids: tuple[FloatArray, FloatArray] | None = field(init=False, repr=False)
+        _columns: tuple[FloatArray, ...] = field(init=False, repr=False)
+        _units: tuple[FloatArray, ...] = field(init=False, repr=False)
+
     def __post_init__(self) -> None:
         shape = tuple(len(s) for s in self.input_sets)
         if self.consequents.shape != shape:
@@ -126,7 +151,9 @@ class RuleBase:
         fast = self.mode == "product" and len(grids) == 2 and all(g is not None for g in grids)
         object.__setattr__(self, "_grids", tuple(grids) if fast else None)
         table = self.output_centres[self.consequents]
-        object.__setattr__(self, "_columns", tuple(table[:, j].copy() for j in range(table.shape[1])))
+        object.__setattr__(
+            self, "_columns", tuple(table[:, j].copy() for j in range(table.shape[1]))
+        )
         object.__setattr__(self, "_units", tuple(np.eye(table.shape[1])))
 
     @property
@@ -140,8 +167,10 @@ class RuleBase:
         arrays = [np.asarray(x, dtype=float).ravel() for x in inputs]
         n = arrays[0].shape[0]
         if any(a.shape[0] != n for a in arrays):
-            raise FuzzyError(f"{self.name}: inputs have different lengths {[a.shape[0] for a in arrays]}")
-        slopes = self._slopes  # type: ignore[attr-defined]
+            raise FuzzyError(
+                f"{self.name}: inputs have different lengths {[a.shape[0] for a in arrays]}"
+            )
+        slopes = self._slopes
         w = _memberships(arrays[0], slopes[0])
         for a, sl in zip(arrays[1:], slopes[1:]):
             mu = _memberships(a, sl)
@@ -153,17 +182,17 @@ class RuleBase:
 
     def __call__(self, *inputs: ArrayLike) -> FloatArray:
         """The crisp output for each input tuple, shape ``(n,)``."""
-        if self._grids is not None:  # type: ignore[attr-defined]
+        if self._grids is not None:
             return self._interpolate(inputs)
         w = self.firing_strengths(*inputs)
         cons = self.consequents.reshape(-1)
         if self.mode == "product":
             # eq. 4: Σ ȳ_l w_l / Σ w_l (centre-average defuzzifier)
-            num = w @ self._centres  # type: ignore[attr-defined]
+            num = w @ self._centres
             den = w.sum(axis=1)
             out = num / np.where(den > 0, den, np.inf)  # no rule fires: 0
             # a weighted average lies between the centres; rounding can overshoot by an ulp
-            return np.minimum(np.maximum(out, self._centre_lo), self._centre_hi)  # type: ignore[attr-defined]
+            return np.minimum(np.maximum(out, self._centre_lo), self._centre_hi)
         return self._mamdani(w, cons)
 
     def _interpolate(self, inputs: tuple[ArrayLike, ...]) -> FloatArray:
@@ -176,14 +205,17 @@ class RuleBase:
         x1 = np.asarray(inputs[0], dtype=float).ravel()
         x2 = np.asarray(inputs[1], dtype=float).ravel()
         if x1.shape != x2.shape:
-            raise FuzzyError(f"{self.name}: inputs have different lengths {[x1.shape[0], x2.shape[0]]}")
-        g1, g2 = self._grids  # type: ignore[attr-defined]
+            raise FuzzyError(
+                f"{self.name}: inputs have different lengths {[x1.shape[0], x2.shape[0]]}"
+            )
+        assert self._grids is not None  # only called on the fast path set up in __post_init__
+        g1, g2 = self._grids
         if x1.shape[0] == 0:
             return np.zeros(0)
         out = np.zeros(x1.shape[0])
-        for col, unit in zip(self._columns, self._units):  # type: ignore[attr-defined]
+        for col, unit in zip(self._columns, self._units):
             out += np.interp(x1, g1, col) * np.interp(x2, g2, unit)
-        return np.minimum(np.maximum(out, self._centre_lo), self._centre_hi)  # type: ignore[attr-defined]
+        return np.minimum(np.maximum(out, self._centre_lo), self._centre_hi)
 
     def _mamdani(self, w: FloatArray, cons: NDArray[np.int64]) -> FloatArray:
         n_out = len(self.output_sets)
@@ -205,7 +237,8 @@ def _centroid(x: FloatArray, mu: FloatArray) -> FloatArray:
     moment = area * x[:-1] + dx * dx * (y1 + 2.0 * y2) / 6.0
     a = area.sum(axis=1)
     m = moment.sum(axis=1)
-    return np.divide(m, a, out=np.zeros_like(m), where=a > 0)
+    c: FloatArray = np.divide(m, a, out=np.zeros_like(m), where=a > 0)
+    return c
 
 
 def _table(rows: Sequence[str]) -> NDArray[np.int64]:
@@ -242,7 +275,9 @@ def line_rule_base(cfg: FuzzyConfig) -> RuleBase:
     )
 
 
-def compose_virtual_rules(pair_rules: Sequence[str], distance_rules: Sequence[str]) -> NDArray[np.int64]:
+def compose_virtual_rules(
+    pair_rules: Sequence[str], distance_rules: Sequence[str]
+) -> NDArray[np.int64]:
     """Table 3's two tables as one flat 3 × 3 × 5 table (f_L1, f_L2, d_v) → S/M/B: 45 rules.
 
     The upper table maps (f_L1, f_L2) to an intermediate label; the lower maps (that label,
@@ -283,5 +318,5 @@ class RuleBases:
     virtual_points: RuleBase
 
     @classmethod
-    def from_config(cls, cfg: FuzzyConfig) -> "RuleBases":
+    def from_config(cls, cfg: FuzzyConfig) -> RuleBases:
         return cls(point_rule_base(cfg), line_rule_base(cfg), virtual_point_rule_base(cfg))

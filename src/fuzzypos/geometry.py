@@ -11,8 +11,8 @@ Conventions (SPEC): ``a ⊕ b`` composes, ``⊖a`` inverts; the odometry increme
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -62,7 +62,9 @@ def _wrap_scalar(a: float) -> float:
 def _as_poses(p: ArrayLike) -> FloatArray:
     arr = np.asarray(p, dtype=float)
     if arr.shape[-1:] != (3,):
-        raise ValueError(f"poses must have a last axis of length 3 (x, y, theta), got shape {arr.shape}")
+        raise ValueError(
+            f"poses must have a last axis of length 3 (x, y, theta), got shape {arr.shape}"
+        )
     return arr
 
 
@@ -86,14 +88,16 @@ def compose(a: ArrayLike, b: ArrayLike) -> FloatArray:
     b = _as_poses(b)
     if a.ndim == 1 and b.ndim == 1:  # one pose each: scalar arithmetic, far fewer calls
         c, s = math.cos(a[2]), math.sin(a[2])
-        return np.array([
-            a[0] + c * b[0] - s * b[1],
-            a[1] + s * b[0] + c * b[1],
-            _wrap_scalar(float(a[2] + b[2])),
-        ])
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
-    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
-    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+        return np.array(
+            [
+                a[0] + c * b[0] - s * b[1],
+                a[1] + s * b[0] + c * b[1],
+                _wrap_scalar(float(a[2] + b[2])),
+            ]
+        )
+    ca, sa = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = a[..., 0] + ca * b[..., 0] - sa * b[..., 1]
+    y = a[..., 1] + sa * b[..., 0] + ca * b[..., 1]
     th = wrap_angle(a[..., 2] + b[..., 2])
     return np.stack(np.broadcast_arrays(x, y, th), axis=-1)
 
@@ -104,9 +108,9 @@ def inverse(a: ArrayLike) -> FloatArray:
     if a.ndim == 1:
         c, s = math.cos(a[2]), math.sin(a[2])
         return np.array([-(c * a[0] + s * a[1]), s * a[0] - c * a[1], _wrap_scalar(-float(a[2]))])
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
-    x = -(c * a[..., 0] + s * a[..., 1])
-    y = s * a[..., 0] - c * a[..., 1]
+    ca, sa = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = -(ca * a[..., 0] + sa * a[..., 1])
+    y = sa * a[..., 0] - ca * a[..., 1]
     return np.stack([x, y, wrap_angle(-a[..., 2])], axis=-1)
 
 
@@ -130,10 +134,10 @@ def transform_points(pose: ArrayLike, points: ArrayLike) -> FloatArray:
         out[:, 0] = pose[0] + c * pts[:, 0] - s * pts[:, 1]
         out[:, 1] = pose[1] + s * pts[:, 0] + c * pts[:, 1]
         return out
-    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    ca, sa = np.cos(pose[..., 2]), np.sin(pose[..., 2])
     tx, ty = pose[..., 0], pose[..., 1]
-    x = tx + c * pts[..., 0] - s * pts[..., 1]
-    y = ty + s * pts[..., 0] + c * pts[..., 1]
+    x = tx + ca * pts[..., 0] - sa * pts[..., 1]
+    y = ty + sa * pts[..., 0] + ca * pts[..., 1]
     return np.stack([x, y], axis=-1)
 
 
@@ -170,7 +174,7 @@ class Pose2D:
             object.__setattr__(self, "theta", float(wrap_angle(self.theta)))
 
     @classmethod
-    def _trusted(cls, x: float, y: float, theta: float) -> "Pose2D":
+    def _trusted(cls, x: float, y: float, theta: float) -> Pose2D:
         """Build from finite floats with ``theta`` already wrapped (no checks: internal use)."""
         p = object.__new__(cls)
         object.__setattr__(p, "x", x)
@@ -179,14 +183,14 @@ class Pose2D:
         return p
 
     @classmethod
-    def from_array(cls, arr: ArrayLike) -> "Pose2D":
+    def from_array(cls, arr: ArrayLike) -> Pose2D:
         a = np.asarray(arr, dtype=float).reshape(-1)
         if a.shape != (3,):
             raise ValueError(f"a pose array needs 3 values (x, y, theta), got {a.shape[0]}")
         return cls(float(a[0]), float(a[1]), float(a[2]))
 
     @classmethod
-    def identity(cls) -> "Pose2D":
+    def identity(cls) -> Pose2D:
         return cls(0.0, 0.0, 0.0)
 
     def as_array(self) -> FloatArray:
@@ -195,18 +199,18 @@ class Pose2D:
     def __iter__(self) -> Iterator[float]:
         return iter((self.x, self.y, self.theta))
 
-    def compose(self, other: "Pose2D") -> "Pose2D":
+    def compose(self, other: Pose2D) -> Pose2D:
         """``self ⊕ other``."""
         return Pose2D.from_array(compose(self.as_array(), other.as_array()))
 
-    def __matmul__(self, other: "Pose2D") -> "Pose2D":
+    def __matmul__(self, other: Pose2D) -> Pose2D:
         return self.compose(other)
 
-    def inverse(self) -> "Pose2D":
+    def inverse(self) -> Pose2D:
         """``⊖self``."""
         return Pose2D.from_array(inverse(self.as_array()))
 
-    def relative_to(self, other: "Pose2D") -> "Pose2D":
+    def relative_to(self, other: Pose2D) -> Pose2D:
         """``⊖other ⊕ self``: this pose in the frame of ``other``."""
         return Pose2D.from_array(relative(other.as_array(), self.as_array()))
 

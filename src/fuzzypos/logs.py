@@ -3,14 +3,14 @@
 - :func:`open_log` tells a log's kind by its *content*, never by its name, and returns an
   :class:`OpenLog` whose :meth:`~OpenLog.records` streams :class:`~fuzzypos.io.LogRecord`:
 
-  ======================================================  ===========  ==========================
-  what the path is                                        ``kind``     read with
-  ======================================================  ===========  ==========================
-  a directory holding ``metadata.yaml``                   ``"ros2"``   :class:`~fuzzypos.io.BagReader`
-  a file starting with ``#ROSBAG V2.0``                   ``"ros1"``   :class:`~fuzzypos.io.BagReader`
-  a file starting with the gzip magic bytes, or text      ``"carmen"`` :class:`~fuzzypos.io.CarmenReader`
-  anything else (binary, a directory without metadata)    —            :class:`UnknownLogError`
-  ======================================================  ===========  ==========================
+  ================================================  ============  ==================================
+  what the path is                                  ``kind``      read with
+  ================================================  ============  ==================================
+  a directory holding ``metadata.yaml``             ``"ros2"``    :class:`~fuzzypos.io.BagReader`
+  a file starting with ``#ROSBAG V2.0``             ``"ros1"``    :class:`~fuzzypos.io.BagReader`
+  a gzip file (by its magic bytes), or text         ``"carmen"``  :class:`~fuzzypos.io.CarmenReader`
+  anything else (binary data, other directories)    —             :class:`UnknownLogError`
+  ================================================  ============  ==================================
 
   "Text" means: the first 8 KiB (decompressed, for gzip) hold no NUL byte and decode as UTF-8
   (a multi-byte character cut at the end of the 8 KiB is allowed). An empty file is text (a
@@ -89,7 +89,9 @@ def _is_text(head: bytes, complete: bool) -> bool:
         head.decode("utf-8")
     except UnicodeDecodeError as exc:
         # a multi-byte character cut by the end of the sniffed block is still text
-        return not complete and exc.start >= len(head) - 3 and exc.reason == "unexpected end of data"
+        return (
+            not complete and exc.start >= len(head) - 3 and exc.reason == "unexpected end of data"
+        )
     return True
 
 
@@ -427,9 +429,7 @@ class LogInfo:
         return d
 
 
-def describe_log(
-    log: OpenLog, progress: Callable[[int], None] | None = None
-) -> LogInfo:
+def describe_log(log: OpenLog, progress: Callable[[int], None] | None = None) -> LogInfo:
     """Read ``log`` once (streaming) and summarise it; ``progress(scans_so_far)`` is called
     every 100 scans."""
     info = LogInfo(path=log.name, kind=log.kind)
@@ -473,6 +473,6 @@ def describe_log(
     info.bad_lines = log.bad_lines
     info.truncated = log.truncated
     info.notes = list(log.notes)
-    if log.kind != "carmen":  # the bag reader's notes may grow while reading
+    if isinstance(log.reader, BagReader):  # the bag reader's notes may grow while reading
         info.notes = list(dict.fromkeys([*log.notes, *log.reader.notes]))
     return info

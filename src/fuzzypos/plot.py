@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from matplotlib import colormaps
@@ -109,10 +109,7 @@ def _xy(a: ArrayLike | None, what: str) -> FloatArray | None:
 
 def _draw_robot(ax: Axes, points: FloatArray) -> None:
     """The robot at the origin of its frame, an arrow along +x for its heading."""
-    if points.shape[0]:
-        span = float(np.ptp(points, axis=0).max())
-    else:
-        span = 4.0
+    span = float(np.ptp(points, axis=0).max()) if points.shape[0] else 4.0
     length = max(0.06 * span, 0.25)
     ax.arrow(
         0.0,
@@ -153,6 +150,12 @@ def _points_background(ax: Axes, pts: FloatArray, label: str = "kept points") ->
 def _segments(start: FloatArray, end: FloatArray) -> FloatArray:
     """(k, 2, 2) segments for a LineCollection."""
     return np.stack([start, end], axis=1) if start.shape[0] else np.zeros((0, 2, 2))
+
+
+def _as_segments(segments: FloatArray) -> Sequence[ArrayLike]:
+    """A ``(k, 2, 2)`` array as LineCollection's segments: it takes the array as it is, but
+    matplotlib's type hints only admit a sequence."""
+    return cast("Sequence[ArrayLike]", segments)
 
 
 def _title(default: str, title: str | None) -> str:
@@ -267,7 +270,7 @@ def plot_angular_points(
         moved = np.hypot(*(ang.xy - sampled).T) > 1e-9 if sampled.shape[0] else np.zeros(0, bool)
         ax.add_collection(
             LineCollection(
-                _segments(sampled[moved], ang.xy[moved]),
+                _as_segments(_segments(sampled[moved], ang.xy[moved])),
                 colors="black",
                 linewidths=0.8,
                 zorder=4,
@@ -360,7 +363,7 @@ def _line_collection(
 ) -> LineCollection:
     lines = features.lines
     lc = LineCollection(
-        _segments(lines.start, lines.end),
+        _as_segments(_segments(lines.start, lines.end)),
         cmap=UNCERTAINTY_CMAP,
         norm=Normalize(*_UNC_NORM),
         linewidths=linewidth,
@@ -415,7 +418,12 @@ def plot_virtual_points(
         ext = np.zeros((0, 2, 2))
     ax.add_collection(
         LineCollection(
-            ext, colors="0.35", linestyles=":", linewidths=0.9, zorder=2, gid="virtual_extensions"
+            _as_segments(ext),
+            colors="0.35",
+            linestyles=":",
+            linewidths=0.9,
+            zorder=2,
+            gid="virtual_extensions",
         )
     )
     size = 20.0 + 100.0 * (1.0 - np.clip(vp.uncertainty, 0.0, 1.0))
@@ -489,7 +497,13 @@ def _draw_world(ax: Axes, world: Any) -> None:
         return
     segs = np.asarray(world.segments, dtype=float).reshape(-1, 4)
     ax.add_collection(
-        LineCollection(segs.reshape(-1, 2, 2), colors="0.6", linewidths=0.7, zorder=1, gid="world")
+        LineCollection(
+            _as_segments(segs.reshape(-1, 2, 2)),
+            colors="0.6",
+            linewidths=0.7,
+            zorder=1,
+            gid="world",
+        )
     )
 
 
@@ -596,7 +610,8 @@ def error_crossings(distance: ArrayLike, error: ArrayLike, reference: ArrayLike)
     frac = dj / (dj - dk)  # dj and dk have opposite signs: no division by zero
     interp = d[j] + frac * (d[k] - d[j])
     first_zero = d[np.minimum(j + 1, d.size - 1)]
-    return np.where(adjacent, interp, first_zero)
+    crossings: FloatArray = np.where(adjacent, interp, first_zero)
+    return crossings
 
 
 def plot_errors_vs_distance(

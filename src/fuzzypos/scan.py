@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -74,6 +74,11 @@ class LaserScan:
     stamp: float = 0.0
     sensor_pose: Pose2D = field(default=Pose2D(0.0, 0.0, 0.0))
 
+    if TYPE_CHECKING:
+        # Derived in __post_init__; declared for the type checker only (not dataclass fields).
+        _angles: FloatArray = field(init=False, repr=False)
+        _valid: BoolArray = field(init=False, repr=False)
+
     def __post_init__(self) -> None:
         ranges = _as_ranges(self.ranges)
         object.__setattr__(self, "ranges", ranges)
@@ -91,9 +96,7 @@ class LaserScan:
             raise ScanError(f"LaserScan.range_min must be >= 0, got {rmin}")
         rmax = _as_real("range_max", self.range_max)
         if math.isnan(rmax) or rmax <= rmin:
-            raise ScanError(
-                f"LaserScan.range_max must be > range_min ({rmin}), got {rmax}"
-            )
+            raise ScanError(f"LaserScan.range_max must be > range_min ({rmin}), got {rmax}")
         object.__setattr__(self, "range_min", rmin)
         object.__setattr__(self, "range_max", rmax)
 
@@ -113,9 +116,7 @@ class LaserScan:
         angles = self.angle_min + np.arange(n, dtype=np.float64) * inc
         angles.setflags(write=False)
         with np.errstate(invalid="ignore"):
-            valid = (
-                np.isfinite(ranges) & (ranges > 0.0) & (ranges >= rmin) & (ranges < rmax)
-            )
+            valid = np.isfinite(ranges) & (ranges > 0.0) & (ranges >= rmin) & (ranges < rmax)
         valid.setflags(write=False)
         object.__setattr__(self, "_angles", angles)
         object.__setattr__(self, "_valid", valid)
@@ -130,7 +131,7 @@ class LaserScan:
         *,
         angle_increment: float | None = None,
         **kw: Any,
-    ) -> "LaserScan":
+    ) -> LaserScan:
         """Build from ROS ``angle_min``/``angle_max``: ``angle_max = angle_min + (n-1)*inc``.
 
         With fewer than 2 beams the increment cannot be derived and ``angle_increment`` must be
@@ -164,13 +165,11 @@ class LaserScan:
                     )
         return cls(r, a0, inc, **kw)
 
-    def with_ranges(self, new_ranges: ArrayLike) -> "LaserScan":
+    def with_ranges(self, new_ranges: ArrayLike) -> LaserScan:
         """A copy with other ranges (same beam count) and the same metadata."""
         r = _as_ranges(new_ranges)
         if r.shape != self.ranges.shape:
-            raise ScanError(
-                f"LaserScan.ranges must keep {self.n_beams} beams, got {r.shape[0]}"
-            )
+            raise ScanError(f"LaserScan.ranges must keep {self.n_beams} beams, got {r.shape[0]}")
         return dataclasses.replace(self, ranges=r)
 
     # -- derived quantities ------------------------------------------------------------
@@ -181,12 +180,12 @@ class LaserScan:
     @property
     def angles(self) -> FloatArray:
         """Bearings ``angle_min + i*angle_increment`` (not wrapped), shape ``(n,)``."""
-        return self._angles  # type: ignore[attr-defined, no-any-return]
+        return self._angles
 
     @property
     def valid(self) -> BoolArray:
         """``finite & r > 0 & range_min <= r < range_max``, shape ``(n,)``."""
-        return self._valid  # type: ignore[attr-defined, no-any-return]
+        return self._valid
 
     @property
     def field_of_view(self) -> float:

@@ -1,8 +1,10 @@
 """Reading and writing robot logs and trajectories.
 
 - :mod:`fuzzypos.io.carmen`: CARMEN logs (``.clf``, plain or gzip), read as a stream and written;
-- :mod:`fuzzypos.io.rosbag`: ROS1 and ROS2 bags (``sensor_msgs/LaserScan`` with ``nav_msgs/Odometry``)
-  through the ``rosbags`` package;
+- :mod:`fuzzypos.io.carmen_write`: :class:`CarmenWriter`, the one CARMEN writer (behind
+  :func:`write_carmen` and the run job's ``trajectory.clf``);
+- :mod:`fuzzypos.io.rosbag`: ROS1 and ROS2 bags (``sensor_msgs/LaserScan`` with
+  ``nav_msgs/Odometry``) through the ``rosbags`` package;
 - :mod:`fuzzypos.io.relations`: the Freiburg benchmark's relations files;
 - :mod:`fuzzypos.io.tum`: TUM trajectories (``t x y z qx qy qz qw``, what ``evo`` reads).
 
@@ -18,6 +20,7 @@ from .carmen import (
     CarmenFormatError,
     CarmenReader,
     CarmenRecord,
+    CarmenWriter,
     carmen_beam_geometry,
     read_carmen,
     write_carmen,
@@ -51,6 +54,7 @@ __all__ = [
     "CarmenFormatError",
     "CarmenReader",
     "CarmenRecord",
+    "CarmenWriter",
     "LogFormatError",
     "LogRecord",
     "TumFormatError",

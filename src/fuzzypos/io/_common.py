@@ -3,6 +3,7 @@ text by content, and atomic writes."""
 
 from __future__ import annotations
 
+import contextlib
 import gzip
 import io
 import math
@@ -67,8 +68,9 @@ def numeric_rows(
                 continue
             tok = s.split()
             if len(tok) != len(names):
+                fields = " ".join(names)
                 raise error(
-                    path, lineno, f"expected {len(names)} fields ({' '.join(names)}), got {len(tok)}"
+                    path, lineno, f"expected {len(names)} fields ({fields}), got {len(tok)}"
                 )
             vals = []
             for what, f in zip(names, tok):
@@ -89,11 +91,11 @@ def open_text(path: PathLike) -> IO[str]:
     rather than aborting the read)."""
     with open(path, "rb") as f:
         magic = f.read(2)
-    if magic == GZIP_MAGIC:
-        raw: IO[bytes] = gzip.open(path, "rb")  # noqa: SIM115 - closed with the wrapper
-    else:
-        raw = open(path, "rb")  # noqa: SIM115 - the caller closes the returned stream
-    return io.TextIOWrapper(raw, encoding="utf-8", errors="replace")  # type: ignore[arg-type]
+    # the caller closes the returned stream, which closes these
+    raw: gzip.GzipFile | io.BufferedReader = (
+        gzip.open(path, "rb") if magic == GZIP_MAGIC else open(path, "rb")  # noqa: SIM115
+    )
+    return io.TextIOWrapper(raw, encoding="utf-8", errors="replace")
 
 
 def _write_atomically(path: PathLike, write: Callable[[IO[str]], None]) -> None:
@@ -115,8 +117,6 @@ def _write_atomically(path: PathLike, write: Callable[[IO[str]], None]) -> None:
                 write(fh)
         os.replace(tmp, target)
     except BaseException:
-        try:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
-        except OSError:
-            pass
         raise

@@ -101,6 +101,9 @@ error. Records come in file order, even where the timestamps go backwards.
 The reader streams: one line in memory at a time, plus the record waiting for its TRUEPOS
 (and, with ``odometry="interpolated"``, the bounded window above). Gzip is recognised by its
 magic bytes, not by the file name. Ranges are parsed by numpy, not beam by beam.
+
+Writing is :mod:`fuzzypos.io.carmen_write` (:class:`CarmenWriter`, :func:`write_carmen`; both
+re-exported here); the FLASER beam geometry both sides share is in :mod:`fuzzypos.io._flaser`.
 """
 
 from __future__ import annotations
@@ -111,28 +114,28 @@ import os
 import warnings
 import zlib
 from collections import deque
-from collections.abc import Iterable, Iterator
-from typing import IO, ClassVar
+from collections.abc import Iterator
+from typing import ClassVar
 
 import numpy as np
 
 from ..geometry import Pose2D
 from ..scan import LaserScan, ScanError
-from ._common import FloatArray, LogFormatError, LogRecord, PathLike, _write_atomically, open_text
+from ._common import FloatArray, LogFormatError, LogRecord, PathLike, open_text
+from ._flaser import CONVENTIONS, carmen_beam_geometry, check_convention, check_fov
+from .carmen_write import CarmenWriter, write_carmen
 
 __all__ = [
     "CONVENTIONS",
     "ODOMETRY_SOURCES",
     "CarmenFormatError",
+    "CarmenWriter",
     "CarmenReader",
     "CarmenRecord",
     "carmen_beam_geometry",
     "read_carmen",
     "write_carmen",
 ]
-
-#: the beam-angle conventions FLASER readers and writers understand (see the module docstring)
-CONVENTIONS = ("auto", "resolution", "span")
 
 #: where a scan's odometry comes from: its own fields, or the ODOM stream at its stamp
 ODOMETRY_SOURCES = ("scan", "interpolated")
@@ -149,17 +152,11 @@ _MAX_HELD_SCANS = 1000
 #: side_safety turn_axis, ipc_timestamp hostname logger_timestamp
 _ROBOTLASER1_TAIL = 14
 
-#: tolerance (radians) when checking that a scan's geometry fits the FLASER convention
-_GEOMETRY_TOL = 1e-7
-
 #: how many skipped-line errors a reader keeps (the count itself is unbounded)
 _MAX_KEPT_ERRORS = 100
 
 #: the PARAM names the reader interprets (their values must parse)
 _INTERPRETED_PARAMS = ("robot_frontlaser_offset", "robot_front_laser_max")
-
-#: decimals of the ranges written to a CARMEN log (0.1 mm; poses and stamps get repr)
-_RANGE_DECIMALS = 4
 
 
 class CarmenFormatError(LogFormatError):
@@ -168,43 +165,6 @@ class CarmenFormatError(LogFormatError):
 
 class _Bad(Exception):
     """Internal: a line handler's complaint; the reader adds the file and line."""
-
-
-# -- CARMEN: beam geometry -----------------------------------------------------------------
-def carmen_beam_geometry(
-    n: int, field_of_view_deg: float = 180.0, convention: str = "auto"
-) -> tuple[float, float]:
-    """``(angle_min, angle_increment)`` in radians of an ``n``-beam FLASER scan.
-
-    Beams start at ``-fov/2`` and go counter-clockwise. ``"resolution"``: increment
-    ``fov/n``; ``"span"``: ``fov/(n-1)`` (the last beam at ``+fov/2``); ``"auto"``: the
-    first for even ``n`` (180, 360), the second for odd ``n`` (181, 361).
-    """
-    fov = _check_fov(field_of_view_deg)
-    _check_convention(convention)
-    if isinstance(n, bool) or int(n) != n or n < 2:
-        raise ValueError(f"a FLASER scan needs an integer beam count >= 2, got {n!r}")
-    n = int(n)
-    if convention == "auto":
-        convention = "resolution" if n % 2 == 0 else "span"
-    fov_rad = math.radians(fov)
-    inc = fov_rad / n if convention == "resolution" else fov_rad / (n - 1)
-    return -fov_rad / 2.0, inc
-
-
-def _check_fov(field_of_view_deg: float) -> float:
-    try:
-        fov = float(field_of_view_deg)
-    except (TypeError, ValueError):
-        raise ValueError(f"field_of_view_deg must be a number, got {field_of_view_deg!r}") from None
-    if not 0.0 < fov <= 360.0:
-        raise ValueError(f"field_of_view_deg must be in (0, 360], got {fov}")
-    return fov
-
-
-def _check_convention(convention: str) -> None:
-    if convention not in CONVENTIONS:
-        raise ValueError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
 
 
 # -- CARMEN: reading -----------------------------------------------------------------------
@@ -321,8 +281,8 @@ class CarmenReader:
     ) -> None:
         self.path = path
         self.name = os.fspath(path)
-        self.field_of_view_deg = _check_fov(field_of_view_deg)
-        _check_convention(convention)
+        self.field_of_view_deg = check_fov(field_of_view_deg)
+        check_convention(convention)
         self.convention = convention
         if max_range is not None:
             mr = float(max_range)
@@ -709,168 +669,3 @@ def read_carmen(
         odometry=odometry,
         laser_offset=laser_offset,
     ).records()
-
-
-# -- CARMEN: writing -----------------------------------------------------------------------
-def _fmt_ranges(scan: LaserScan, fill: str) -> list[str]:
-    """Ranges as text: valid readings to 0.1 mm (full precision where rounding would move
-    them across 0 or ``range_max``), invalid ones as ``fill``."""
-    r = scan.ranges
-    valid = scan.valid
-    rounded = np.round(r, _RANGE_DECIMALS)
-    exact = valid & ((rounded >= scan.range_max) | (rounded <= 0.0))
-    out: list[str] = []
-    for v, ok, ex in zip(r.tolist(), valid.tolist(), exact.tolist()):
-        if not ok:
-            out.append(fill)
-        elif ex:
-            out.append(repr(v))
-        else:
-            out.append(f"{v:.{_RANGE_DECIMALS}f}".rstrip("0").removesuffix("."))
-    return out
-
-
-def _unpack_record(rec: object, index: int) -> tuple[LaserScan, Pose2D, Pose2D | None]:
-    if isinstance(rec, CarmenRecord):
-        scan, odom, truth = rec
-    else:
-        try:
-            items = tuple(rec)  # type: ignore[call-overload]
-        except TypeError:
-            raise TypeError(
-                f"record {index}: expected a CarmenRecord(scan, odometry, truth), got "
-                f"{type(rec).__name__}"
-            ) from None
-        if len(items) not in (2, 3):
-            raise ValueError(
-                f"record {index}: expected (scan, odometry[, truth]), got {len(items)} items"
-            )
-        scan, odom = items[0], items[1]
-        truth = items[2] if len(items) == 3 else None
-    if not isinstance(scan, LaserScan):
-        raise TypeError(f"record {index}: scan must be a LaserScan, got {type(scan).__name__}")
-    if not isinstance(odom, Pose2D):
-        odom = Pose2D.from_array(odom)
-    if truth is not None and not isinstance(truth, Pose2D):
-        truth = Pose2D.from_array(truth)
-    return scan, odom, truth
-
-
-def write_carmen(
-    path: PathLike,
-    records: Iterable[CarmenRecord],
-    *,
-    hostname: str = "fuzzypos",
-    header_comment: str | None = None,
-    field_of_view_deg: float = 180.0,
-    convention: str = "auto",
-) -> int:
-    """Write ``records`` as a CARMEN log the way CARMEN's simulator does; return their count.
-
-    Per record a ``FLASER n r_1 … r_n x y θ odom_x odom_y odom_θ ipc_timestamp hostname
-    logger_timestamp`` line (``x y θ`` repeat the odometry; both timestamps are the scan's
-    stamp), then, when ``truth`` is given, a ``TRUEPOS`` line with the same trailer. The file
-    opens with ``#`` comments (what wrote it, the beam convention, ``header_comment``), then
-    ``PARAM robot_frontlaser_offset x`` when the laser sits ``x`` ahead of the robot centre and
-    ``PARAM robot_front_laser_max r`` when the scans' ``range_max`` is finite.
-
-    Ranges are written to 0.1 mm, poses and stamps at full precision (``repr``); invalid
-    readings become ``range_max`` (``0`` when it is infinite), so they read back invalid.
-    ``range_min`` is not stored. FLASER carries no angles: every scan's geometry must fit
-    :func:`carmen_beam_geometry` for its beam count with ``field_of_view_deg`` and
-    ``convention`` (a reader must use the same), all scans must share one ``sensor_pose``
-    (a pure forward offset) and one ``range_max``; otherwise :class:`ValueError` (and no file
-    is left behind: the log is written to a temporary file first). A name ending in ``.gz``
-    gets a gzip file.
-    """
-    fov = _check_fov(field_of_view_deg)
-    _check_convention(convention)
-    if not isinstance(hostname, str) or not hostname or any(c.isspace() for c in hostname):
-        raise ValueError(f"hostname must be a non-empty word without whitespace, got {hostname!r}")
-    name = os.fspath(path)
-    count = 0
-
-    def check_geometry(scan: LaserScan, index: int) -> None:
-        n = scan.n_beams
-        if n < 2:
-            raise ValueError(f"{name}: record {index}: a FLASER scan needs >= 2 beams, got {n}")
-        a0, inc = carmen_beam_geometry(n, fov, convention)
-        if (
-            abs(scan.angle_min - a0) > _GEOMETRY_TOL
-            or abs(scan.angle_increment - inc) * n > _GEOMETRY_TOL
-        ):
-            raise ValueError(
-                f"{name}: record {index}: scan geometry (angle_min "
-                f"{math.degrees(scan.angle_min):.6g}°, increment "
-                f"{math.degrees(scan.angle_increment):.6g}°, {n} beams) does not fit "
-                f"FLASER with field_of_view_deg={fov:g}, convention={convention!r} "
-                f"(expects angle_min {math.degrees(a0):.6g}°, increment {math.degrees(inc):.6g}°)"
-            )
-
-    def write(fh: IO[str]) -> None:
-        nonlocal count
-        from .. import __version__  # late: the package imports this module's siblings first
-
-        fh.write("# CARMEN Logfile\n")
-        fh.write(f"# written by fuzzypos {__version__} (fuzzypos.io.write_carmen)\n")
-        fh.write("# file format is one message per line\n")
-        fh.write("# message_name [message contents] ipc_timestamp ipc_hostname logger_timestamp\n")
-        fh.write("# message formats defined: PARAM FLASER TRUEPOS\n")
-        fh.write("# PARAM param_name param_value\n")
-        fh.write("# FLASER num_readings [range_readings] x y theta odom_x odom_y odom_theta\n")
-        fh.write("# TRUEPOS true_x true_y true_theta odom_x odom_y odom_theta\n")
-        fh.write(
-            f"# FLASER beams: field of view {fov:g} deg from -{fov / 2:g} deg, convention "
-            f"{convention!r} (fov/n for even n, fov/(n-1) for odd n when 'auto'); read with "
-            f"the same\n"
-        )
-        if header_comment:
-            for line in str(header_comment).splitlines():
-                fh.write(f"# {line}\n" if line else "#\n")
-
-        first: LaserScan | None = None
-        for index, rec in enumerate(records):
-            scan, odom, truth = _unpack_record(rec, index)
-            check_geometry(scan, index)
-            if first is None:
-                first = scan
-                sp = scan.sensor_pose
-                if sp.y != 0.0 or sp.theta != 0.0:
-                    raise ValueError(
-                        f"{name}: record {index}: FLASER logs store only a forward laser offset "
-                        f"(robot_frontlaser_offset), got sensor_pose {sp}"
-                    )
-                stamp0 = repr(scan.stamp)
-                if sp.x != 0.0:
-                    fh.write(
-                        f"PARAM robot_frontlaser_offset {sp.x!r} {stamp0} {hostname} {stamp0}\n"
-                    )
-                if math.isfinite(scan.range_max):
-                    fh.write(
-                        f"PARAM robot_front_laser_max {scan.range_max!r} {stamp0} {hostname} "
-                        f"{stamp0}\n"
-                    )
-                fill = repr(scan.range_max) if math.isfinite(scan.range_max) else "0"
-            else:
-                if scan.sensor_pose != first.sensor_pose:
-                    raise ValueError(
-                        f"{name}: record {index}: sensor_pose {scan.sensor_pose} differs from the "
-                        f"first scan's {first.sensor_pose}; a CARMEN log has one front laser"
-                    )
-                if scan.range_max != first.range_max:
-                    raise ValueError(
-                        f"{name}: record {index}: range_max {scan.range_max} differs from the "
-                        f"first scan's {first.range_max}; a CARMEN log has one front laser"
-                    )
-            pose = f"{odom.x!r} {odom.y!r} {odom.theta!r}"
-            trailer = f"{scan.stamp!r} {hostname} {scan.stamp!r}"
-            fh.write(
-                f"FLASER {scan.n_beams} {' '.join(_fmt_ranges(scan, fill))} {pose} {pose} "
-                f"{trailer}\n"
-            )
-            if truth is not None:
-                fh.write(f"TRUEPOS {truth.x!r} {truth.y!r} {truth.theta!r} {pose} {trailer}\n")
-            count += 1
-
-    _write_atomically(path, write)
-    return count

@@ -107,7 +107,8 @@ def read_relations(path: PathLike) -> Relations:
                 raise RelationsFormatError(
                     path,
                     lineno,
-                    f"relation is not planar: {what} = {v!r} (|{what}| must be <= {PLANAR_TOLERANCE:g})",
+                    f"relation is not planar: {what} = {v!r} "
+                    f"(|{what}| must be <= {PLANAR_TOLERANCE:g})",
                 )
         t1.append(a)
         t2.append(b)

@@ -122,6 +122,8 @@ _READ_ERRORS: tuple[type[BaseException], ...] = (
     EOFError,
     UnicodeDecodeError,
 )
+#: what decoding one message may raise besides those
+_DECODE_ERRORS: tuple[type[BaseException], ...] = (*_READ_ERRORS, ValueError, IndexError, KeyError)
 
 
 class BagFormatError(LogFormatError):
@@ -190,7 +192,7 @@ def _interpolate(t: FloatArray, p: FloatArray, q: FloatArray) -> FloatArray:
     f = np.clip((q - t[lo]) / np.where(dt > 0.0, dt, 1.0), 0.0, 1.0)
     f = np.where(dt > 0.0, f, 0.0)
     a, b = p[lo], p[hi]
-    out = np.empty(q.shape + (3,), dtype=np.float64)
+    out = np.empty((*q.shape, 3), dtype=np.float64)
     out[..., 0] = a[..., 0] + f * (b[..., 0] - a[..., 0])
     out[..., 1] = a[..., 1] + f * (b[..., 1] - a[..., 1])
     out[..., 2] = wrap_angle(a[..., 2] + f * wrap_angle(b[..., 2] - a[..., 2]))
@@ -295,8 +297,9 @@ class BagReader:
 
     Counted by :meth:`records` (reset by each call, which reads the bag again): ``messages``
     (scans read), ``missing`` (scans the bag's index lists but that could not be read: a
-    damaged bag, with a warning), ``extrapolated`` (scans outside the odometry's time span, given its nearest
-    pose), ``zero_stamps`` (scans with a zero header stamp), ``angle_max_mismatches``.
+    damaged bag, with a warning), ``extrapolated`` (scans outside the odometry's time span,
+    given its nearest pose), ``zero_stamps`` (scans with a zero header stamp),
+    ``angle_max_mismatches``.
     """
 
     def __init__(
@@ -464,7 +467,7 @@ class BagReader:
                     msg = self._store.deserialize_cdr(raw, conn.msgtype)
                 else:
                     msg = self._store.deserialize_ros1(raw, conn.msgtype)
-            except (*_READ_ERRORS, ValueError, IndexError, KeyError) as exc:
+            except _DECODE_ERRORS as exc:
                 raise self._error(
                     f"cannot decode the {conn.msgtype} message: {exc!r}", k, conn.topic
                 ) from exc

@@ -81,7 +81,9 @@ def read_tum(path: PathLike) -> tuple[FloatArray, FloatArray]:
     """
     stamps: list[float] = []
     rows: list[tuple[float, float, float]] = []
-    for lineno, vals in numeric_rows(path, ("t", "x", "y", "z", "qx", "qy", "qz", "qw"), TumFormatError):
+    for lineno, vals in numeric_rows(
+        path, ("t", "x", "y", "z", "qx", "qy", "qz", "qw"), TumFormatError
+    ):
         t, x, y, _z, qx, qy, qz, qw = vals
         norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
         if abs(norm - 1.0) > 1e-3:

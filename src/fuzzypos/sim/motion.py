@@ -7,8 +7,8 @@ For a robot driving a commanded path with wheel slip, see :mod:`fuzzypos.sim.rob
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

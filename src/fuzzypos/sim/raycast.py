@@ -98,7 +98,7 @@ def cast_rays(
             f"origins {org.shape} and directions {ang.shape} do not broadcast to one ray per beam"
         ) from None
     single = org.ndim == 1 or org.shape[0] == 1
-    org = np.broadcast_to(org, n + (2,))
+    org = np.broadcast_to(org, (*n, 2))
     ang = np.broadcast_to(ang, n)
     if not (np.isfinite(org).all() and np.isfinite(ang).all()):
         raise SimError("origins and directions must be finite")

@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from ..geometry import Pose2D, relative, wrap_angle
 from ..scan import LaserScan
@@ -95,6 +95,10 @@ class CommandedPath:
     start: Pose2D = field(default_factory=Pose2D)
     name: str = "path"
 
+    if TYPE_CHECKING:
+        # Derived in __post_init__; declared for the type checker only (not a dataclass field).
+        _bounds: FloatArray = field(init=False, repr=False)
+
     def __post_init__(self) -> None:
         try:
             seg = np.array(self.segments, dtype=float)
@@ -126,7 +130,7 @@ class CommandedPath:
         speed: float = DEFAULT_SPEED,
         centre: tuple[float, float] = (0.0, 0.0),
         clockwise: bool = False,
-    ) -> "CommandedPath":
+    ) -> CommandedPath:
         """``laps`` (any positive number) of a circle of ``radius`` round ``centre``: one
         command ``v = speed``, ``ω = ±speed / radius``. It starts at ``centre + (radius, 0)``
         heading +y (anticlockwise) or -y (``clockwise``)."""
@@ -147,7 +151,7 @@ class CommandedPath:
         speed: float = DEFAULT_SPEED,
         turn_rate: float = DEFAULT_TURN_RATE,
         centre: tuple[float, float] = (0.0, 0.0),
-    ) -> "CommandedPath":
+    ) -> CommandedPath:
         """``laps`` anticlockwise laps of a square of ``side`` centred on ``centre``: each side a
         straight leg at ``speed``, each corner a 90° turn on the spot (``v = 0``) at
         ``turn_rate`` (a synchronous drive turns in place). It starts at the south-west corner
@@ -168,14 +172,16 @@ class CommandedPath:
     def figure8(
         cls,
         radius: float,
-        laps: int = 1,
+        laps: float = 1,
         speed: float = DEFAULT_SPEED,
         centre: tuple[float, float] = (0.0, 0.0),
-    ) -> "CommandedPath":
+    ) -> CommandedPath:
         """``laps`` figure eights of two circles of ``radius`` touching at ``centre``: from
         ``centre`` heading +x, a full anticlockwise circle round ``centre + (0, radius)``, then a
         full clockwise one round ``centre - (0, radius)``; the robot is back at ``centre``, with
-        its start heading, after each circle (twice per lap)."""
+        its start heading, after each circle (twice per lap). ``laps`` is a positive whole
+        number, ``2`` or ``2.0`` (the command line's ``--laps`` is a float); a fraction is an
+        error."""
         r = _positive("radius", radius)
         n = _whole_laps(laps)
         v = _positive("speed", speed)
@@ -191,7 +197,7 @@ class CommandedPath:
         speed: float = DEFAULT_SPEED,
         turn_rate: float = DEFAULT_TURN_RATE,
         heading: float | None = None,
-    ) -> "CommandedPath":
+    ) -> CommandedPath:
         """Drive straight from point to point of ``points`` ``(k >= 2, 2)``, turning on the spot
         (the shorter way, at ``turn_rate``) to face each next point. It starts at ``points[0]``
         facing ``points[1]``, or with ``heading`` (radians) and a first turn on the spot."""
@@ -230,26 +236,27 @@ class CommandedPath:
     @property
     def duration(self) -> float:
         """Total time of the commands, s."""
-        return float(self._bounds[-1])  # type: ignore[attr-defined]
+        return float(self._bounds[-1])
 
     @property
     def boundaries(self) -> FloatArray:
         """Times ``(k + 1,)`` at which the commands change: 0, ends of each segment."""
-        return self._bounds  # type: ignore[attr-defined, no-any-return]
+        return self._bounds
 
     @property
     def length(self) -> float:
         """Length of the commanded path, ``Σ |v| · duration``, m."""
         return float(np.sum(np.abs(self.segments[:, 1]) * self.segments[:, 0]))
 
-    def _index(self, t: FloatArray) -> FloatArray:
-        return np.searchsorted(self._bounds, t, side="right") - 1  # type: ignore[attr-defined]
+    def _index(self, t: FloatArray) -> NDArray[np.intp]:
+        i: NDArray[np.intp] = np.searchsorted(self._bounds, t, side="right") - 1
+        return i
 
     def commands(self, t: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Commanded ``(v, ω)`` at times ``t`` (segment ``i`` holds on ``[T_i, T_{i+1})``;
         before 0 and from the end on, ``(0, 0)``)."""
-        t = np.asarray(t, dtype=float)
-        i = self._index(t)
+        ts = np.asarray(t, dtype=float)
+        i = self._index(ts)
         ok = (i >= 0) & (i < len(self.segments))
         j = np.clip(i, 0, len(self.segments) - 1)
         v = np.where(ok, self.segments[j, 1], 0.0)
@@ -268,11 +275,11 @@ class CommandedPath:
     def poses(self, t: ArrayLike, start: Pose2D | ArrayLike | None = None) -> FloatArray:
         """Commanded (ideal, slip-free) poses ``(n, 3)`` at times ``t`` (clipped to
         ``[0, duration]``), from ``start`` (default :attr:`start`)."""
-        t = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, self.duration)
+        ts: FloatArray = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, self.duration)
         bp = self.segment_poses(start)
-        i = np.clip(self._index(t), 0, len(self.segments) - 1)
+        i = np.clip(self._index(ts), 0, len(self.segments) - 1)
         seg = self.segments[i]
-        return _compose_many(bp[i], _arc(seg[:, 1], seg[:, 2], t - self._bounds[i]))  # type: ignore[attr-defined]
+        return _compose_many(bp[i], _arc(seg[:, 1], seg[:, 2], ts - self._bounds[i]))
 
 
 # --------------------------------------------------------------------------------------------
@@ -350,11 +357,11 @@ class SlipModel:
                 raise SimError(f"SlipModel.{name} must be in (-1, 1), got {getattr(self, name)}")
 
     @classmethod
-    def ideal(cls) -> "SlipModel":
+    def ideal(cls) -> SlipModel:
         """No slip and no encoder noise: the robot does exactly what it is told."""
         return cls(0.0, 0.0, 0.0, 0.0, 0.0)
 
-    def replace(self, **changes: Any) -> "SlipModel":
+    def replace(self, **changes: Any) -> SlipModel:
         """A copy with some fields changed (``dataclasses.replace``, validated again)."""
         return replace(self, **changes)
 

@@ -21,8 +21,9 @@ as in ROS REP-103. A beam with no return reads exactly ``range_max``, which
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -143,7 +144,7 @@ class ScannerModel:
         object.__setattr__(self, "sensor_pose", _as_pose(self.sensor_pose))
 
     @classmethod
-    def sick_lms200(cls, **overrides: Any) -> "ScannerModel":
+    def sick_lms200(cls, **overrides: Any) -> ScannerModel:
         """A SICK LMS200 as on the paper's iRobot B21r, in a gym; ``overrides`` replace fields.
 
         - 180 beams over 180° (1° apart, -90°..+89°), ``range_max`` 8.0 m: the LMS200's
@@ -174,7 +175,7 @@ class ScannerModel:
         values.update(overrides)
         return cls(**values)
 
-    def replace(self, **changes: Any) -> "ScannerModel":
+    def replace(self, **changes: Any) -> ScannerModel:
         """A copy with some fields changed (``dataclasses.replace``, validated again)."""
         return replace(self, **changes)
 
@@ -232,7 +233,7 @@ class ScannerModel:
 
     def angles(self) -> FloatArray:
         """Beam bearings in the laser frame, ``(n_beams,)`` radians."""
-        return self.angle_min + np.arange(self.n_beams) * self.angle_increment
+        return self.angle_min + np.arange(self.n_beams, dtype=np.float64) * self.angle_increment
 
     def covers(self, bearings: ArrayLike) -> NDArray[np.bool_]:
         """Whether laser-frame bearings lie within the swept beams (first to last beam)."""

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Iterable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -142,7 +142,7 @@ class World:
     # ---- constructors ----------------------------------------------------------------------
 
     @classmethod
-    def from_segments(cls, segs: ArrayLike, name: str = "world") -> "World":
+    def from_segments(cls, segs: ArrayLike, name: str = "world") -> World:
         """A world of the given ``(m, 4)`` segments ``[x1, y1, x2, y2]``."""
         return cls(_validate_segments(segs), name=name)
 
@@ -152,7 +152,7 @@ class World:
         polygons: Iterable[ArrayLike],
         closed: bool | Sequence[bool] = True,
         name: str = "world",
-    ) -> "World":
+    ) -> World:
         """A world whose walls are the edges of ``polygons`` (each a ``(k, 2)`` vertex list).
 
         ``closed`` (one flag, or one per polygon) adds the edge from the last vertex back to the
@@ -174,7 +174,7 @@ class World:
         return cls(seg, name=name, polygons=tuple(verts), closed=tuple(flags))
 
     @classmethod
-    def from_file(cls, path: str | os.PathLike[str]) -> "World":
+    def from_file(cls, path: str | os.PathLike[str]) -> World:
         """Load a world from a TOML or JSON file (told apart by content, not by suffix).
 
         See :mod:`fuzzypos.sim.worldfile` for the format. A bad file raises :class:`SimError`
@@ -297,7 +297,8 @@ class World:
         flat = pts.reshape(-1, 2)
         if self.n_segments == 0:
             return np.full(pts.shape[:-1], np.inf)
-        return _point_segment_distance(flat, self.segments).min(axis=1).reshape(pts.shape[:-1])
+        d: FloatArray = _point_segment_distance(flat, self.segments).min(axis=1)
+        return d.reshape(pts.shape[:-1])
 
 
 def _point_segment_distance(points: FloatArray, seg: FloatArray) -> FloatArray:
@@ -307,4 +308,5 @@ def _point_segment_distance(points: FloatArray, seg: FloatArray) -> FloatArray:
     w = points[:, None, :] - a
     u = np.clip(np.sum(w * e, axis=-1) / np.sum(e * e, axis=-1), 0.0, 1.0)
     d = w - u[..., None] * e
-    return np.hypot(d[..., 0], d[..., 1])
+    dist: FloatArray = np.hypot(d[..., 0], d[..., 1])
+    return dist

@@ -5,7 +5,7 @@
 from __future__ import annotations
 
 import math
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -35,7 +35,8 @@ def box_polygon(
     hx, hy = length / 2.0, width / 2.0
     local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
     c, s = math.cos(theta), math.sin(theta)
-    return local @ np.array([[c, s], [-s, c]]) + np.array([cx, cy])
+    vertices: FloatArray = local @ np.array([[c, s], [-s, c]]) + np.array([cx, cy])
+    return vertices
 
 
 def circle_polygon(cx: float, cy: float, radius: float, n: int = 16) -> FloatArray:
@@ -96,17 +97,17 @@ def furnished_room(seed: int = 0) -> World:
     """
     hx, hy = _ROOM_HALF
     polys: list[FloatArray] = [box_polygon(0.0, 0.0, 2 * hx, 2 * hy)]
-    pieces = [(cx, cy, l, w, math.radians(th)) for cx, cy, l, w, th in _FURNITURE]
+    pieces = [(cx, cy, ln, w, math.radians(th)) for cx, cy, ln, w, th in _FURNITURE]
     pillars = list(_PILLARS)
     if seed != 0:
         rng = np.random.default_rng(seed)
         placed: list[tuple[float, float, float]] = []
         new_pieces = []
-        sizes = [(l, w) for _, _, l, w, _ in _FURNITURE] + [
+        sizes = [(ln, w) for _, _, ln, w, _ in _FURNITURE] + [
             (2 * s, 2 * s) if kind == "round" else (s, s) for kind, _, _, s in _PILLARS
         ]
-        for k, (l, w) in enumerate(sizes):
-            radius = 0.5 * math.hypot(l, w)
+        for k, (ln, w) in enumerate(sizes):
+            radius = 0.5 * math.hypot(ln, w)
             for _attempt in range(10_000):
                 cx = float(rng.uniform(-hx, hx))
                 cy = float(rng.uniform(-hy, hy))
@@ -117,7 +118,7 @@ def furnished_room(seed: int = 0) -> World:
             placed.append((cx, cy, radius))
             # half the boxes axis-aligned, half rotated
             theta = 0.0 if k % 2 == 0 else float(rng.uniform(-math.pi / 2, math.pi / 2))
-            new_pieces.append((cx, cy, l, w, theta))
+            new_pieces.append((cx, cy, ln, w, theta))
         n_f = len(_FURNITURE)
         pieces = new_pieces[:n_f]
         pillars = [
@@ -174,7 +175,7 @@ def office() -> World:
     add([[3.5, C], [3.5, Y]], False)
     add([[1.0, -C], [1.0, -Y]], False)
     # furniture
-    for piece in (
+    for box in (
         (-8.5, 4.2, 1.2, 0.6, 0.0),  # desk, NW room
         (-5.0, 2.5, 0.8, 0.8, math.radians(25.0)),  # box, NW room
         (0.0, 4.3, 1.2, 0.6, 0.0),  # desk, N room
@@ -185,7 +186,7 @@ def office() -> World:
         (5.5, -4.2, 1.2, 0.6, 0.0),  # desk, SE room
         (8.3, -2.4, 0.7, 0.7, math.radians(40.0)),  # box, SE room
     ):
-        add(box_polygon(*piece), True)
+        add(box_polygon(*box), True)
     add(box_polygon(-5.0, -3.0, 0.3, 0.3), True)  # square pillar, SW room
     return World.from_polygons(polys, closed=flags, name="office")
 

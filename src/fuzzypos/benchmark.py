@@ -1,0 +1,253 @@
+"""The benchmark over the shared logs: every log with a relations file next to it
+(:func:`find_benchmark_logs`), run with the raw odometry, the ``paper`` preset and the
+``default`` configuration (:data:`BENCHMARK_CONFIGS`) and scored against the relations
+(:func:`run_benchmark`)."""
+
+from __future__ import annotations
+
+import errno
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._version import __version__
+from .config import Config
+from .evaluation import EvaluationError, relations_errors
+from .io import Relations, read_relations, write_tum
+from .logs import open_log
+from .provenance import git_hash, json_safe, write_json
+from .run import run_log
+
+__all__ = [
+    "BENCHMARK_CONFIGS",
+    "BENCHMARK_LOG_NAMES",
+    "BenchmarkResult",
+    "find_benchmark_logs",
+    "run_benchmark",
+]
+
+#: the runs of the benchmark, per log
+BENCHMARK_CONFIGS = ("odometry", "paper", "default")
+
+#: the log files a relations file ``NAME.relations`` is looked for with, in this order
+BENCHMARK_LOG_NAMES = ("{}.clf.gz", "{}.clf", "{}.bag")
+
+#: ``progress(label, done, total)``
+BenchmarkProgress = Callable[[str, int, "int | None"], None]
+
+#: the runs' odometry, once one run gave it: ``(stamps, poses)``
+_Odometry = tuple[np.ndarray, np.ndarray]
+
+
+def find_benchmark_logs(data_dir: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
+    """``(log, relations)`` pairs under ``data_dir`` (searched recursively, sorted): for every
+    ``NAME.relations``, each of ``NAME.clf.gz``, ``NAME.clf`` and ``NAME.bag`` next to it
+    that exists (the file *names* only find the candidates; :func:`~fuzzypos.logs.open_log`
+    then tells their kind by content). ``FileNotFoundError`` when ``data_dir`` is no
+    directory."""
+    root = Path(data_dir)
+    if not root.is_dir():
+        raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), os.fspath(data_dir))
+    pairs: list[tuple[Path, Path]] = []
+    for rel in sorted(root.rglob("*.relations")):
+        if not rel.is_file():
+            continue
+        name = rel.name[: -len(".relations")]
+        for pattern in BENCHMARK_LOG_NAMES:
+            cand = rel.with_name(pattern.format(name))
+            if cand.exists():
+                pairs.append((cand, rel))
+    return pairs
+
+
+@dataclass(eq=False)
+class BenchmarkResult:
+    """:func:`run_benchmark`'s rows (one per log and configuration, as in ``benchmark.json``)
+    and where it wrote them."""
+
+    rows: list[dict[str, Any]]
+    out_dir: Path
+    json_path: Path
+    data: dict[str, Any]
+
+
+def _score_row(
+    log_label: str, config: str, stamps: np.ndarray, poses: np.ndarray, relations: Relations
+) -> dict[str, Any]:
+    """A row of the benchmark: the relations metric of one trajectory, or why not scored."""
+    row: dict[str, Any] = {"log": log_label, "config": config}
+    try:
+        row.update(relations_errors(stamps, poses, relations).as_dict())
+    except EvaluationError as exc:  # e.g. no relation within a short stretch
+        row["not_scored"] = str(exc)
+    return row
+
+
+def _run_config(
+    log_path: Path,
+    label: str,
+    config: str,
+    folder: Path,
+    relations: Relations,
+    *,
+    max_scans: int | None,
+    progress: BenchmarkProgress | None,
+    plot: bool,
+) -> tuple[dict[str, Any], _Odometry | str | None]:
+    """One configuration's run and row; and the odometry of its scans (or why there is none;
+    None when the run failed)."""
+    cb = None
+    if progress is not None:
+
+        def cb(done: int, total: int | None, _name: str = f"{label} {config}") -> None:
+            progress(_name, done, total)
+
+    try:
+        log = open_log(log_path)
+        res = run_log(
+            log,
+            Config.preset(config),
+            results_dir=folder,
+            progress=cb,
+            max_scans=max_scans,
+            preset=config,
+            relations=relations,
+            plot=plot,
+        )
+    except (ValueError, OSError) as exc:
+        return {"log": label, "config": config, "error": str(exc)}, None
+    row = _score_row(label, config, res.stamps, res.poses, relations)
+    row.update(
+        scans=res.scans,
+        scans_per_second=res.scans_per_second,
+        positioner_ms_per_scan=1000.0 * res.positioner_seconds / res.scans,
+        scans_degraded=res.scans_degraded,
+        odometry_jumps_rejected=res.odometry_jumps_rejected,
+        results=str(folder),
+    )
+    if res.odometry is None or not np.isfinite(res.odometry).all():
+        return row, "the log has no odometry for every scan"
+    return row, (res.stamps, res.odometry)
+
+
+def _odometry_row(
+    log_path: Path, label: str, folder: Path, odometry: _Odometry, relations: Relations
+) -> dict[str, Any]:
+    """Write the raw odometry's trajectory and score it."""
+    folder.mkdir(parents=True, exist_ok=True)
+    write_tum(
+        folder / "trajectory.tum",
+        odometry[0],
+        odometry[1],
+        header_comment=f"raw odometry of {log_path}",
+    )
+    row = _score_row(label, "odometry", odometry[0], odometry[1], relations)
+    row.update(
+        scans=int(odometry[0].size),
+        scans_per_second=None,
+        scans_degraded=0,
+        odometry_jumps_rejected=0,
+        results=str(folder),
+    )
+    return row
+
+
+def _benchmark_log(
+    log_path: Path,
+    rel_path: Path,
+    out: Path,
+    *,
+    max_scans: int | None,
+    progress: BenchmarkProgress | None,
+    plot: bool,
+) -> list[dict[str, Any]]:
+    """The rows of one log: the odometry's, then each run's."""
+    label = log_path.name
+    try:
+        relations = read_relations(rel_path)
+    except (ValueError, OSError) as exc:
+        return [{"log": label, "config": c, "error": str(exc)} for c in BENCHMARK_CONFIGS]
+    odometry: _Odometry | None = None
+    odometry_error: str | None = None
+    run_rows: list[dict[str, Any]] = []
+    for config in ("paper", "default"):
+        row, odo = _run_config(
+            log_path,
+            label,
+            config,
+            out / label / config,
+            relations,
+            max_scans=max_scans,
+            progress=progress,
+            plot=plot,
+        )
+        run_rows.append(row)
+        if odo is not None and odometry is None and odometry_error is None:
+            if isinstance(odo, str):
+                odometry_error = odo
+            else:
+                odometry = odo
+    if odometry is not None:
+        orow = _odometry_row(log_path, label, out / label / "odometry", odometry, relations)
+    else:
+        error = odometry_error or "no run gave the odometry"
+        orow = {"log": label, "config": "odometry", "error": error}
+    return [orow, *run_rows]
+
+
+def run_benchmark(
+    data_dir: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    *,
+    max_scans: int | None = None,
+    progress: BenchmarkProgress | None = None,
+    plot: bool = True,
+) -> BenchmarkResult:
+    """Run every log :func:`find_benchmark_logs` finds with the raw odometry, the ``paper``
+    preset and the ``default`` configuration (:data:`BENCHMARK_CONFIGS`), sequentially, and
+    score each against the log's relations.
+
+    Per log ``L`` (its file name), ``out_dir/L/paper/`` and ``out_dir/L/default/`` are
+    :func:`~fuzzypos.run.run_log` results folders (with ``summary["relations"]``) and
+    ``out_dir/L/odometry/trajectory.tum`` holds the raw odometry poses of the same scans
+    (taken from the first run: the log is not read a third time). ``max_scans`` runs only
+    the first scans of each log (relations outside them are unmatched, not scored).
+    ``out_dir/benchmark.json`` holds ``fuzzypos_version``, ``git_hash``, ``data_dir``,
+    ``max_scans`` and ``rows``: per log and configuration the relations metric
+    (:meth:`~fuzzypos.evaluation.RelationsErrors.as_dict` keys: ``all_trans_mean_m``,
+    ``local_rot_median_deg`` …), ``scans``, ``scans_per_second``, ``scans_degraded``,
+    ``odometry_jumps_rejected``, ``results`` (the folder); ``not_scored`` (why) instead of
+    the metric where no relation could be scored (e.g. none within a short stretch); and
+    only ``error`` where the run failed (the other runs still go ahead).
+    ``progress(label, done, total)``.
+    ``ValueError`` when ``data_dir`` holds no log with relations.
+    """
+    pairs = find_benchmark_logs(data_dir)
+    if not pairs:
+        raise ValueError(
+            f"{os.fspath(data_dir)}: no log with a relations file next to it "
+            "(NAME.relations with NAME.clf.gz, NAME.clf or NAME.bag)"
+        )
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows: list[dict[str, Any]] = []
+    for log_path, rel_path in pairs:
+        rows.extend(
+            _benchmark_log(
+                log_path, rel_path, out, max_scans=max_scans, progress=progress, plot=plot
+            )
+        )
+    data = {
+        "fuzzypos_version": __version__,
+        "git_hash": git_hash(),
+        "data_dir": os.path.abspath(os.fspath(data_dir)),
+        "max_scans": max_scans,
+        "rows": rows,
+    }
+    json_path = out / "benchmark.json"
+    write_json(json_path, data)
+    return BenchmarkResult(rows=rows, out_dir=out, json_path=json_path, data=json_safe(data))

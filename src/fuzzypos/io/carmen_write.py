@@ -1,0 +1,478 @@
+"""Writing CARMEN logs: one streaming writer, :class:`CarmenWriter`, for both of fuzzypos's
+uses.
+
+- :func:`write_carmen` (``estimate_of=None``): a log the way CARMEN's simulator writes it
+  (``x y θ`` repeat the odometry); every scan must fit one given FLASER beam geometry and
+  share one laser (a pure forward mounting offset, one ``range_max``), else ``ValueError``.
+- the run job's ``trajectory.clf`` (``estimate_of=<the log's name>``, see
+  :func:`fuzzypos.run.write_estimate_clf`): ``x y θ`` carry the estimate and
+  ``odom_x odom_y odom_θ`` the log's odometry; the beam geometry is taken from the first
+  scan, scans that do not fit it are left out, and what FLASER cannot store is noted.
+
+Either way one ``FLASER n r_1 … r_n x y θ odom_x odom_y odom_θ ipc_timestamp hostname
+logger_timestamp`` line per scan (both timestamps the scan's stamp, ``repr``), then
+``TRUEPOS`` where the truth is given; poses at full precision (``repr``), ranges to 0.1 mm.
+The file is written to a temporary file next to ``path`` that :meth:`CarmenWriter.close`
+renames over it (:meth:`CarmenWriter.abort` removes it), so a failure leaves no partial log;
+one scan is held at a time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gzip
+import io
+import math
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from types import TracebackType
+from typing import IO, Any, cast
+
+import numpy as np
+
+from .._version import __version__
+from ..geometry import Pose2D
+from ..scan import LaserScan
+from ._common import LogRecord, PathLike
+from ._flaser import GEOMETRY_TOL, RANGE_DECIMALS, carmen_beam_geometry, check_convention, check_fov
+
+__all__ = ["CarmenWriter", "flaser_geometry", "write_carmen"]
+
+
+# -- beam geometry and ranges ----------------------------------------------------------------
+def flaser_geometry(scan: LaserScan) -> tuple[float, str] | None:
+    """``(field_of_view_deg, convention)`` under which FLASER's beam angles are this scan's,
+    preferring ``"auto"``; None when no FLASER convention gives them."""
+    n, inc, a0 = scan.n_beams, scan.angle_increment, scan.angle_min
+    if n < 2 or inc <= 0.0:
+        return None
+    for convention, span in (("resolution", n * inc), ("span", (n - 1) * inc)):
+        fov = math.degrees(span)
+        if not 0.0 < fov <= 360.0:
+            continue
+        if abs(a0 + span / 2.0) > GEOMETRY_TOL:
+            continue
+        fov = round(fov, 9)
+        auto = "resolution" if n % 2 == 0 else "span"
+        return (fov, "auto" if convention == auto else convention)
+    return None
+
+
+def _misfit(scan: LaserScan, fov: float, convention: str) -> tuple[float, float] | None:
+    """FLASER's ``(angle_min, angle_increment)`` for the scan's beam count when the scan's own
+    differ from them; None when they agree (the scan needs >= 2 beams)."""
+    n = scan.n_beams
+    a0, inc = carmen_beam_geometry(n, fov, convention)
+    if (
+        abs(scan.angle_min - a0) > GEOMETRY_TOL
+        or abs(scan.angle_increment - inc) * n > GEOMETRY_TOL
+    ):
+        return a0, inc
+    return None
+
+
+def _ranges_filled(scan: LaserScan, fill: str) -> str:
+    """:func:`write_carmen`'s ranges: valid readings to 0.1 mm (full precision where rounding
+    would move them across 0 or ``range_max``), invalid ones as ``fill``."""
+    r = scan.ranges
+    valid = scan.valid
+    rounded = np.round(r, RANGE_DECIMALS)
+    exact = valid & ((rounded >= scan.range_max) | (rounded <= 0.0))
+    out: list[str] = []
+    for v, ok, ex in zip(r.tolist(), valid.tolist(), exact.tolist()):
+        if not ok:
+            out.append(fill)
+        elif ex:
+            out.append(repr(v))
+        else:
+            out.append(f"{v:.{RANGE_DECIMALS}f}".rstrip("0").removesuffix("."))
+    return " ".join(out)
+
+
+def _ranges_raw(scan: LaserScan) -> str:
+    """The estimate log's ranges: the raw readings (as the log gave them) to 0.1 mm; a valid
+    reading that rounding would move onto ``range_max`` or 0 at full precision; NaN and ±inf
+    as 0 (invalid)."""
+    out: list[str] = []
+    rmax = scan.range_max
+    for v, ok in zip(scan.ranges.tolist(), scan.valid.tolist()):
+        if not math.isfinite(v):
+            out.append("0")
+            continue
+        r = round(v, RANGE_DECIMALS)
+        if ok and (r >= rmax or r <= 0.0):
+            out.append(repr(v))
+        else:
+            out.append(f"{r:.{RANGE_DECIMALS}f}".rstrip("0").removesuffix("."))
+    return " ".join(out)
+
+
+def _pose_text(p: Pose2D) -> str:
+    return f"{p.x!r} {p.y!r} {p.theta!r}"
+
+
+# -- the writer ------------------------------------------------------------------------------
+_FORMATS = "# message formats defined: PARAM FLASER TRUEPOS\n"
+_FLASER_FORMAT = "# FLASER num_readings [range_readings] x y theta odom_x odom_y odom_theta\n"
+_TRUEPOS_FORMAT = "# TRUEPOS true_x true_y true_theta odom_x odom_y odom_theta\n"
+
+
+class CarmenWriter:
+    """Stream scans into the CARMEN log ``path`` (module docstring): :meth:`write` per scan,
+    then :meth:`close` (or :meth:`abort`); also a context manager (closes, or aborts on an
+    exception).
+
+    ``estimate_of=None`` (:func:`write_carmen`): the header (``#`` comments: what wrote it, the
+    beam convention, ``header_comment``) is written at once, then ``PARAM
+    robot_frontlaser_offset x`` when the first scan's laser sits ``x`` ahead of the robot
+    centre and ``PARAM robot_front_laser_max r`` when its ``range_max`` is finite. Every scan
+    must fit :func:`~fuzzypos.io.carmen_beam_geometry` with ``field_of_view_deg`` and
+    ``convention`` and have the first scan's ``sensor_pose`` (a pure forward offset) and
+    ``range_max``, else :meth:`write` raises ``ValueError`` naming the file and the record;
+    invalid readings are written as ``range_max`` (``0`` when it is infinite).
+
+    ``estimate_of=<source>`` (the run job): the header names ``source`` and is written with
+    the first scan, whose beam geometry (:func:`flaser_geometry`) and mounting pose the log
+    keeps (a pose FLASER cannot store goes in a comment); scans with another geometry are
+    left out (counted in :attr:`skipped`); ranges are the raw readings; :attr:`notes` says
+    what was lost. ``field_of_view_deg``, ``convention`` and ``header_comment`` are not used.
+
+    ``compress``: gzip the file (None: when the name ends in ``.gz``). :attr:`written`: the
+    scans written so far.
+    """
+
+    def __init__(
+        self,
+        path: PathLike,
+        *,
+        hostname: str = "fuzzypos",
+        field_of_view_deg: float = 180.0,
+        convention: str = "auto",
+        header_comment: str | None = None,
+        estimate_of: str | None = None,
+        compress: bool | None = None,
+    ) -> None:
+        self.estimate_of = estimate_of
+        self.geometry: tuple[float, str] | None = None
+        if estimate_of is None:
+            self.geometry = (check_fov(field_of_view_deg), convention)
+            check_convention(convention)
+        if not isinstance(hostname, str) or not hostname or any(c.isspace() for c in hostname):
+            raise ValueError(
+                f"hostname must be a non-empty word without whitespace, got {hostname!r}"
+            )
+        self.hostname = hostname
+        self.name = os.fspath(path)
+        self.path = Path(path)
+        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        self.written = 0
+        self.skipped = 0
+        self.notes: list[str] = []
+        self.first: LaserScan | None = None
+        self._fill = "0"
+        self._pose_change_noted = False
+        self._raw: IO[bytes] | None = None
+        gz = self.path.name.endswith(".gz") if compress is None else compress
+        self._fh: IO[str] | None = self._open(gz)
+        if estimate_of is None:
+            for line in self._log_header(header_comment):
+                self._fh.write(line)
+
+    def _open(self, compress: bool) -> IO[str]:
+        if not compress:
+            return open(self.tmp, "w", encoding="utf-8", newline="\n")
+        self._raw = open(self.tmp, "wb")  # noqa: SIM115 - closed by close()/abort()
+        try:
+            gz = gzip.GzipFile(filename="", mode="wb", fileobj=self._raw, mtime=0)
+            return io.TextIOWrapper(gz, encoding="utf-8", newline="\n")
+        except BaseException:
+            self._raw.close()
+            raise
+
+    # -- headers ---------------------------------------------------------------------------
+    def _log_header(self, header_comment: str | None) -> list[str]:
+        assert self.geometry is not None
+        fov, convention = self.geometry
+        lines = [
+            "# CARMEN Logfile\n",
+            f"# written by fuzzypos {__version__} (fuzzypos.io.write_carmen)\n",
+            "# file format is one message per line\n",
+            "# message_name [message contents] ipc_timestamp ipc_hostname logger_timestamp\n",
+            _FORMATS,
+            "# PARAM param_name param_value\n",
+            _FLASER_FORMAT,
+            _TRUEPOS_FORMAT,
+            (
+                f"# FLASER beams: field of view {fov:g} deg from -{fov / 2:g} deg, convention "
+                f"{convention!r} (fov/n for even n, fov/(n-1) for odd n when 'auto'); read with "
+                f"the same\n"
+            ),
+        ]
+        if header_comment:
+            lines.extend(f"# {ln}\n" if ln else "#\n" for ln in str(header_comment).splitlines())
+        return lines
+
+    def _estimate_header(self, first: LaserScan) -> list[str]:
+        self.geometry = flaser_geometry(first)
+        lines = [
+            "# CARMEN Logfile\n",
+            f"# written by fuzzypos {__version__} (fuzzypos run) from {self.estimate_of}\n",
+            (
+                "# FLASER x y theta: the fuzzypos estimate; odom_x odom_y odom_theta: the log's "
+                "odometry (the estimate where the log has none)\n"
+            ),
+            _FORMATS,
+            _FLASER_FORMAT,
+            _TRUEPOS_FORMAT,
+        ]
+        if self.geometry is not None:
+            fov, conv = self.geometry
+            lines.append(
+                f"# FLASER beams: field of view {fov:g} deg from -{fov / 2:g} deg, convention "
+                f"{conv!r}; read with the same (fuzzypos: --fov {fov:g} --convention {conv})\n"
+            )
+        sp = first.sensor_pose
+        if sp.y == 0.0 and sp.theta == 0.0:
+            lines.extend(self._params(first, range_max=False))
+        else:
+            lines.append(
+                f"# the laser sits at x={sp.x!r} y={sp.y!r} theta={sp.theta!r} rad on the robot, "
+                "which FLASER cannot store: read with --laser-offset "
+                f"{sp.x:g},{sp.y:g},{math.degrees(sp.theta):g}\n"
+            )
+            self.notes.append(
+                f"{self.path.name}: the laser's mounting pose has a sideways or angular part "
+                "that FLASER cannot store; it is in a comment"
+            )
+        return lines
+
+    def _params(self, first: LaserScan, *, range_max: bool) -> list[str]:
+        """The PARAM lines of the first scan's laser: its forward offset, its maximum range."""
+        trailer = f"{first.stamp!r} {self.hostname} {first.stamp!r}"
+        out = []
+        if first.sensor_pose.x != 0.0:
+            out.append(f"PARAM robot_frontlaser_offset {first.sensor_pose.x!r} {trailer}\n")
+        if range_max and math.isfinite(first.range_max):
+            out.append(f"PARAM robot_front_laser_max {first.range_max!r} {trailer}\n")
+        return out
+
+    # -- the scans -------------------------------------------------------------------------
+    def _check_log_scan(self, scan: LaserScan) -> list[str]:
+        """:func:`write_carmen`'s checks of the next scan; the PARAM lines before the first."""
+        assert self.geometry is not None
+        fov, convention = self.geometry
+        name, index, n = self.name, self.written, scan.n_beams
+        if n < 2:
+            raise ValueError(f"{name}: record {index}: a FLASER scan needs >= 2 beams, got {n}")
+        expected = _misfit(scan, fov, convention)
+        if expected is not None:
+            a0, inc = expected
+            raise ValueError(
+                f"{name}: record {index}: scan geometry (angle_min "
+                f"{math.degrees(scan.angle_min):.6g}°, increment "
+                f"{math.degrees(scan.angle_increment):.6g}°, {n} beams) does not fit "
+                f"FLASER with field_of_view_deg={fov:g}, convention={convention!r} "
+                f"(expects angle_min {math.degrees(a0):.6g}°, increment {math.degrees(inc):.6g}°)"
+            )
+        first = self.first
+        if first is None:
+            sp = scan.sensor_pose
+            if sp.y != 0.0 or sp.theta != 0.0:
+                raise ValueError(
+                    f"{name}: record {index}: FLASER logs store only a forward laser offset "
+                    f"(robot_frontlaser_offset), got sensor_pose {sp}"
+                )
+            self.first = scan
+            self._fill = repr(scan.range_max) if math.isfinite(scan.range_max) else "0"
+            return self._params(scan, range_max=True)
+        if scan.sensor_pose != first.sensor_pose:
+            raise ValueError(
+                f"{name}: record {index}: sensor_pose {scan.sensor_pose} differs from the "
+                f"first scan's {first.sensor_pose}; a CARMEN log has one front laser"
+            )
+        if scan.range_max != first.range_max:
+            raise ValueError(
+                f"{name}: record {index}: range_max {scan.range_max} differs from the "
+                f"first scan's {first.range_max}; a CARMEN log has one front laser"
+            )
+        return []
+
+    def _check_estimate_scan(self, fh: IO[str], scan: LaserScan) -> bool:
+        """Whether the scan fits the estimate log's beam geometry (else it is left out); the
+        header goes out with the first scan."""
+        if self.first is None:
+            self.first = scan
+            for line in self._estimate_header(scan):
+                fh.write(line)
+        if self.geometry is None or scan.n_beams < 2 or _misfit(scan, *self.geometry) is not None:
+            self.skipped += 1
+            return False
+        if scan.sensor_pose != self.first.sensor_pose and not self._pose_change_noted:
+            self._pose_change_noted = True
+            self.notes.append(
+                f"{self.path.name}: the scans' sensor_pose changes along the log; FLASER keeps "
+                "the first one's"
+            )
+        return True
+
+    def write(
+        self,
+        scan: LaserScan,
+        odometry: Pose2D | None,
+        truth: Pose2D | None = None,
+        *,
+        pose: Pose2D | None = None,
+    ) -> None:
+        """Write one scan: ``FLASER`` with ``pose`` (default: ``odometry``) as ``x y θ`` and
+        ``odometry`` (default: ``pose``) as ``odom_x odom_y odom_θ``, then ``TRUEPOS`` when
+        ``truth`` is given. Does nothing after :meth:`close` or :meth:`abort` in estimate
+        mode."""
+        fh = self._fh
+        if fh is None:
+            if self.estimate_of is not None:
+                return
+            raise ValueError(f"{self.name}: the CARMEN writer is closed")
+        if pose is None and odometry is None:
+            raise ValueError(f"{self.name}: record {self.written}: no pose to write")
+        if self.estimate_of is None:
+            for line in self._check_log_scan(scan):
+                fh.write(line)
+            ranges = _ranges_filled(scan, self._fill)
+        else:
+            if not self._check_estimate_scan(fh, scan):
+                return
+            ranges = _ranges_raw(scan)
+        xyt = _pose_text(pose if pose is not None else odometry)  # type: ignore[arg-type]
+        odo = _pose_text(odometry) if odometry is not None else xyt
+        trailer = f"{scan.stamp!r} {self.hostname} {scan.stamp!r}"
+        fh.write(f"FLASER {scan.n_beams} {ranges} {xyt} {odo} {trailer}\n")
+        if truth is not None:
+            fh.write(f"TRUEPOS {_pose_text(truth)} {odo} {trailer}\n")
+        self.written += 1
+
+    # -- finishing -------------------------------------------------------------------------
+    def _close_files(self) -> None:
+        fh, raw = self._fh, self._raw
+        self._fh = self._raw = None
+        try:
+            if fh is not None:
+                fh.close()
+        finally:
+            if raw is not None:
+                raw.close()
+
+    def close(self) -> bool:
+        """Finish the log and rename it over ``path``; return whether it was. In estimate mode
+        a log without a scan is not kept (False; no file) and the scans left out are noted."""
+        if self._fh is None:
+            return False
+        try:
+            self._close_files()
+            if self.estimate_of is not None:
+                if self.skipped:
+                    self.notes.append(
+                        f"{self.path.name}: {self.skipped} scans have beam angles FLASER cannot "
+                        "describe (no symmetric field of view) and were left out"
+                    )
+                if self.written == 0:
+                    os.unlink(self.tmp)
+                    return False
+            os.replace(self.tmp, self.path)
+        except BaseException:
+            self.abort()
+            raise
+        return True
+
+    def abort(self) -> None:
+        """Give up: close and remove the temporary file (``path`` is left as it was)."""
+        try:
+            self._close_files()
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(self.tmp)
+
+    def __enter__(self) -> CarmenWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+
+# -- write_carmen ----------------------------------------------------------------------------
+def _unpack_record(rec: object, index: int) -> tuple[LaserScan, Pose2D, Pose2D | None]:
+    scan: Any
+    odom: Any
+    truth: Any
+    if isinstance(rec, LogRecord):
+        scan, odom, truth = rec
+    else:
+        try:
+            items = tuple(cast("Iterable[Any]", rec))
+        except TypeError:
+            raise TypeError(
+                f"record {index}: expected a CarmenRecord(scan, odometry, truth), got "
+                f"{type(rec).__name__}"
+            ) from None
+        if len(items) not in (2, 3):
+            raise ValueError(
+                f"record {index}: expected (scan, odometry[, truth]), got {len(items)} items"
+            )
+        scan, odom = items[0], items[1]
+        truth = items[2] if len(items) == 3 else None
+    if not isinstance(scan, LaserScan):
+        raise TypeError(f"record {index}: scan must be a LaserScan, got {type(scan).__name__}")
+    if not isinstance(odom, Pose2D):
+        odom = Pose2D.from_array(odom)
+    if truth is not None and not isinstance(truth, Pose2D):
+        truth = Pose2D.from_array(truth)
+    return scan, odom, truth
+
+
+def write_carmen(
+    path: PathLike,
+    records: Iterable[LogRecord],
+    *,
+    hostname: str = "fuzzypos",
+    header_comment: str | None = None,
+    field_of_view_deg: float = 180.0,
+    convention: str = "auto",
+) -> int:
+    """Write ``records`` as a CARMEN log the way CARMEN's simulator does; return their count.
+
+    Per record a ``FLASER n r_1 … r_n x y θ odom_x odom_y odom_θ ipc_timestamp hostname
+    logger_timestamp`` line (``x y θ`` repeat the odometry; both timestamps are the scan's
+    stamp), then, when ``truth`` is given, a ``TRUEPOS`` line with the same trailer. The file
+    opens with ``#`` comments (what wrote it, the beam convention, ``header_comment``), then
+    ``PARAM robot_frontlaser_offset x`` when the laser sits ``x`` ahead of the robot centre and
+    ``PARAM robot_front_laser_max r`` when the scans' ``range_max`` is finite.
+
+    Ranges are written to 0.1 mm, poses and stamps at full precision (``repr``); invalid
+    readings become ``range_max`` (``0`` when it is infinite), so they read back invalid.
+    ``range_min`` is not stored. FLASER carries no angles: every scan's geometry must fit
+    :func:`carmen_beam_geometry` for its beam count with ``field_of_view_deg`` and
+    ``convention`` (a reader must use the same), all scans must share one ``sensor_pose``
+    (a pure forward offset) and one ``range_max``; otherwise :class:`ValueError` (and no file
+    is left behind: the log is written to a temporary file first). A name ending in ``.gz``
+    gets a gzip file. (:class:`CarmenWriter` does the writing.)
+    """
+    writer = CarmenWriter(
+        path,
+        hostname=hostname,
+        field_of_view_deg=field_of_view_deg,
+        convention=convention,
+        header_comment=header_comment,
+    )
+    with writer:
+        for index, rec in enumerate(records):
+            scan, odom, truth = _unpack_record(rec, index)
+            writer.write(scan, odom, truth)
+    return writer.written

@@ -1,0 +1,57 @@
+"""What the positioner returns for each scan: the :class:`Estimate` and the :class:`Reason` it
+is what it is."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+from ..features import Features
+from ..geometry import Pose2D
+
+__all__ = ["Estimate", "Reason"]
+
+
+class Reason(str, enum.Enum):
+    """Why an estimate is what it is (a string enum: it compares equal to its value)."""
+
+    #: the first scan: the trajectory starts at its odometry pose (or the origin)
+    FIRST_SCAN = "first scan"
+    #: the scan was matched against the keyframe
+    MATCHED = "matched"
+    #: the odometry did not move: neither did the estimate
+    STANDING_STILL = "standing still"
+    #: too few feature points in this scan or the keyframe to pair (§3.7)
+    TOO_FEW_FEATURES = "too few features"
+    #: the feature points paired, but too few pairs gave a pose (§4)
+    TOO_FEW_PAIRS = "too few pairs"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass(frozen=True, eq=False)
+class Estimate:
+    """The estimate at one scan.
+
+    ``pose``: the robot's pose in the trajectory frame (which starts at the first scan's
+    odometry pose, or the origin). ``increment``: the pose of this scan in the frame of the
+    previous one (the identity for the first scan). ``prior``: the increment pairing started
+    from. ``n_pairs``: the pairs the increment rests on (line pairs where line-to-line matching
+    gave it, feature-point pairs where the paper's pairing did). ``degraded``: True where the
+    estimate fell back to the prior. ``features``: this scan's features (None unless kept).
+    ``reason``: why the estimate is what it is. ``odometry_rejected``: the odometry increment
+    was no robot's motion (a jump) and the last increment replaced it as the prior.
+    ``refined``: the point-to-line refinement gave it.
+    """
+
+    stamp: float
+    pose: Pose2D
+    increment: Pose2D
+    prior: Pose2D
+    n_pairs: int
+    degraded: bool
+    features: Features | None = None
+    reason: Reason = Reason.MATCHED
+    odometry_rejected: bool = False
+    refined: bool = False

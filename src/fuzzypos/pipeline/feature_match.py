@@ -1,0 +1,107 @@
+"""The feature matching stage: line-to-line matching from the prior first, then the paper's
+feature points (§3.7, §4) refined by line matching."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import FusionConfig, MatchingConfig
+from ..features import FeaturePoints, Features, Lines
+from ..matching import estimate_increment, increment_from_lines, pair_features, pair_lines
+from .estimate import Reason
+
+__all__ = ["FeatureMatch", "FeatureMatcher"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class FeatureMatch:
+    """The motion from the keyframe's features to the scan's (None where nothing gave one),
+    the pairs it rests on (line pairs where line matching gave it), and why: ``MATCHED``, or
+    why no motion came of the point features."""
+
+    increment: FloatArray | None
+    n_pairs: int
+    reason: Reason
+
+
+class FeatureMatcher:
+    """Matches a scan's features against the keyframe's (``[matching]``, ``[fusion]``)."""
+
+    def __init__(self, matching: MatchingConfig, fusion: FusionConfig) -> None:
+        self.matching = matching
+        self.fusion = fusion
+
+    def match(self, prev: Features, curr: Features, prior: FloatArray) -> FeatureMatch:
+        """The motion from ``prev`` to ``curr``: line matching from ``prior`` first (where
+        configured), else the paper's point pairing (refined by line matching)."""
+        m = self.matching
+        lines_tried = m.match_lines and m.lines_first
+        if lines_tried:
+            increment, n_lines = self.match_lines(prev.lines, curr.lines, None, prior)
+            if increment is not None:
+                return FeatureMatch(increment, n_lines, Reason.MATCHED)
+        points = self.match_points(prev.points_of_interest, curr.points_of_interest, prior)
+        if m.match_lines and (points.increment is not None or not lines_tried):
+            refined, n_lines = self.match_lines(prev.lines, curr.lines, points.increment, prior)
+            if refined is not None:
+                return FeatureMatch(refined, n_lines, Reason.MATCHED)
+        return points
+
+    def match_points(
+        self, prev: FeaturePoints, curr: FeaturePoints, prior: FloatArray
+    ) -> FeatureMatch:
+        """The paper's way (§3.7, §4): pair the feature points with the prior, the pose from
+        every two pairs, fusion."""
+        m = self.matching
+        if len(prev) < m.min_pairs or len(curr) < m.min_pairs:
+            return FeatureMatch(None, 0, Reason.TOO_FEW_FEATURES)
+        pairs = pair_features(prev, curr, prior, m.pairing_distance, m.same_kind_only, m.mutual)
+        est, n_used = estimate_increment(pairs, self.fusion, m.min_pair_separation, m.min_pairs)
+        if est is None:
+            return FeatureMatch(None, len(pairs), Reason.TOO_FEW_PAIRS)
+        return FeatureMatch(est, n_used, Reason.MATCHED)
+
+    def match_lines(
+        self, prev: Lines, curr: Lines, start: FloatArray | None, prior: FloatArray
+    ) -> tuple[FloatArray | None, int]:
+        """Line-to-line matching from the point features' motion ``start`` (or the prior,
+        with the wider gates), and once more from its own result where that moved enough to
+        change the pairs (at most ``line_passes`` passes). Returns the increment (None where
+        the lines give none) and the number of line pairs."""
+        m = self.matching
+        if start is None:
+            pose, gates = prior, (m.line_angle_gate_prior, m.line_distance_gate_prior)
+        else:
+            pose, gates = start, (m.line_angle_gate, m.line_distance_gate)
+        est, n_pairs = None, 0
+        for _ in range(m.line_passes):
+            pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
+            if len(pairs) < m.line_min_pairs:
+                break
+            new = increment_from_lines(
+                prev,
+                curr,
+                pairs,
+                pose,
+                prior,
+                m.line_prior_sigma,
+                m.line_trim_angle,
+                m.line_inlier_distance,
+                m.line_consensus_angle,
+            )
+            if new is None:
+                break
+            moved = np.abs(new - pose)
+            est = pose = new
+            n_pairs = len(pairs)
+            # pair again with the refined motion, unless it moved too little to change pairs
+            f = m.line_repair_fraction
+            if moved[0] + moved[1] < f * m.line_distance_gate and moved[2] < f * m.line_angle_gate:
+                break
+            gates = (m.line_angle_gate, m.line_distance_gate)
+        return est, n_pairs

@@ -1,0 +1,123 @@
+"""The local map stage: the keyframe each scan is matched against, the surfaces of the last
+keyframes, and the previous scan."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from ..config import MatchingConfig, RefinementConfig
+from ..features import Features
+from ..geometry import compose, relative, transform_points
+from ..matching import SurfacePoints, surface_points
+
+__all__ = ["LocalMap"]
+
+FloatArray = NDArray[np.float64]
+
+
+class LocalMap:
+    """The keyframe (its features and pose), renewed once the robot has moved
+    ``keyframe_distance`` or turned ``keyframe_angle`` from it (``[matching]``); the surfaces
+    of the last ``local_map_keyframes`` keyframes, each with the pose it was seen from, kept
+    where the refinement runs (``[refinement]``); and the previous scan where it is not the
+    keyframe."""
+
+    def __init__(self, matching: MatchingConfig, refinement: RefinementConfig) -> None:
+        self.matching = matching
+        self.refinement = refinement
+        self.reset()
+
+    def reset(self) -> None:
+        self._features: Features | None = None
+        self._pose: FloatArray = np.zeros(3)
+        self._surface: SurfacePoints | None = None
+        self._recent: list[tuple[SurfacePoints, FloatArray]] = []
+        self._previous: tuple[Features, FloatArray] | None = None
+
+    @property
+    def features(self) -> Features:
+        """The keyframe's features."""
+        if self._features is None:
+            raise RuntimeError("the local map has no keyframe yet")
+        return self._features
+
+    @property
+    def keyframes(self) -> int:
+        """How many keyframes' surfaces the local map holds."""
+        return len(self._recent)
+
+    def from_keyframe(self, pose: FloatArray, increment: FloatArray) -> FloatArray:
+        """The motion ``increment`` from ``pose`` expressed from the keyframe: what was
+        estimated up to ``pose``, then ``increment``."""
+        return compose(relative(self._pose, pose), increment)
+
+    def pose_of(self, from_keyframe: FloatArray) -> FloatArray:
+        """The pose at ``from_keyframe`` seen from the keyframe."""
+        return compose(self._pose, from_keyframe)
+
+    def add(self, features: Features, pose: FloatArray, from_keyframe: FloatArray | None) -> None:
+        """The scan just estimated: it becomes the keyframe where matching it failed
+        (``from_keyframe`` None: start afresh from it) or it lies far enough from the
+        keyframe, else it is kept as the previous scan."""
+        m = self.matching
+        if (
+            from_keyframe is None
+            or math.hypot(from_keyframe[0], from_keyframe[1]) >= m.keyframe_distance
+            or abs(from_keyframe[2]) >= m.keyframe_angle
+        ):
+            self.set_keyframe(features, pose)
+        else:
+            self._previous = (features, pose)
+
+    def set_keyframe(self, features: Features, pose: FloatArray) -> None:
+        self._features = features
+        self._pose = pose
+        self._surface = None
+        self._previous = None  # the latest scan is the keyframe itself
+        r = self.refinement
+        if not r.enabled:
+            return
+        self._recent.append((self._surface_of(features), np.asarray(pose, dtype=float)))
+        del self._recent[: -r.local_map_keyframes]
+
+    def surface(self) -> SurfacePoints:
+        """The recent keyframes' surface points in the keyframe's frame (built once per
+        keyframe, one KD-tree)."""
+        if self._surface is None:
+            parts = self._recent
+            self._surface = parts[0][0] if len(parts) == 1 else self._map_of(parts)
+        return self._surface
+
+    def search_surface(self) -> SurfacePoints:
+        """The local map and the previous scan (where it is not the keyframe): after a jump
+        or a gap the latest view of the place overlaps most with the new scan."""
+        if self._previous is None or self._previous[0].points.shape[0] == 0:
+            return self.surface()
+        features, pose = self._previous
+        return self._map_of([*self._recent, (self._surface_of(features), pose)])
+
+    def _surface_of(self, features: Features) -> SurfacePoints:
+        return surface_points(
+            features.points, features.ranges, features.uncertainty, self.refinement
+        )
+
+    def _map_of(self, parts: list[tuple[SurfacePoints, FloatArray]]) -> SurfacePoints:
+        """Surface points seen from the given poses, in the keyframe's frame, one KD-tree."""
+        xy, normal, weight = [], [], []
+        for surf, pose in parts:
+            rel = relative(self._pose, pose)
+            xy.append(transform_points(rel, surf.xy))
+            c, s_ = math.cos(rel[2]), math.sin(rel[2])
+            n = surf.normal
+            normal.append(
+                np.stack((c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]), axis=1)
+            )
+            weight.append(surf.weight)
+        all_xy = np.concatenate(xy)
+        return SurfacePoints(
+            all_xy, np.concatenate(normal), np.concatenate(weight), cKDTree(all_xy)
+        )

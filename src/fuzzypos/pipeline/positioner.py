@@ -1,0 +1,217 @@
+"""The per-scan loop: the odometry prior, feature matching against the keyframe, the
+refinement and the search, the trajectory.
+
+``Positioner.update(scan, odom)`` takes each scan in turn with the odometry pose at that scan
+(or ``None``). The prior for the motion since the previous scan is the odometry increment
+``⊖o_k ⊕ o_{k+1}`` (SPEC) when both scans have odometry, else the last estimated increment. A
+scan with too few features or pairs falls back to the prior and is flagged ``degraded``; an
+empty or all-invalid scan is not an error but such a degraded estimate.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator, Sized
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import Config
+from ..features import Features, extract_features
+from ..geometry import Pose2D, compose, relative
+from ..matching import Refinement
+from ..scan import LaserScan
+from .estimate import Estimate, Reason
+from .feature_match import FeatureMatch, FeatureMatcher
+from .local_map import LocalMap
+from .prior import OdometryPrior, Prior
+from .refine import Refiner, Starts
+from .search import Relocaliser
+
+__all__ = ["Positioner"]
+
+FloatArray = NDArray[np.float64]
+
+_END = object()
+_IDENTITY = Pose2D()
+
+
+def _pose(a: FloatArray) -> Pose2D:
+    """A Pose2D from a pose array the pipeline computed (finite, angle wrapped by compose)."""
+    x, y, th = float(a[0]), float(a[1]), float(a[2])
+    if not (math.isfinite(x) and math.isfinite(y) and -math.pi <= th < math.pi):
+        return Pose2D(x, y, th)  # validates and wraps
+    return Pose2D._trusted(x, y, th)
+
+
+class Positioner:
+    """Fuzzy-based positioning of a robot from consecutive scans and odometry.
+
+    A sequence of stages, each built from its own config section and owning its state: the
+    odometry prior (:class:`~.prior.OdometryPrior`), the local map of keyframes
+    (:class:`~.local_map.LocalMap`), feature matching (:class:`~.feature_match.FeatureMatcher`),
+    the refinement (:class:`~.refine.Refiner`) and the relocalisation search
+    (:class:`~.search.Relocaliser`).
+    """
+
+    def __init__(self, config: Config | None = None) -> None:
+        self.config = config if config is not None else Config()
+        cfg = self.config
+        self.odometry_prior = OdometryPrior(cfg.odometry)
+        self.local_map = LocalMap(cfg.matching, cfg.refinement)
+        self.feature_matcher = FeatureMatcher(cfg.matching, cfg.fusion)
+        self.refiner = Refiner(cfg.refinement, cfg.search)
+        self.relocaliser = Relocaliser(cfg.search, self.refiner)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every scan: the next one starts a new trajectory."""
+        self._pose: FloatArray | None = None
+        self.odometry_prior.reset()
+        self.local_map.reset()
+
+    @property
+    def pose(self) -> Pose2D | None:
+        """The latest pose estimate (None before the first scan)."""
+        return None if self._pose is None else Pose2D.from_array(self._pose)
+
+    @property
+    def odometry_jumps(self) -> int:
+        """Odometry increments rejected as jumps so far."""
+        return self.odometry_prior.jumps
+
+    def update(self, scan: LaserScan, odom: Pose2D | None = None) -> Estimate:
+        """Process the next scan; ``odom`` is the odometry pose at this scan, if any."""
+        if not isinstance(scan, LaserScan):
+            raise TypeError(f"update() needs a LaserScan, got {type(scan).__name__}")
+        if odom is not None and not isinstance(odom, Pose2D):
+            raise TypeError(f"odom must be a Pose2D or None, got {type(odom).__name__}")
+        if self._pose is None:
+            return self._first(scan, odom)
+        prior = self.odometry_prior.predict(scan.stamp, odom)
+        if prior.standing_still:  # the odometry says the robot stands still: so does the estimate
+            self.odometry_prior.accept(np.zeros(3), prior.dt)
+            return Estimate(
+                scan.stamp,
+                _pose(self._pose),
+                _IDENTITY,
+                _IDENTITY,
+                0,
+                False,
+                None,
+                Reason.STANDING_STILL,
+            )
+        features = extract_features(scan, self.config)
+        # the same prior from the keyframe: what was estimated up to the previous scan, then it
+        key_prior = self.local_map.from_keyframe(self._pose, prior.increment)
+        match = self.feature_matcher.match(self.local_map.features, features, key_prior)
+        fit = self._refine(features, match, key_prior, prior, scan.angle_increment)
+        from_key = match.increment if fit is None else fit.increment
+        if from_key is None:  # fall back to the prior, and start afresh from this scan
+            increment = np.asarray(prior.increment, dtype=float)
+            pose = compose(self._pose, increment)
+        else:
+            pose = self.local_map.pose_of(from_key)
+            increment = relative(self._pose, pose)
+        self.local_map.add(features, pose, from_key)
+        self._pose = pose
+        self.odometry_prior.accept(increment, prior.dt)
+        reason = match.reason
+        if fit is not None and match.n_pairs == 0:
+            reason = Reason.MATCHED
+        return Estimate(
+            stamp=scan.stamp,
+            pose=_pose(pose),
+            increment=_pose(increment),
+            prior=_pose(prior.increment),
+            n_pairs=match.n_pairs,
+            degraded=from_key is None,
+            features=features,
+            reason=reason,
+            odometry_rejected=prior.odometry_rejected,
+            refined=fit is not None,
+        )
+
+    def _first(self, scan: LaserScan, odom: Pose2D | None) -> Estimate:
+        """The first scan: the trajectory starts at its odometry pose, or the origin."""
+        features = extract_features(scan, self.config)
+        start = odom.as_array() if odom is not None else np.zeros(3)
+        self._pose = start
+        self.odometry_prior.start(scan.stamp, odom)
+        self.local_map.set_keyframe(features, start)
+        return Estimate(
+            scan.stamp,
+            Pose2D.from_array(start),
+            _IDENTITY,
+            _IDENTITY,
+            0,
+            False,
+            features,
+            Reason.FIRST_SCAN,
+        )
+
+    def _refine(
+        self,
+        features: Features,
+        match: FeatureMatch,
+        key_prior: FloatArray,
+        prior: Prior,
+        angle_increment: float,
+    ) -> Refinement | None:
+        """The refinement of the features' motion (else the prior's) against the local map,
+        and the search where the prior cannot be trusted (after an odometry jump), or where the
+        refinement fails (a wider one after a gap in time). None where nothing fits."""
+        r = self.config.refinement
+        if not r.enabled:
+            return None
+        surface = self.local_map.surface()
+        points = self.refiner.points(features, angle_increment)
+        if points is None:
+            return None
+        start = key_prior if match.increment is None else match.increment
+        from_features = match.increment is not None and r.prior_from_features
+        starts = Starts(start=start, prior=start if from_features else key_prior, hold=key_prior)
+        wide = prior.odometry_rejected
+        best = self.refiner.refine(surface, points, starts, wide)
+        if wide or best is None:
+            full = wide or prior.dt > self.config.search.after_gap
+            best = self.relocaliser.relocalise(self.local_map, points, starts, best, full)
+        return best
+
+    def run(
+        self,
+        scans: Iterable[LaserScan],
+        odoms: Iterable[Pose2D | None] | None = None,
+        keep_features: bool = False,
+    ) -> list[Estimate]:
+        """Process a sequence; ``odoms`` (same length, entries may be None) is optional."""
+        if isinstance(scans, Sized) and isinstance(odoms, Sized) and len(odoms) != len(scans):
+            raise ValueError(
+                f"odoms has {len(odoms)} poses for {len(scans)} scans: give one per scan"
+            )
+        return list(self.iter_run(scans, odoms, keep_features))
+
+    def iter_run(
+        self,
+        scans: Iterable[LaserScan],
+        odoms: Iterable[Pose2D | None] | None = None,
+        keep_features: bool = False,
+    ) -> Iterator[Estimate]:
+        """Like :meth:`run`, one estimate at a time (for streaming long logs)."""
+        odom_iter = iter(odoms) if odoms is not None else None
+        for k, scan in enumerate(scans):
+            odom = None
+            if odom_iter is not None:
+                try:
+                    odom = next(odom_iter)
+                except StopIteration:
+                    raise ValueError(
+                        f"odoms ran out at scan {k}: give one odometry pose per scan"
+                    ) from None
+            est = self.update(scan, odom)
+            if not keep_features:
+                est = replace(est, features=None)
+            yield est
+        if odom_iter is not None and next(odom_iter, _END) is not _END:
+            raise ValueError("odoms has more poses than there were scans: give one per scan")

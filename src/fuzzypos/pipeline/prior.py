@@ -1,0 +1,98 @@
+"""The odometry prior stage: the motion a scan starts from, odometry jumps, standing still."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import OdometryConfig
+from ..geometry import Pose2D, relative
+
+__all__ = ["OdometryPrior", "Prior"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class Prior:
+    """The prior for one scan's motion since the previous scan.
+
+    ``increment``: the odometry increment ``⊖o_k ⊕ o_{k+1}`` (SPEC) where both scans have
+    odometry and it is a robot's motion, else the last estimated increment (after a jump: at
+    most as far as it went in its own time step). ``odometry``: the odometry increment, None
+    without odometry. ``dt``: seconds since the previous scan (never negative).
+    ``odometry_rejected``: the odometry increment was a jump. ``standing_still``: the odometry
+    pose did not change at all (the wheels did not turn).
+    """
+
+    increment: FloatArray
+    odometry: FloatArray | None
+    dt: float
+    odometry_rejected: bool
+    standing_still: bool
+
+
+class OdometryPrior:
+    """Turns the odometry poses into the prior of each scan's motion (``[odometry]``)."""
+
+    def __init__(self, settings: OdometryConfig) -> None:
+        self.settings = settings
+        self.reset()
+
+    def reset(self) -> None:
+        self._prev_odom: Pose2D | None = None
+        self._prev_stamp = 0.0
+        self._last_increment: FloatArray = np.zeros(3)
+        self._last_dt = 0.0
+        #: odometry increments rejected as jumps so far
+        self.jumps = 0
+
+    def start(self, stamp: float, odom: Pose2D | None) -> None:
+        """The first scan: nothing to predict yet."""
+        self._prev_odom = odom
+        self._prev_stamp = stamp
+
+    def predict(self, stamp: float, odom: Pose2D | None) -> Prior:
+        """The prior for the scan at ``stamp`` whose odometry pose is ``odom`` (or None)."""
+        rejected = False
+        odo_inc = None
+        dt = max(0.0, stamp - self._prev_stamp)
+        if odom is not None and self._prev_odom is not None:
+            odo_inc = relative(self._prev_odom.as_array(), odom.as_array())
+            rejected = self.is_jump(odo_inc, dt)
+        self._prev_stamp = stamp
+        if odo_inc is not None and not rejected:
+            prior = odo_inc
+        elif rejected:  # the last motion, at most as far as it went in its own time step
+            ratio = min(1.0, dt / self._last_dt) if self._last_dt > 0 else 1.0
+            prior = self._last_increment * ratio
+        else:
+            prior = self._last_increment
+        if rejected:
+            self.jumps += 1
+        standing = (
+            odo_inc is not None
+            and self.settings.trust_stand_still
+            and odom == self._prev_odom  # the very same pose: the wheels did not turn
+        )
+        self._prev_odom = odom
+        return Prior(prior, odo_inc, dt, rejected, standing)
+
+    def accept(self, increment: FloatArray, dt: float) -> None:
+        """The increment estimated for the scan ``dt`` after the previous one: the prior of a
+        scan without (sane) odometry."""
+        self._last_increment = increment
+        self._last_dt = dt
+
+    def is_jump(self, increment: FloatArray, dt: float) -> bool:
+        """An odometry increment no robot makes: faster than ``max_speed`` / ``max_turn_rate``
+        over ``dt`` plus the allowances (stamps of real logs are not acquisition times)."""
+        o = self.settings
+        dist = math.hypot(increment[0], increment[1])
+        return bool(
+            dist > o.max_speed * dt + o.max_jump_distance
+            or abs(increment[2]) > o.max_turn_rate * dt + o.max_jump_angle
+        )

@@ -1,0 +1,130 @@
+"""The refinement stage: every filtered point of the scan fitted to the local map's surfaces
+(fuzzy-weighted point-to-line Gauss-Newton), from the features' motion and, where it
+disagrees with the odometry's, from the odometry's too."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import RefinementConfig, SearchConfig
+from ..features import Features
+from ..matching import Refinement, SurfacePoints, refine_point_to_line, surface_lengths
+
+__all__ = ["Refiner", "ScanPoints", "Starts"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class ScanPoints:
+    """The scan's points to fit and the weight of each."""
+
+    xy: FloatArray
+    weights: FloatArray
+
+
+@dataclass(frozen=True, eq=False)
+class Starts:
+    """Where a scan's refinement starts, all from the keyframe: ``start`` (the features'
+    motion, else the odometry's), ``prior`` (the motion the fit is held to) and ``hold`` (the
+    odometry's motion, which keeps its say along a corridor)."""
+
+    start: FloatArray
+    prior: FloatArray
+    hold: FloatArray
+
+
+class Refiner:
+    """Point-to-line refinement against the local map (``[refinement]``; after a search it
+    uses ``[search]``'s looser limits)."""
+
+    def __init__(self, refinement: RefinementConfig, search: SearchConfig) -> None:
+        self.refinement = refinement
+        self.search = search
+
+    def points(self, features: Features, angle_increment: float) -> ScanPoints | None:
+        """Every valid point of the scan (the paper's filter, §3.1, drops grazing points that
+        still tell where a wall is), each weighed by its certainty and by the stretch of
+        surface it stands for; None with fewer than ``min_points``."""
+        r = self.refinement
+        pts = features.points
+        if pts.shape[0] < r.min_points:
+            return None
+        weights = np.clip(1.0 - features.uncertainty, r.weight_floor, 1.0)
+        if r.length_weight_max > 1.0:
+            # each point weighs the stretch of surface it stands for (over the scan's median):
+            # the fit is one over the surfaces' length, not over the beams, and dense clutter
+            # next to the robot (people, a desk) no longer outvotes the walls
+            length = surface_lengths(pts, features.ranges, angle_increment, r.length_cap)
+            median = float(np.median(length))
+            if median > 0.0:
+                weights = weights * np.clip(
+                    length / median, 1.0 / r.length_weight_max, r.length_weight_max
+                )
+        return ScanPoints(pts, weights)
+
+    def refine(
+        self, surface: SurfacePoints, points: ScanPoints, starts: Starts, wide: bool
+    ) -> Refinement | None:
+        """The fit from ``starts.start`` (pairing within the search's ``jump_distance`` after
+        an odometry jump, ``wide``); where the features' motion and the odometry's disagree
+        by more than ``both_distance`` or ``both_angle``, also the fit from the odometry's
+        (held to it), kept where it puts ``both_min_gain`` more of the scan close to its
+        surfaces (a refinement settles where it starts). None where neither fits."""
+        r = self.refinement
+        start, hold = starts.start, starts.hold
+        max_distance = self.search.jump_distance if wide else r.max_distance
+        best = self.fit(surface, points, start, starts.prior, hold, max_distance=max_distance)
+        differ = start - hold
+        if (
+            not wide
+            and r.also_from_odometry
+            and (
+                math.hypot(differ[0], differ[1]) > r.both_distance or abs(differ[2]) > r.both_angle
+            )
+        ):
+            other = self.fit(surface, points, hold, hold, hold, max_distance=r.max_distance)
+            if other is not None and (
+                best is None or other.close_fraction > best.close_fraction + r.both_min_gain
+            ):
+                best = other
+        return best
+
+    def fit(
+        self,
+        surface: SurfacePoints,
+        points: ScanPoints,
+        start: FloatArray,
+        prior: FloatArray,
+        hold: FloatArray,
+        *,
+        max_distance: float,
+        weak_prior: bool = False,
+    ) -> Refinement | None:
+        """One refinement against ``surface``; None where it is not trusted: fewer than
+        ``min_points`` paired, less than the inlier fraction of the scan paired, or it moved
+        further than ``max_correction`` from ``start``. ``weak_prior``: after a wide search,
+        the prior barely counts (``weak_prior_scale``) and the search's looser limits apply."""
+        r, s = self.refinement, self.search
+        res = refine_point_to_line(
+            surface,
+            points.xy,
+            points.weights,
+            start,
+            prior,
+            hold,
+            r,
+            max_distance=max_distance,
+            prior_scale=s.weak_prior_scale if weak_prior else 1.0,
+        )
+        min_fraction = s.min_inlier_fraction if weak_prior else r.min_inlier_fraction
+        if res is None or res.n_paired < r.min_points or res.inlier_fraction < min_fraction:
+            return None
+        limit = s.jump_distance if weak_prior else r.max_correction
+        if math.hypot(res.increment[0] - start[0], res.increment[1] - start[1]) > limit:
+            return None
+        return res

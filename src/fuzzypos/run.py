@@ -1,0 +1,505 @@
+"""The run job: running the positioner over a log and keeping the results.
+
+:func:`run_log` streams a log (:func:`fuzzypos.logs.open_log`) through a
+:class:`~fuzzypos.pipeline.Positioner` and writes a results folder:
+
+================  ==========================================================================
+``trajectory.tum``  the estimated pose of every scan, ``t x y z qx qy qz qw``, one line per
+                    scan in file order, ``t`` the scan's stamp as the log gives it at full
+                    precision (``repr``, never rounded: intel has scans < 2 ms apart)
+``trajectory.clf``  the log again as CARMEN ``FLASER`` lines (:func:`write_estimate_clf`):
+                    the ``x y θ`` fields carry the estimate, ``odom_x odom_y odom_θ`` the
+                    log's odometry; ``TRUEPOS`` lines where the log had truth
+``config.toml``     the configuration used (:meth:`~fuzzypos.config.Config.to_toml`; it
+                    loads back with :meth:`~fuzzypos.config.Config.from_toml`)
+``path.png``        the estimated path and the odometry over a map of every
+                    ``map_every``-th scan's points placed by the estimate
+``summary.json``    what ran on what, how fast, and how well (:func:`run_log`)
+================  ==========================================================================
+
+Memory stays small on long logs: only the stamps and poses (estimate, odometry, truth)
+and the points of every ``map_every``-th scan are kept, never the scans.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._version import __version__
+from .config import Config
+from .evaluation import EvaluationError, relations_errors, trajectory_errors
+from .geometry import Pose2D
+from .io import CarmenWriter, LogRecord, Relations, write_tum
+from .logs import OpenLog, open_log, select_records
+from .pipeline import Positioner
+from .provenance import file_sha256, git_hash, write_json
+from .scan import LaserScan
+
+__all__ = [
+    "Progress",
+    "RunSummary",
+    "default_results_dir",
+    "log_name",
+    "run_log",
+    "write_estimate_clf",
+]
+
+#: ``progress(done, total)`` (``total`` None when unknown)
+Progress = Callable[[int, "int | None"], None]
+
+#: suffixes :func:`log_name` strips
+_LOG_SUFFIXES = (".gz", ".clf", ".log", ".bag", ".carmen")
+
+#: how often (in scans) :func:`run_log` reports its progress
+_PROGRESS_EVERY = 25
+
+Row = tuple[float, float, float]
+
+
+# -- names -----------------------------------------------------------------------------------
+def log_name(path: str | os.PathLike[str]) -> str:
+    """A log's name without its usual suffixes: ``intel.clf.gz`` → ``intel``."""
+    name = Path(path).name or Path(os.path.abspath(path)).name
+    for _ in range(2):
+        for suffix in _LOG_SUFFIXES:
+            if name.lower().endswith(suffix) and len(name) > len(suffix):
+                name = name[: -len(suffix)]
+                break
+    return name
+
+
+def default_results_dir(path: str | os.PathLike[str]) -> Path:
+    """``results/<log name>/`` (relative to the working directory)."""
+    return Path("results") / log_name(path)
+
+
+# -- the estimate as a CARMEN log --------------------------------------------------------------
+def write_estimate_clf(
+    path: str | os.PathLike[str],
+    records: Iterable[tuple[LaserScan, Pose2D, Pose2D | None, Pose2D | None]],
+    *,
+    source: str = "",
+) -> int:
+    """Write ``(scan, estimate, odometry, truth)`` tuples as a CARMEN log; return the lines
+    written.
+
+    One ``FLASER n r_1 … r_n x y θ odom_x odom_y odom_θ ipc_timestamp hostname
+    logger_timestamp`` line per scan, in the order given: ``x y θ`` = the estimate,
+    ``odom_*`` = the odometry (the estimate where it is None), both timestamps the scan's
+    stamp (``repr``); then ``TRUEPOS`` when ``truth`` is given. Ranges are the scan's raw
+    readings to 0.1 mm (NaN/inf as 0, which reads back invalid). Unlike
+    :func:`fuzzypos.io.write_carmen` (which writes the odometry into both pose fields and
+    needs one ``range_max`` for the whole log) this streams any log the readers give: the
+    beam geometry is taken from the first scan (field of view and convention in a header
+    comment; scans that do not fit it are left out and counted in a note) and the maximum
+    range is left for the reader to learn. Written to a temporary file first, so a failure
+    leaves no partial file; plain text whatever the name. Both are
+    :class:`~fuzzypos.io.CarmenWriter` (here with ``estimate_of=source``).
+    """
+    w = CarmenWriter(path, estimate_of=source, compress=False)
+    try:
+        for scan, est, odom, truth in records:
+            w.write(scan, odom, truth, pose=est)
+    except BaseException:
+        w.abort()
+        raise
+    w.close()
+    return w.written
+
+
+# -- one run ---------------------------------------------------------------------------------
+@dataclass(eq=False)
+class RunSummary:
+    """What :func:`run_log` did.
+
+    ``stamps`` ``(n,)``, ``poses`` ``(n, 3)`` (the estimate), ``odometry`` ``(n, 3)`` or None
+    (NaN rows for scans without odometry), ``truth`` likewise; ``files``: name → path of
+    what was written; ``summary``: the content of ``summary.json``.
+    """
+
+    results_dir: Path
+    scans: int
+    scans_degraded: int
+    odometry_jumps_rejected: int
+    seconds: float
+    positioner_seconds: float
+    stamps: np.ndarray
+    poses: np.ndarray
+    odometry: np.ndarray | None
+    truth: np.ndarray | None
+    files: dict[str, Path]
+    summary: dict[str, Any]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def scans_per_second(self) -> float:
+        return self.scans / self.seconds if self.seconds > 0 else float("nan")
+
+
+def _pose_rows(poses: list[Row | None]) -> np.ndarray | None:
+    if not any(p is not None for p in poses):
+        return None
+    nan = (math.nan, math.nan, math.nan)
+    return np.array([p if p is not None else nan for p in poses], dtype=np.float64).reshape(-1, 3)
+
+
+def _row(p: Pose2D | None) -> Row | None:
+    return None if p is None else (p.x, p.y, p.theta)
+
+
+@dataclass(eq=False)
+class _Track:
+    """What the run keeps of each scan (never the scan itself), and its timing."""
+
+    stamps: list[float] = field(default_factory=list)
+    poses: list[Row] = field(default_factory=list)
+    odoms: list[Row | None] = field(default_factory=list)
+    truths: list[Row | None] = field(default_factory=list)
+    map_points: list[np.ndarray | None] = field(default_factory=list)
+    degraded: int = 0
+    positioner_seconds: float = 0.0
+    seconds: float = 0.0
+
+    def __len__(self) -> int:
+        return len(self.stamps)
+
+
+def _position_along(
+    records: Iterator[LogRecord],
+    positioner: Positioner,
+    clf: CarmenWriter,
+    *,
+    plot: bool,
+    map_every: int,
+    progress: Progress | None,
+    total: int | None,
+) -> _Track:
+    """Run ``positioner`` over ``records``, streaming the estimate into ``clf`` (aborted on
+    any error) and keeping the :class:`_Track`."""
+    track = _Track()
+    t_start = time.perf_counter()
+    try:
+        for k, rec in enumerate(records):
+            scan, odom = rec.scan, rec.odometry
+            t0 = time.perf_counter()
+            est = positioner.update(scan, odom)
+            track.positioner_seconds += time.perf_counter() - t0
+            pose = est.pose
+            track.stamps.append(scan.stamp)
+            track.poses.append((pose.x, pose.y, pose.theta))
+            track.odoms.append(_row(odom))
+            track.truths.append(_row(rec.truth))
+            track.degraded += bool(est.degraded)
+            if plot:
+                track.map_points.append(scan.points_robot() if k % map_every == 0 else None)
+            clf.write(scan, odom, rec.truth, pose=pose)
+            if progress is not None and (k + 1) % _PROGRESS_EVERY == 0:
+                progress(k + 1, total)
+    except BaseException:
+        clf.abort()
+        raise
+    track.seconds = time.perf_counter() - t_start
+    return track
+
+
+def _no_scans(log: OpenLog, start: float | None, end: float | None) -> ValueError:
+    what = "no scans" if (start is None and end is None) else "no scans in the chosen stretch"
+    hint = " (is it a CARMEN log with FLASER or ROBOTLASER1 lines?)" if log.kind == "carmen" else ""
+    return ValueError(f"{log.name}: {what}{hint}")
+
+
+def _plot_path(
+    path: Path,
+    log: OpenLog,
+    poses: np.ndarray,
+    odometry: np.ndarray | None,
+    map_points: list[np.ndarray | None],
+    map_every: int,
+) -> None:
+    from . import plot as plotting  # matplotlib only when figures are made
+
+    odo_xy = None if odometry is None else odometry[np.isfinite(odometry).all(axis=1)]
+    plotting.plot_map(
+        poses,
+        map_points,
+        odometry=odo_xy,
+        path=path,
+        title=f"{log_name(log.name)}: estimated path, odometry and map (scans 1 in {map_every})",
+    )
+
+
+def _truth_errors(
+    truth: np.ndarray | None, poses: np.ndarray, odometry: np.ndarray | None, degraded: int
+) -> dict[str, Any] | None:
+    """The estimate's (and the odometry's) errors against the log's truth, where every scan
+    has one."""
+    if truth is None or not np.isfinite(truth).all():
+        return None
+    out: dict[str, Any] = {"estimate": trajectory_errors(truth, poses, degraded).as_dict()}
+    if odometry is not None and np.isfinite(odometry).all():
+        out["odometry"] = trajectory_errors(truth, odometry, 0).as_dict()
+    return out
+
+
+def _relations_errors(
+    stamps: np.ndarray, poses: np.ndarray, relations: Relations | None, notes: list[str]
+) -> dict[str, Any] | None:
+    if relations is None:
+        return None
+    try:
+        rel: dict[str, Any] = relations_errors(stamps, poses, relations).as_dict()
+    except EvaluationError as exc:
+        notes.append(f"relations: {exc}")
+        return None
+    return rel
+
+
+@dataclass(eq=False)
+class _Arrays:
+    """The track as arrays: stamps, estimate, odometry and truth (NaN rows where missing)."""
+
+    stamps: np.ndarray
+    poses: np.ndarray
+    odometry: np.ndarray | None
+    truth: np.ndarray | None
+
+    @classmethod
+    def of(cls, track: _Track) -> _Arrays:
+        return cls(
+            stamps=np.array(track.stamps, dtype=np.float64),
+            poses=np.array(track.poses, dtype=np.float64).reshape(-1, 3),
+            odometry=_pose_rows(track.odoms),
+            truth=_pose_rows(track.truths),
+        )
+
+
+def _write_results(
+    out: Path,
+    log: OpenLog,
+    cfg: Config,
+    a: _Arrays,
+    track: _Track,
+    clf: CarmenWriter,
+    *,
+    out_tum: str | os.PathLike[str] | None,
+    plot: bool,
+    map_every: int,
+    notes: list[str],
+) -> dict[str, Path]:
+    """Write the results folder's files but ``summary.json``; name → path, in writing order."""
+    files: dict[str, Path] = {"trajectory.tum": out / "trajectory.tum"}
+    write_tum(
+        files["trajectory.tum"],
+        a.stamps,
+        a.poses,
+        header_comment=f"fuzzypos {__version__} estimate of {log.name} (t = the scan's stamp)",
+    )
+    if out_tum is not None:
+        comment = f"fuzzypos {__version__} estimate of {log.name}"
+        write_tum(out_tum, a.stamps, a.poses, header_comment=comment)
+        files["out_tum"] = Path(out_tum)
+    if clf.close():
+        files["trajectory.clf"] = out / "trajectory.clf"
+    notes.extend(clf.notes)
+    files["config.toml"] = out / "config.toml"
+    files["config.toml"].write_text(cfg.to_toml(), encoding="utf-8")
+    if plot:
+        files["path.png"] = out / "path.png"
+        _plot_path(files["path.png"], log, a.poses, a.odometry, track.map_points, map_every)
+    return files
+
+
+def _summary(
+    log: OpenLog,
+    track: _Track,
+    a: _Arrays,
+    *,
+    jumps: int,
+    selection: dict[str, Any],
+    config: dict[str, Any],
+    hash_input: bool,
+    truth_errors: dict[str, Any] | None,
+    relations: dict[str, Any] | None,
+    notes: list[str],
+    files: dict[str, Path],
+) -> dict[str, Any]:
+    """The content of ``summary.json`` (:func:`run_log`)."""
+    n, seconds = len(track), track.seconds
+    return {
+        "fuzzypos_version": __version__,
+        "git_hash": git_hash(),
+        "input": {
+            "path": os.path.abspath(log.name),
+            "sha256": file_sha256(log.path) if hash_input else None,
+            "kind": log.kind,
+            "options": log.options,
+        },
+        "selection": selection,
+        "scans": n,
+        "scans_degraded": track.degraded,
+        "odometry_jumps_rejected": jumps,
+        "seconds": seconds,
+        "scans_per_second": n / seconds if seconds > 0 else None,
+        "positioner_seconds": track.positioner_seconds,
+        "positioner_ms_per_scan": 1000.0 * track.positioner_seconds / n,
+        "config": config,
+        "bad_lines_skipped": log.bad_lines,
+        "truncated": log.truncated,
+        "first_stamp": track.stamps[0],
+        "last_stamp": track.stamps[-1],
+        "has_odometry": a.odometry is not None,
+        "has_truth": a.truth is not None,
+        "truth_errors": truth_errors,
+        "relations": relations,
+        "notes": notes,
+        "files": {k: str(v) for k, v in files.items()},
+    }
+
+
+def _finish(
+    out: Path,
+    log: OpenLog,
+    cfg: Config,
+    track: _Track,
+    clf: CarmenWriter,
+    *,
+    jumps: int,
+    labels: dict[str, Any],
+    out_tum: str | os.PathLike[str] | None,
+    relations: Relations | None,
+    plot: bool,
+    map_every: int,
+    hash_input: bool,
+) -> RunSummary:
+    """After the loop: write the results folder (``summary.json`` last) and sum the run up."""
+    notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
+    a = _Arrays.of(track)
+    files = _write_results(
+        out, log, cfg, a, track, clf, out_tum=out_tum, plot=plot, map_every=map_every, notes=notes
+    )
+    truth_errors = _truth_errors(a.truth, a.poses, a.odometry, track.degraded)
+    rel = _relations_errors(a.stamps, a.poses, relations, notes)
+    files["summary.json"] = out / "summary.json"
+    summary = _summary(
+        log,
+        track,
+        a,
+        jumps=jumps,
+        selection=labels["selection"],
+        config=labels["config"],
+        hash_input=hash_input,
+        truth_errors=truth_errors,
+        relations=rel,
+        notes=notes,
+        files=files,
+    )
+    write_json(files["summary.json"], summary)
+    return RunSummary(
+        results_dir=out,
+        scans=len(track),
+        scans_degraded=track.degraded,
+        odometry_jumps_rejected=jumps,
+        seconds=track.seconds,
+        positioner_seconds=track.positioner_seconds,
+        stamps=a.stamps,
+        poses=a.poses,
+        odometry=a.odometry,
+        truth=a.truth,
+        files=files,
+        summary=summary,
+        notes=notes,
+    )
+
+
+def run_log(
+    log: OpenLog | str | os.PathLike[str],
+    config: Config | None = None,
+    *,
+    results_dir: str | os.PathLike[str],
+    out_tum: str | os.PathLike[str] | None = None,
+    progress: Progress | None = None,
+    start: float | None = None,
+    end: float | None = None,
+    max_scans: int | None = None,
+    preset: str | None = None,
+    config_file: str | os.PathLike[str] | None = None,
+    relations: Relations | None = None,
+    map_every: int = 10,
+    plot: bool = True,
+    hash_input: bool = True,
+) -> RunSummary:
+    """Position the robot along ``log`` (an :class:`~fuzzypos.logs.OpenLog`, or a path opened
+    with :func:`~fuzzypos.logs.open_log`'s defaults) and write the results folder
+    ``results_dir`` (created; files in it are replaced): ``trajectory.tum``,
+    ``trajectory.clf``, ``config.toml``, ``path.png`` (unless ``plot=False``) and
+    ``summary.json`` (module docstring). ``out_tum``: also write the trajectory there.
+
+    ``start``, ``end``, ``max_scans`` choose a stretch (:func:`~fuzzypos.logs.select_records`).
+    ``preset`` and ``config_file`` only label the configuration in ``summary.json``.
+    ``relations``: also score the trajectory against them (``summary["relations"]``).
+    ``progress(done, total)`` is called every 25 scans and at the end (``total``: the scans
+    the stretch can have at most, when known).
+
+    ``summary.json`` holds: ``fuzzypos_version``, ``git_hash``
+    (:func:`~fuzzypos.provenance.git_hash`), ``input`` (``path``, ``sha256``
+    (:func:`~fuzzypos.provenance.file_sha256`; None with ``hash_input=False``), ``kind``,
+    reader ``options``), ``selection``, ``scans``, ``scans_degraded``,
+    ``odometry_jumps_rejected``, ``seconds`` (the whole loop: reading, positioning,
+    writing), ``scans_per_second`` (``scans / seconds``), ``positioner_seconds`` and
+    ``positioner_ms_per_scan`` (inside :meth:`Positioner.update` only), ``config`` (``preset``,
+    ``file``), ``bad_lines_skipped``, ``first_stamp``/``last_stamp``, ``has_odometry``,
+    ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the estimate and of the
+    odometry against the log's ``TRUEPOS``, where every scan has one; else None),
+    ``relations`` (or None), ``notes`` and ``files``.
+
+    Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
+    log) or ``OSError``; the results folder then holds no partial trajectory files.
+    """
+    if not isinstance(log, OpenLog):
+        log = open_log(log)
+    cfg = config if config is not None else Config()
+    if isinstance(map_every, bool) or not isinstance(map_every, int) or map_every < 1:
+        raise ValueError(f"map_every must be a whole number >= 1, got {map_every!r}")
+    records = select_records(log.records(), start=start, end=end, max_scans=max_scans)
+    out = Path(results_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    total: int | None = log.scan_count_hint() if progress is not None else None
+    if max_scans is not None:
+        total = max_scans if total is None else min(total, max_scans)
+
+    positioner = Positioner(cfg)
+    clf = CarmenWriter(out / "trajectory.clf", estimate_of=log.name)
+    track = _position_along(
+        records, positioner, clf, plot=plot, map_every=map_every, progress=progress, total=total
+    )
+    if len(track) == 0:
+        clf.abort()
+        raise _no_scans(log, start, end)
+    if progress is not None:
+        progress(len(track), len(track))
+    labels = {
+        "selection": {"start_s": start, "end_s": end, "max_scans": max_scans},
+        "config": {"preset": preset, "file": None if config_file is None else str(config_file)},
+    }
+    return _finish(
+        out,
+        log,
+        cfg,
+        track,
+        clf,
+        jumps=int(positioner.odometry_jumps),
+        labels=labels,
+        out_tum=out_tum,
+        relations=relations,
+        plot=plot,
+        map_every=map_every,
+        hash_input=hash_input,
+    )

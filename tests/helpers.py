@@ -1,0 +1,223 @@
+"""Helpers the test modules share (import them with ``from helpers import …``; pytest's default
+``prepend`` import mode puts ``tests/`` on ``sys.path``): where the shared logs are
+(:data:`DATA`), a small simulated CARMEN log (:func:`write_sim_log`), a relations file
+(:func:`write_relations`), and ROS1/ROS2 bags written with rosbags' writers (:func:`make_bag`
+with :func:`standard`'s scans and odometry)."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from fuzzypos import sim
+from fuzzypos.demo import DemoSettings
+from fuzzypos.geometry import compose, relative, wrap_angle
+from fuzzypos.io import CarmenRecord, write_carmen
+
+# -- the shared logs ---------------------------------------------------------------------------
+#: where the shared logs are: ``$FUZZYPOS_DATA``, else ``../shared/data`` beside the repository
+#: (where CI and the workplace keep them); tests that need them skip where absent
+_BESIDE = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA = Path(os.environ.get("FUZZYPOS_DATA") or _BESIDE)
+
+
+# -- a simulated CARMEN log and relations ------------------------------------------------------
+def write_sim_log(path: Path, *, laps: float = 0.15, seed: int = 1) -> sim.SimulatedRun:
+    """A small simulated CARMEN log (FLASER with odometry, TRUEPOS with the truth)."""
+    world = sim.world_by_name("office")
+    commanded = sim.CommandedPath.circle(1.0, laps=laps, speed=0.3)
+    run = sim.simulate_run(world, commanded, DemoSettings().scanner, sim.SlipModel(), seed)
+    records = (
+        CarmenRecord(scan, run.odometry_pose(k), run.true_pose(k))
+        for k, scan in enumerate(run.scans)
+    )
+    write_carmen(path, records)
+    return run
+
+
+def write_relations(
+    path: Path, stamps: np.ndarray, poses: np.ndarray, pairs: Sequence[tuple[int, int]]
+) -> None:
+    """A relations file: the motion of ``poses`` between each pair of scan indices."""
+    lines = []
+    for i, j in pairs:
+        x, y, th = (float(v) for v in relative(poses[i], poses[j]))
+        lines.append(f"{float(stamps[i])!r} {float(stamps[j])!r} {x!r} {y!r} 0 0 0 {th!r}")
+    path.write_text("\n".join(lines) + "\n")
+
+
+# -- bags --------------------------------------------------------------------------------------
+SCAN = "sensor_msgs/msg/LaserScan"
+ODOM = "nav_msgs/msg/Odometry"
+TF = "tf2_msgs/msg/TFMessage"
+
+N_BEAMS = 9
+ANGLE_MIN = -1.2
+ANGLE_INC = 0.3
+RANGE_MAX = 10.0
+
+
+# -- the analytic trajectory --------------------------------------------------------------
+def truth(t: float) -> tuple[float, float, float]:
+    """Linear in time (so linear interpolation is exact); θ crosses ±π at t ≈ 4.6 s."""
+    return (0.5 * t - 1.0, 2.0 - 0.2 * t, float(wrap_angle(0.9 * t - 1.0)))
+
+
+ODOM_T = [0.1 * k for k in range(1, 81)]  # 10 Hz, 0.1 … 8.0 s
+SCAN_T = [0.05 + 0.37 * k for k in range(22)]  # ~2.7 Hz, 0.05 … 7.82 s: the first before odom
+
+
+def scan_ranges(k: int) -> np.ndarray:
+    r = (1.0 + 0.25 * np.arange(N_BEAMS) + 0.01 * k).astype(np.float32)
+    r[1] = RANGE_MAX  # "no return"
+    r[2] = np.inf
+    r[3] = np.nan
+    r[4] = 0.0
+    return r
+
+
+# -- writing bags -------------------------------------------------------------------------
+class BagBuilder:
+    """Messages for one ROS version: ``ros1`` (Noetic, serialize_ros1) or ``ros2`` (Humble, CDR)."""
+
+    def __init__(self, ros: int) -> None:
+        self.ros = ros
+        self.store = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
+        if TF not in self.store.types:  # Noetic's store lacks tf2_msgs
+            self.store.register(
+                get_types_from_msg("geometry_msgs/TransformStamped[] transforms", TF)
+            )
+        self.T = self.store.types
+
+    def header(self, t: float, frame: str) -> Any:
+        sec = math.floor(t)
+        stamp = self.T["builtin_interfaces/msg/Time"](sec=sec, nanosec=round((t - sec) * 1e9))
+        if self.ros == 1:
+            return self.T["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id=frame)
+        return self.T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+
+    def quat(self, yaw: float, roll: float = 0.0) -> Any:
+        cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+        cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+        return self.T["geometry_msgs/msg/Quaternion"](x=sr * cy, y=sr * sy, z=cr * sy, w=cr * cy)
+
+    def scan(self, t: float, ranges: np.ndarray, *, frame: str = "laser", **kw: float) -> Any:
+        n = len(ranges)
+        fields: dict[str, Any] = {
+            "angle_min": ANGLE_MIN,
+            "angle_max": ANGLE_MIN + (n - 1) * ANGLE_INC,
+            "angle_increment": ANGLE_INC,
+            "time_increment": 0.0,
+            "scan_time": 0.1,
+            "range_min": 0.0,
+            "range_max": RANGE_MAX,
+        }
+        fields.update(kw)
+        return self.T[SCAN](
+            header=self.header(t, frame),
+            ranges=np.asarray(ranges, dtype=np.float32),
+            intensities=np.zeros(0, dtype=np.float32),
+            **fields,
+        )
+
+    def odom(self, t: float, pose: Sequence[float], child: str = "base_link") -> Any:
+        T = self.T
+        x, y, th = pose
+        cov = np.zeros(36, dtype=np.float64)
+        p = T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0), orientation=self.quat(th)
+        )
+        zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+        return T[ODOM](
+            header=self.header(t, "odom"),
+            child_frame_id=child,
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=cov),
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=cov
+            ),
+        )
+
+    def tf(self, transforms: Sequence[tuple[str, str, float, float, float, float]]) -> Any:
+        """``(parent, child, x, y, yaw, roll)`` each."""
+        T = self.T
+        out = []
+        for parent, child, x, y, yaw, roll in transforms:
+            out.append(
+                T["geometry_msgs/msg/TransformStamped"](
+                    header=self.header(0.01, parent),
+                    child_frame_id=child,
+                    transform=T["geometry_msgs/msg/Transform"](
+                        translation=T["geometry_msgs/msg/Vector3"](x=x, y=y, z=0.3),
+                        rotation=self.quat(yaw, roll),
+                    ),
+                )
+            )
+        return T[TF](transforms=out)
+
+    def serialize(self, msg: Any) -> bytes:
+        typ = msg.__msgtype__
+        if self.ros == 1:
+            return bytes(self.store.serialize_ros1(msg, typ))
+        return bytes(self.store.serialize_cdr(msg, typ))
+
+    def write(self, path: Path, storage: str, messages: list[tuple[str, float, Any]]) -> Path:
+        """Write ``(topic, record time, message)`` in the order given."""
+        if self.ros == 1:
+            writer: Any = Writer1(path)
+        else:
+            plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+            writer = Writer2(path, version=9, storage_plugin=plugin)
+        conns: dict[str, Any] = {}
+        with writer:
+            for topic, t, msg in messages:
+                if topic not in conns:
+                    conns[topic] = writer.add_connection(
+                        topic, msg.__msgtype__, typestore=self.store
+                    )
+                writer.write(conns[topic], round(t * 1e9), self.serialize(msg))
+        return path
+
+
+def make_bag(
+    tmp_path: Path, kind: str, build: Callable[[BagBuilder], list[tuple[str, float, Any]]]
+) -> Path:
+    ros = 1 if kind == "ros1" else 2
+    b = BagBuilder(ros)
+    path = tmp_path / ("run.bag" if ros == 1 else "run_bag")
+    return b.write(path, kind.partition("-")[2], build(b))
+
+
+MOUNT = [  # base_link -> mount -> laser: x, y, yaw (roll 0)
+    ("base_link", "laser_mount", 0.2, 0.05, 0.3, 0.0),
+    ("laser_mount", "laser", 0.1, -0.02, 0.2, 0.0),
+]
+MOUNT_POSE = compose([0.2, 0.05, 0.3], [0.1, -0.02, 0.2])
+
+
+def standard(
+    b: BagBuilder,
+    *,
+    scan_topics: Sequence[str] = ("/scan",),
+    odometry: bool = True,
+    tf: Sequence[tuple[str, str, float, float, float, float]] | None = MOUNT,
+) -> list[tuple[str, float, Any]]:
+    """Scans and odometry interleaved by record time (record time = stamp + 5 ms)."""
+    msgs: list[tuple[str, float, Any]] = []
+    if tf is not None:
+        msgs.append(("/tf_static", 0.0, b.tf(tf)))
+    for k, t in enumerate(SCAN_T):
+        for topic in scan_topics:
+            msgs.append((topic, t + 0.005, b.scan(t, scan_ranges(k))))
+    if odometry:
+        msgs += [("/odom", t + 0.005, b.odom(t, truth(t))) for t in ODOM_T]
+    msgs.sort(key=lambda m: m[1])
+    return msgs
