@@ -487,3 +487,25 @@ def test_every_estimate_says_why_it_is_what_it_is() -> None:
     ]
     assert est[3].degraded and not any(e.degraded for e in est[:3])
     assert est[1].reason == "standing still" and str(est[2].reason) == "matched"
+
+
+def test_a_refined_estimate_is_matched_even_where_the_point_pairs_were_too_few(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Where the feature points paired but gave no pose and the refinement then fitted the
+    scan, the estimate is matched (not degraded, refined), not "too few pairs"."""
+    from fuzzypos.pipeline import FeatureMatch
+
+    room = sim.rectangular_room(8.0, 6.0)
+    scanner = sim.ScannerModel(
+        n_beams=360, field_of_view_deg=360.0, angle_min_deg=-180.0, range_max=20.0
+    )
+    poses = [Pose2D(0.0, 0.0, 0.0), Pose2D(0.1, 0.05, 0.02)]
+    scans = [sim.simulate_scan(room, p, scanner, stamp=0.1 * k) for k, p in enumerate(poses)]
+    pos = Positioner()
+    monkeypatch.setattr(
+        pos.feature_matcher, "match", lambda *_: FeatureMatch(None, 3, Reason.TOO_FEW_PAIRS)
+    )
+    est = pos.run(scans, poses)
+    assert est[1].refined and not est[1].degraded and est[1].n_pairs == 3
+    assert est[1].reason is Reason.MATCHED

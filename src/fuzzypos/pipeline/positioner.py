@@ -117,9 +117,7 @@ class Positioner:
         self.local_map.add(features, pose, from_key)
         self._pose = pose
         self.odometry_prior.accept(increment, prior.dt)
-        reason = match.reason
-        if fit is not None and match.n_pairs == 0:
-            reason = Reason.MATCHED
+        reason = Reason.MATCHED if fit is not None else match.reason
         return Estimate(
             stamp=scan.stamp,
             pose=_pose(pose),
