@@ -6,6 +6,9 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
+import numpy as np
+from numpy.typing import NDArray
+
 from ..features import Features
 from ..geometry import Pose2D
 
@@ -42,7 +45,11 @@ class Estimate:
     estimate fell back to the prior. ``features``: this scan's features (None unless kept).
     ``reason``: why the estimate is what it is. ``odometry_rejected``: the odometry increment
     was no robot's motion (a jump) and the last increment replaced it as the prior.
-    ``refined``: the point-to-line refinement gave it.
+    ``refined``: the point-to-line refinement gave it. ``covariance``: the 3×3 covariance
+    of the increment's error ε = ⊖(true increment) ⊕ ``increment`` as (x, y in m, θ in rad)
+    in the previous scan's frame. ``keyframe_covariance``: the 3×3 covariance of this scan's
+    pose relative to its keyframe, from the fit against the keyframe itself (what a pose
+    graph's edge between keyframes needs; not a sum of per-scan covariances).
     """
 
     stamp: float
@@ -55,3 +62,5 @@ class Estimate:
     reason: Reason = Reason.MATCHED
     odometry_rejected: bool = False
     refined: bool = False
+    covariance: NDArray[np.float64] | None = None
+    keyframe_covariance: NDArray[np.float64] | None = None
