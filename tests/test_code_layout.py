@@ -32,7 +32,7 @@ RANK = {name: k for k, names in enumerate(LAYERS) for name in names}
 
 
 #: private modules that are part of another unit
-PART_OF = dict.fromkeys(("_config_schema", "_config_features", "_config_pipeline"), "config")
+PART_OF = {p.stem: "config" for p in SRC.glob("_config_*.py")}
 
 
 def _unit(path: Path) -> str:

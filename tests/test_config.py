@@ -52,6 +52,13 @@ ANGLES_DEG = {
     ("search", "failure_angle"): 30.0,
     ("refinement", "converged_rotation"): math.degrees(1e-5),
     ("matching", "line_consensus_angle"): math.degrees(math.asin(0.342)),
+    ("covariance", "floor_rotation"): 0.01,
+    ("covariance", "feature_rotation"): 0.5,
+    ("covariance", "no_odometry_rotation"): 30.0,
+    ("odometry_noise", "rotation_per_sqrt_m"): 0.2,
+    ("odometry_noise", "floor_rotation"): 0.05,
+    ("odometry_noise", "min_rotation_per_sqrt_m"): 0.05,
+    ("odometry_noise", "max_rotation_per_sqrt_m"): 20.0,
 }
 ANGLE_WORDS = ("angle", "rotation", "heading", "bearing", "yaw", "theta")
 SECTIONS = [
@@ -66,6 +73,10 @@ SECTIONS = [
     "refinement",
     "odometry",
     "search",
+    "covariance",
+    "odometry_noise",
+    "gate",
+    "scanner",
 ]
 
 
@@ -611,7 +622,7 @@ def test_the_numeric_fields_are_all_there() -> None:
 @pytest.mark.parametrize("sec,name", NUMERIC)
 def test_every_numeric_field_declares_a_unit_and_a_bound(sec: str, name: str) -> None:
     spec = SCHEMA[f"{sec}.{name}"]
-    assert spec.unit in {"", "m", "rad", "s", "1/m", "m/s", "rad/s"}
+    assert spec.unit in {"", "m", "rad", "s", "1/m", "m/s", "rad/s", "m/√m", "m/rad"}
     assert spec.has_bounds, f"{sec}.{name} declares no bound"
     assert spec.describe()  # something for `fuzzypos config --reasons` to print
 

@@ -160,7 +160,7 @@ def test_an_odometry_jump_is_rejected_and_the_motion_found() -> None:
 
 
 def test_plausible_fast_motion_is_not_a_jump() -> None:
-    prior = OdometryPrior(CFG.odometry)
+    prior = OdometryPrior(CFG.odometry, CFG.odometry_noise.stale_periods)
     # 0.3 m and 25° in 0.5 s: 0.6 m/s and 0.87 rad/s
     assert not prior.is_jump(np.array([0.3, 0.0, math.radians(25.0)]), 0.5)
     assert prior.is_jump(np.array([0.38, 0.0, math.radians(-60.6)]), 0.16)
@@ -445,3 +445,46 @@ def test_surface_lengths_are_bounded_and_do_not_depend_on_the_frame(n, th, tx, t
     assert np.all(length <= 3.0 * ranges * inc + 1e-12)
     moved = pts @ np.array([[math.cos(th), math.sin(th)], [-math.sin(th), math.cos(th)]]) + [tx, ty]
     np.testing.assert_allclose(surface_lengths(moved, ranges, inc, cap=3.0), length, atol=1e-9)
+
+
+def test_sparse_far_structure_pairs_within_the_points_own_beam_spacing() -> None:
+    """Walls 10-50 m away sampled every degree (0.6 m apart at 36 m): with the pairing reach
+    of 1.5 beam spacings at each point's range the refinement pairs the scan and recovers a
+    known motion; with the fixed distances alone too few points pair to trust it."""
+    world = sim.outdoor_yard()
+    sc = sim.sick_interlaced_scanner(
+        start_angle_offsets_deg=(0.0,),
+        beam_counts=(181,),
+        dropout_probability=0.0,
+        range_noise_std=0.01,
+    )
+    a = Pose2D(0.0, 0.0, 0.3)
+    motion = np.array([0.25, 0.02, math.radians(1.0)])
+    b = Pose2D.from_array(compose(a.as_array(), motion))
+    rng = np.random.default_rng(1)
+    fa, fb = (extract_features(sim.simulate_scan(world, p, sc, rng), CFG) for p in (a, b))
+    assert np.median(fa.ranges) > 10.0
+    surf = surface_points(fa.points, fa.ranges, fa.uncertainty, R)
+    start = motion + np.array([0.05, -0.04, math.radians(0.5)])
+    spacing = fb.ranges * math.radians(1.0)
+
+    def fit(settings):
+        return refine_point_to_line(
+            surf,
+            fb.points,
+            np.ones(len(fb.points)),
+            start,
+            start,
+            start,
+            settings,
+            max_distance=settings.max_distance,
+            prior_scale=1.0,
+            spacing=spacing,
+        )
+
+    far = fit(R)
+    assert far is not None and far.inlier_fraction > 0.8, far
+    err = relative(motion, far.increment)
+    assert math.hypot(err[0], err[1]) < 0.03 and abs(err[2]) < math.radians(0.1), err
+    fixed = fit(replace(R, pairing_spacing=0.0))
+    assert fixed is None or fixed.inlier_fraction < R.min_inlier_fraction, fixed

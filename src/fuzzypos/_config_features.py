@@ -75,6 +75,33 @@ class FuzzyConfig:
         unit=M,
         ge=0.0,
     )
+    distance_scale: str = _field(
+        "scan",
+        "the ρ and d_v sets and virtual_points.max_distance are drawn for indoor ranges (8 m, "
+        "4 m, 8 m): 'scan' stretches them by max(1, the scan's distance_scale_quantile of "
+        "valid ranges / distance_scale_reference), so a scan with no structure near the robot "
+        "(a hall, outdoors: 10-50 m) is graded by its relative distance instead of all 'GB' "
+        "and its virtual points are kept, while a scan with near structure (a room, a "
+        "corridor) keeps SPEC's sets, whose grading favours that near structure; 'fixed' "
+        "keeps them for every scan",
+        choices=("scan", "fixed"),
+    )
+    distance_scale_quantile: float = _field(
+        0.05,
+        "the scan's nearest structure, robust to a stray reading or two: the scale is driven "
+        "by whether anything is near, not by how far the far end reaches (a corridor's or a "
+        "doorway's long readings leave it alone)",
+        gt=0.0,
+        le=1.0,
+    )
+    distance_scale_reference: float = _field(
+        4.5,
+        "the range that nearest structure is stretched to, between the M and B peaks: "
+        "indoors the nearest walls and furniture lie closer (the scale stays 1), while a far "
+        "scan's nearest structure is graded fairly certain and the rest by its distance",
+        unit=M,
+        gt=0.0,
+    )
     output_centres: tuple[float, float, float] = _field(
         (0.0, 0.5, 1.0),
         "consequent centres of S, M, B (SPEC); the outputs are uncertainties in [0, 1]",

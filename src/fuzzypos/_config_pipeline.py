@@ -368,6 +368,14 @@ class RefinementConfig:
         ge=0.0,
         le=1.0,
     )
+    pairing_spacing: float = _field(
+        1.5,
+        "a point pairs with the nearest keyframe point within the shrinking distance or "
+        "within this many beam spacings at its own range, whichever is larger: far walls are "
+        "sampled sparsely (a degree is 0.6 m at 36 m), and a fixed distance leaves most of a "
+        "scan of far structure unpaired (0: the fixed distance alone)",
+        ge=0.0,
+    )
     trim_floor: float = _field(
         0.002,
         "once converged, pairs beyond 3 robust sigmas of the residuals are dropped, never with "

@@ -15,7 +15,7 @@ import numbers
 import sys
 import warnings
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import Field, dataclass, field, fields
+from dataclasses import MISSING, Field, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -260,14 +260,20 @@ def coerce(raw: Any, current: Any, is_angle: bool, where: str) -> Any:
     raise ConfigError(f"{where}: unsupported value {raw!r}")  # pragma: no cover
 
 
+#: how a list's items look, by their count of numbers (for the error message)
+_ITEM_SHAPES = {3: "membership function is [left, peak, right]", 2: "band is [low, high]"}
+
+
 def _coerce_list(raw: Any, current: tuple[Any, ...], is_angle: bool, where: str) -> Any:
     if not isinstance(raw, list):
         raise ConfigError(f"{where} must be a list, got {raw!r}")
-    if current and isinstance(current[0], tuple):  # list of triangles
+    if current and isinstance(current[0], tuple):  # list of triangles, or of [low, high] pairs
+        width = len(current[0])
         out = []
         for item in raw:
-            if not isinstance(item, list) or len(item) != 3:
-                raise ConfigError(f"{where}: each membership function is [left, peak, right]")
+            if not isinstance(item, list) or len(item) != width:
+                shape = _ITEM_SHAPES.get(width, f"item has {width} numbers")
+                raise ConfigError(f"{where}: each {shape}")
             out.append(tuple(coerce(x, 0.0, is_angle, where) for x in item))
         return tuple(out)
     if current and isinstance(current[0], str):
@@ -323,6 +329,10 @@ def convert_section(
 ) -> dict[str, Any]:
     """TOML values of one section in code units; unknown keys and wrong types name the key."""
     specs = {f.name: spec_of(f) for f in fields(sec)}
+    # the declared default gives a value's shape (the current value may be an empty list)
+    shapes = {
+        f.name: getattr(sec, f.name) if f.default is MISSING else f.default for f in fields(sec)
+    }
     conv: dict[str, Any] = {}
     for key, raw in values.items():
         name = key[:-4] if key.endswith("_deg") else key
@@ -330,7 +340,7 @@ def convert_section(
         if spec is None or spec.is_angle != key.endswith("_deg"):
             hint = f" (use {name}_deg)" if spec is not None and spec.is_angle else ""
             raise ConfigError(f"{source}: unknown config key {sec_name}.{key}{hint}")
-        conv[name] = coerce(raw, getattr(sec, name), spec.is_angle, f"{source}: {sec_name}.{key}")
+        conv[name] = coerce(raw, shapes[name], spec.is_angle, f"{source}: {sec_name}.{key}")
     return conv
 
 
@@ -451,10 +461,24 @@ def _check_feature_kinds(cfg: Config) -> None:
         raise ConfigError("matching: at least one kind of feature point must be used")
 
 
+def _check_bands(cfg: Config) -> None:
+    """``scanner.no_return_bands``: ``[low, high]`` pairs with ``low <= high``."""
+    for i, band in enumerate(cfg.scanner.no_return_bands):
+        if not isinstance(band, (tuple, list)) or len(band) != 2:
+            raise ConfigError(
+                f"scanner.no_return_bands[{i}] must be a [low, high] pair, got {band!r}"
+            )
+        if band[0] > band[1]:
+            raise ConfigError(
+                f"scanner.no_return_bands[{i}] needs low <= high, got [{band[0]!r}, {band[1]!r}]"
+            )
+
+
 CHECKS: tuple[Callable[[Config], None], ...] = (
     _check_fuzzy,
     _check_distances,
     _check_feature_kinds,
+    _check_bands,
 )
 
 

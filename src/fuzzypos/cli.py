@@ -24,7 +24,7 @@ from ._version import __version__
 from .config import Config, ConfigError
 
 if TYPE_CHECKING:
-    from .logs import OpenLog
+    from .logs import NoReturnCount, OpenLog
 
 app = typer.Typer(
     add_completion=False,
@@ -355,14 +355,18 @@ def info(
     skip_bad_lines: Annotated[bool, _SKIP_BAD] = False,
     fov: Annotated[float, _FOV] = 180.0,
     convention: Annotated[str, _CONVENTION] = "auto",
+    config_file: Annotated[Path | None, _CONFIG_FILE] = None,
 ) -> None:
     """Describe a log (CARMEN, ROS1 bag or ROS2 bag): what it holds.
 
     Reads the log once and prints its kind, scans, beam counts and angles, field of view,
     duration (first and last stamp, and how often stamps go backwards), whether it has
-    odometry and truth (TRUEPOS), and the malformed lines skipped.
+    odometry and truth (TRUEPOS), the malformed lines skipped, and how many readings each
+    "no return" band of ``[scanner]`` (from ``--config``) removes.
     """
     from .logs import describe_log
+
+    bands = _load_config("default", config_file).scanner.no_return_bands
 
     opened = _open(
         log,
@@ -376,12 +380,14 @@ def info(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             if json_out:
-                result = describe_log(opened)
+                result = describe_log(opened, no_return_bands=bands)
             else:
                 with _progress() as progress:
                     task = progress.add_task("reading", total=opened.scan_count_hint())
                     result = describe_log(
-                        opened, progress=lambda k: progress.update(task, completed=k)
+                        opened,
+                        progress=lambda k: progress.update(task, completed=k),
+                        no_return_bands=bands,
                     )
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
@@ -417,12 +423,26 @@ def info(
         ("odometry", f"yes ({result.scans_with_odometry} scans)" if result.has_odometry else "no"),
         ("truth (TRUEPOS)", f"yes ({result.scans_with_truth} scans)" if result.has_truth else "no"),
         ("bad lines skipped", str(result.bad_lines) + (" (truncated)" if result.truncated else "")),
+        *_no_return_rows(result.no_returns),
     ]
     for k, v in rows:
         table.add_row(k, v)
     _wide().print(table)
     for note in result.notes:
         typer.echo(f"note: {note}")
+
+
+def _no_return_rows(counts: list[NoReturnCount]) -> list[tuple[str, str]]:
+    """``("no-return 81.83–81.91 m", "5,849 readings")`` per band, with those in the band that
+    ``range_max`` had already made invalid."""
+    rows = []
+    for c in counts:
+        band = f"{c.low_m:g} m" if c.low_m == c.high_m else f"{c.low_m:g}–{c.high_m:g} m"
+        text = f"{c.removed:,} readings removed"
+        if c.in_band > c.removed:
+            text += f" ({c.in_band - c.removed:,} more in the band already invalid at range_max)"
+        rows.append((f"no-return {band}", text))
+    return rows or [("no-return bands", "none")]
 
 
 @app.command()
@@ -462,6 +482,19 @@ def run(
     fov: Annotated[float, _FOV] = 180.0,
     max_range: Annotated[float | None, _MAX_RANGE] = None,
     convention: Annotated[str, _CONVENTION] = "auto",
+    bag_out: Annotated[
+        Path | None,
+        typer.Option(
+            "--bag-out",
+            help="also write the estimate into this new bag: nav_msgs/Odometry on "
+            "/fuzzypos/odom and /tf (a name ending .bag: ROS1, else a ROS2 directory); "
+            "an existing path is refused",
+        ),
+    ] = None,
+    bag_storage: Annotated[
+        str | None,
+        typer.Option("--bag-storage", help="ros1, sqlite3 or mcap (default: by --bag-out's name)"),
+    ] = None,
 ) -> None:
     """Position the robot along a log and write a results folder.
 
@@ -469,7 +502,9 @@ def run(
     as in the log, in file order), trajectory.clf (the log with the estimate as FLASER's pose
     and the odometry kept), config.toml, path.png (path, odometry and map) and summary.json
     (versions, input hash, scans, degraded scans, odometry jumps, speed, errors against the
-    log's truth where it has some). Prints the scan rate and where the results are.
+    log's truth where it has some), and covariance.csv (each increment's covariance).
+    --bag-out also writes the estimate with its covariance into a bag. Prints the scan rate
+    and where the results are.
     """
     from .run import default_results_dir, run_log
 
@@ -506,6 +541,8 @@ def run(
                     max_scans=max_scans,
                     preset=preset,
                     config_file=config_file,
+                    bag_out=bag_out,
+                    bag_storage=bag_storage,
                 )
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
@@ -526,7 +563,11 @@ def run(
         )
     for note in summary.notes:
         typer.echo(f"note: {note}")
-    typer.echo(f"results in {folder}/" + (f"; trajectory also in {out}" if out else ""))
+    typer.echo(
+        f"results in {folder}/"
+        + (f"; trajectory also in {out}" if out else "")
+        + (f"; odometry bag in {bag_out}" if bag_out else "")
+    )
 
 
 @app.command()

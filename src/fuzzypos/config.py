@@ -37,6 +37,7 @@ from ._config_pipeline import (
     RefinementConfig,
     SearchConfig,
 )
+from ._config_scanner import ScannerConfig
 from ._config_schema import (
     SECTIONS,
     ConfigError,
@@ -49,6 +50,7 @@ from ._config_schema import (
     translate_legacy,
     validate,
 )
+from ._config_uncertainty import CovarianceConfig, GateConfig, OdometryNoiseConfig
 
 __all__ = [
     "ConfigError",
@@ -64,6 +66,10 @@ __all__ = [
     "RefinementConfig",
     "OdometryConfig",
     "SearchConfig",
+    "CovarianceConfig",
+    "OdometryNoiseConfig",
+    "GateConfig",
+    "ScannerConfig",
     "FieldSpec",
     "PRESETS",
 ]
@@ -86,6 +92,10 @@ class Config:
     refinement: RefinementConfig = field(default_factory=RefinementConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
     search: SearchConfig = field(default_factory=SearchConfig)
+    scanner: ScannerConfig = field(default_factory=ScannerConfig)
+    covariance: CovarianceConfig = field(default_factory=CovarianceConfig)
+    odometry_noise: OdometryNoiseConfig = field(default_factory=OdometryNoiseConfig)
+    gate: GateConfig = field(default_factory=GateConfig)
 
     def __post_init__(self) -> None:
         validate(self, _SECTIONS)

@@ -1,10 +1,11 @@
 """Feature extraction (§3.1–3.6): each stage a function over arrays, one call runs them all.
 
-A scan's valid readings become points with a detection angle (eq. 3) and a fuzzy uncertainty
-(eq. 4); sharp-angle points are filtered (§3.1); break points (eq. 13) split the rest into
-clusters (§3.3); angular points (eq. 14) cut the clusters into segments; each segment of at
-least four points gets a total-least-squares line in normal form ``n·p = d`` with a fuzzy
-uncertainty (eq. 5–9); pairs of lines intersect into virtual angular points (eq. 10–12, §3.6).
+A scan's valid readings (but those in ``config.scanner``'s "no return" bands) become points
+with a detection angle (eq. 3) and a fuzzy uncertainty (eq. 4); sharp-angle points are
+filtered (§3.1); break points (eq. 13) split the rest into clusters (§3.3); angular points
+(eq. 14) cut the clusters into segments; each segment of at least four points gets a
+total-least-squares line in normal form ``n·p = d`` with a fuzzy uncertainty (eq. 5–9); pairs
+of lines intersect into virtual angular points (eq. 10–12, §3.6).
 
 Geometry that depends on the beam (ranges, detection angles) is computed in the sensor frame;
 every point, line and feature is returned in the robot frame (SPEC: the scan's points are
@@ -24,7 +25,7 @@ from numpy.typing import NDArray
 from .config import Config, FuzzyConfig
 from .fuzzy import RuleBases
 from .geometry import stack_columns, transform_points
-from .scan import LaserScan
+from .scan import LaserScan, usable
 from .segmentation import (
     _sharpest_ring_corner,
     _steps,
@@ -33,6 +34,7 @@ from .segmentation import (
     break_points,
     clusters,
     detection_angles,
+    distance_scale,
     filter_points,
     gap_thresholds,
     point_uncertainty,
@@ -55,6 +57,7 @@ __all__ = [
     "rule_bases",
     "detection_angles",
     "point_uncertainty",
+    "distance_scale",
     "filter_points",
     "break_points",
     "clusters",
@@ -218,6 +221,12 @@ class Features:
     def points_of_interest(self) -> FeaturePoints:
         """The feature points used for pairing (§3.7), duplicates merged."""
         return self._point_features[4]
+
+    @property
+    def distance_scale(self) -> float:
+        """The factor this scan's distance sets (ρ, d_v) and virtual-point distance limit were
+        stretched by (``fuzzy.distance_scale``; 1 for an indoor scan)."""
+        return self._corners.distance_scale
 
     @property
     def n_valid(self) -> int:
@@ -385,12 +394,12 @@ def _mean_distance_to_centres(pts: FloatArray, c1: FloatArray, c2: FloatArray) -
 
 
 def virtual_candidates(
-    lines: Lines, cfg: Config, exclude_pairs: IntArray | None = None
+    lines: Lines, cfg: Config, exclude_pairs: IntArray | None = None, scale: float = 1.0
 ) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
     """§3.6: the intersections of every two lines at least the minimum angle apart, not farther
-    than the maximum distance from their lines (d_v, eq. 10), without the pairs in
-    ``exclude_pairs`` (lines that meet at a real angular point: that intersection is the
-    angular point). Returns ``(points, line i, line j, d_v)``."""
+    than the maximum distance (times the scan's distance ``scale``) from their lines (d_v,
+    eq. 10), without the pairs in ``exclude_pairs`` (lines that meet at a real angular point:
+    that intersection is the angular point). Returns ``(points, line i, line j, d_v)``."""
     nl = len(lines)
     none = np.zeros(0, dtype=np.int64)
     if nl < 2:
@@ -408,7 +417,7 @@ def virtual_candidates(
         return np.zeros((0, 2)), none, none, np.zeros(0)
     pts, _ = intersect_lines(n[i], lines.distance[i], n[j], lines.distance[j])
     dv = _mean_distance_to_centres(pts, lines.centre[i], lines.centre[j])
-    near = dv <= cfg.virtual_points.max_distance
+    near = dv <= cfg.virtual_points.max_distance * scale
     return pts[near], i[near], j[near], dv[near]
 
 
@@ -422,19 +431,25 @@ def _keep_certain(
 
 
 def virtual_angular_points(
-    lines: Lines, bases: RuleBases, cfg: Config, exclude_pairs: IntArray | None = None
+    lines: Lines,
+    bases: RuleBases,
+    cfg: Config,
+    exclude_pairs: IntArray | None = None,
+    scale: float = 1.0,
 ) -> tuple[FeaturePoints, IntArray, FloatArray]:
     """§3.6, eq. 10–12: intersections of every two lines at least the minimum angle apart.
 
     Each gets the uncertainty of Table 3 from its lines' uncertainties and d_v (eq. 10), and
     points above the threshold are removed. ``exclude_pairs`` (k, 2) are line pairs that meet
     at a real angular point: that intersection is the angular point, not a second feature.
-    Returns the points, their line index pairs and their d_v.
+    ``scale`` (:func:`~fuzzypos.segmentation.distance_scale`) stretches d_v's sets and the
+    distance limit. Returns the points, their line index pairs and their d_v.
     """
-    pts, i, j, dv = virtual_candidates(lines, cfg, exclude_pairs)
+    pts, i, j, dv = virtual_candidates(lines, cfg, exclude_pairs, scale)
     if i.size == 0:
         return FeaturePoints.empty(), np.zeros((0, 2), dtype=np.int64), np.zeros(0)
-    f = bases.virtual_points(lines.uncertainty[i], lines.uncertainty[j], dv)  # eq. 11–12
+    # eq. 11–12, on d_v's sets stretched by the scale
+    f = bases.virtual_points(lines.uncertainty[i], lines.uncertainty[j], dv / scale)
     return _keep_certain(pts, i, j, dv, f, cfg)
 
 
@@ -446,14 +461,14 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     cfg = config if config is not None else Config()
     bases = rule_bases(cfg.fuzzy)
     closed = bool(scan.is_full_circle)
-    beam_index, ranges, p_sensor, points = _valid_points(scan)
+    beam_index, ranges, p_sensor, points = _valid_points(scan, cfg.scanner.no_return_bands)
     inc = scan.angle_increment
     t2_valid = gap_thresholds(ranges, inc, cfg)
 
     # 1. gaps among the valid points, then β (eq. 3), then 2. uncertainty (eq. 4)
     _, gap_after = break_points(p_sensor, t2_valid, cfg.segmentation.gap_difference, closed)
     beta = detection_angles(p_sensor, gap_after, closed)
-    u = point_uncertainty(ranges, beta, bases)
+    u, scale = _graded_points(ranges, beta, bases, cfg)
 
     # 3. filtering (§3.1)
     kept = filter_points(beta, cfg.filtering.detection_angle_threshold)
@@ -517,6 +532,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
         corner_a=corner_a,
         corner_b=corner_b,
         corner_dv=corner_dv,
+        distance_scale=scale,
         seg_before=seg_before,
         seg_after=seg_after,
         break_mask=is_break & ~fov_edge & (cluster >= 0),
@@ -540,10 +556,21 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     )
 
 
-def _valid_points(scan: LaserScan) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
-    """The scan's valid readings counter-clockwise: their beam indices, ranges, points in the
-    sensor frame and in the robot frame."""
-    beam_index = scan.valid.nonzero()[0]
+def _graded_points(
+    ranges: FloatArray, beta: FloatArray, bases: RuleBases, cfg: Config
+) -> tuple[FloatArray, float]:
+    """Eq. 4 for every valid point, on distance sets stretched to the scan's own distances
+    (:func:`~fuzzypos.segmentation.distance_scale`); returns the uncertainties and the scale."""
+    scale = distance_scale(ranges, cfg.fuzzy)
+    return point_uncertainty(ranges, beta, bases, scale), scale
+
+
+def _valid_points(
+    scan: LaserScan, no_return_bands: tuple[tuple[float, float], ...] = ()
+) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+    """The scan's valid readings outside ``no_return_bands`` (:func:`~fuzzypos.scan.usable`)
+    counter-clockwise: their beam indices, ranges, points in the sensor and robot frames."""
+    beam_index = usable(scan, no_return_bands).nonzero()[0]
     if scan.angle_increment < 0:
         # process counter-clockwise, so eq. 3's i+1 is the same neighbour
         beam_index = beam_index[::-1]
@@ -575,6 +602,7 @@ class _CornerContext:
     corner_a: IntArray
     corner_b: IntArray
     corner_dv: FloatArray
+    distance_scale: float
     seg_before: IntArray
     seg_after: IntArray
     break_mask: BoolArray
@@ -589,12 +617,12 @@ def _point_features(
     # 7. virtual angular points (§3.6), without the ones that are real angular points; one
     # fuzzy evaluation (eq. 10–12) grades them and the joined real corners together
     exclude = _corner_line_pairs(lines, c.seg_before, c.seg_after)
-    v_pts, v_i, v_j, v_dv = virtual_candidates(lines, cfg, exclude)
+    v_pts, v_i, v_j, v_dv = virtual_candidates(lines, cfg, exclude, c.distance_scale)
     n_corners = c.corner_a.shape[0]
     graded = c.bases.virtual_points(
         lines.uncertainty[np.concatenate([c.corner_a, v_i])],
         lines.uncertainty[np.concatenate([c.corner_b, v_j])],
-        np.concatenate([c.corner_dv, v_dv]),
+        np.concatenate([c.corner_dv, v_dv]) / c.distance_scale,  # d_v's sets stretched
     )
     virtual, virtual_lines, _dv = _keep_certain(v_pts, v_i, v_j, v_dv, graded[n_corners:], cfg)
 

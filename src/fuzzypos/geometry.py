@@ -6,6 +6,12 @@ and broadcasts over the leading axes. Angles are radians and wrapped to ``[-pi, 
 
 Conventions (SPEC): ``a ⊕ b`` composes, ``⊖a`` inverts; the odometry increment between poses
 ``o_k`` and ``o_{k+1}`` is ``⊖o_k ⊕ o_{k+1}``, the pose of k+1 in the frame of k.
+
+Covariances (:func:`compose_jacobians`, :func:`propagate`, :func:`covariance_to_parent`): the
+error of an estimate ``ĝ`` of a pose or increment ``g`` is the right perturbation
+``ε = ⊖g ⊕ ĝ`` (so ``ĝ = g ⊕ ε``): ``(x, y)`` in metres and ``θ`` in radians, in the frame of
+the pose itself (the robot's frame); its covariance is the 3×3 ``E[ε εᵀ]``, rows and columns
+``x, y, θ``. All three are first order (ε small).
 """
 
 from __future__ import annotations
@@ -29,6 +35,9 @@ __all__ = [
     "rotation_matrix",
     "circular_mean",
     "stack_columns",
+    "compose_jacobians",
+    "propagate",
+    "covariance_to_parent",
 ]
 
 
@@ -150,6 +159,68 @@ def circular_mean(angles: ArrayLike, weights: ArrayLike | None = None) -> float:
     if s == 0.0 and c == 0.0:
         return 0.0
     return float(wrap_angle(np.arctan2(s, c)))  # arctan2 can return +pi; keep [-pi, pi)
+
+
+def _as_cov3(c: ArrayLike, name: str) -> FloatArray:
+    arr = np.asarray(c, dtype=float)
+    if arr.shape != (3, 3):
+        raise ValueError(f"{name} must be a 3x3 covariance (x, y, theta), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite")
+    return arr
+
+
+def compose_jacobians(a: ArrayLike, b: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """The Jacobians ``(∂(a ⊕ b)/∂a, ∂(a ⊕ b)/∂b)`` (3×3 each) of :func:`compose` in the
+    coordinates ``(x, y, θ)``, for one pose each.
+
+    With ``c, s = cos θ_a, sin θ_a``: ``∂/∂a = [[1, 0, -s·b_x - c·b_y], [0, 1, c·b_x - s·b_y],
+    [0, 0, 1]]`` and ``∂/∂b = [[c, -s, 0], [s, c, 0], [0, 0, 1]]`` (θ of the result unwrapped).
+    """
+    a = _as_poses(a).reshape(-1)
+    b = _as_poses(b).reshape(-1)
+    if a.shape != (3,) or b.shape != (3,):
+        raise ValueError("compose_jacobians takes one pose each")
+    c, s = math.cos(a[2]), math.sin(a[2])
+    ja = np.array([[1.0, 0.0, -s * b[0] - c * b[1]], [0.0, 1.0, c * b[0] - s * b[1]], [0, 0, 1.0]])
+    jb = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return ja, jb
+
+
+def propagate(pose_cov: ArrayLike, increment: ArrayLike, increment_cov: ArrayLike) -> FloatArray:
+    """The covariance of ``p̂ ⊕ û`` from that of a pose ``p̂`` and of an increment ``û`` (the
+    pose of the next frame in the frame of ``p̂``), their errors independent.
+
+    Errors are right perturbations (module docstring): ``p̂ = p ⊕ e``, ``û = u ⊕ ε``, so the
+    error of the composition is ``⊖(p ⊕ u) ⊕ (p̂ ⊕ û) = ⊖u ⊕ e ⊕ u ⊕ ε ≈ A·e + ε`` with
+    ``A = ∂(⊖u ⊕ e ⊕ u)/∂e`` at ``e = 0`` ``= [[Rᵀ, Rᵀ·(-u_y, u_x)ᵀ], [0, 0, 1]]`` (``R`` the
+    rotation by ``u_θ``): the pose's error moved into the new frame. The result,
+    ``A·pose_cov·Aᵀ + increment_cov``, is in the new pose's frame, as both inputs are in
+    their own; it does not depend on where the pose is. ``A`` is evaluated at ``û``.
+    """
+    pc = _as_cov3(pose_cov, "pose_cov")
+    ic = _as_cov3(increment_cov, "increment_cov")
+    u = _as_poses(increment).reshape(-1)
+    if u.shape != (3,):
+        raise ValueError("propagate takes one increment")
+    ja, _ = compose_jacobians(inverse(u), u)  # ⊖u ⊕ e ⊕ u = (⊖u ⊕ e) ⊕ u, about e = 0
+    _, je = compose_jacobians(inverse(u), np.zeros(3))
+    a = ja @ je
+    out: FloatArray = a @ pc @ a.T + ic
+    sym: FloatArray = 0.5 * (out + out.T)
+    return sym
+
+
+def covariance_to_parent(pose: ArrayLike, cov: ArrayLike) -> FloatArray:
+    """A pose's error covariance ``cov`` (in the pose's own frame, module docstring) in the
+    frame the pose is given in, as additive errors of its ``(x, y, θ)`` there:
+    ``J·cov·Jᵀ`` with ``J = ∂(p ⊕ e)/∂e`` at ``e = 0`` = the rotation by ``θ`` on ``x, y``
+    (what ROS's ``PoseWithCovariance`` holds: the covariance in the header's frame)."""
+    c3 = _as_cov3(cov, "cov")
+    _, j = compose_jacobians(pose, np.zeros(3))
+    out: FloatArray = j @ c3 @ j.T
+    sym: FloatArray = 0.5 * (out + out.T)
+    return sym
 
 
 @dataclass(frozen=True)

@@ -30,18 +30,21 @@ import gzip
 import math
 import os
 import zlib
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Union
 
+from .config import ScannerConfig
 from .geometry import Pose2D
 from .io import GZIP_MAGIC, BagReader, CarmenReader, LogFormatError, LogRecord
 from .io.rosbag import ROS1_MAGIC
+from .scan import LaserScan, no_return_counts
 
 __all__ = [
     "LOG_KINDS",
     "LogInfo",
+    "NoReturnCount",
     "OpenLog",
     "SelectionError",
     "UnknownLogError",
@@ -382,6 +385,21 @@ def parse_laser_offset(text: str) -> Pose2D:
 
 # -- describing a log -------------------------------------------------------------------------
 @dataclass
+class NoReturnCount:
+    """One "no return" band of ``config.scanner`` (metres, inclusive) and its readings in a log.
+
+    ``removed``: the readings it makes invalid (valid by ``range_max`` and inside the band);
+    ``in_band``: every reading inside it, including those already invalid at ``range_max``.
+    A reading inside several bands counts for the first (:func:`~fuzzypos.scan.no_return_counts`).
+    """
+
+    low_m: float
+    high_m: float
+    removed: int = 0
+    in_band: int = 0
+
+
+@dataclass
 class LogInfo:
     """What :func:`describe_log` found in one pass over a log.
 
@@ -391,7 +409,8 @@ class LogInfo:
     ``last_stamp``: of the first and last scan in file order, ``duration_s`` their
     difference; ``min_stamp`` / ``max_stamp``; ``stamps_backwards``: how often a scan's stamp
     is below the previous one's; ``scans_with_odometry`` / ``scans_with_truth``;
-    ``range_max``: the distinct finite ``range_max`` of the scans (at most 10 kept).
+    ``range_max``: the distinct finite ``range_max`` of the scans (at most 10 kept);
+    ``no_returns``: per "no return" band, the readings it removes (:class:`NoReturnCount`).
     """
 
     path: str
@@ -410,6 +429,7 @@ class LogInfo:
     scans_with_odometry: int = 0
     scans_with_truth: int = 0
     range_max: list[float] = field(default_factory=list)
+    no_returns: list[NoReturnCount] = field(default_factory=list)
     bad_lines: int = 0
     truncated: bool = False
     notes: list[str] = field(default_factory=list)
@@ -429,10 +449,17 @@ class LogInfo:
         return d
 
 
-def describe_log(log: OpenLog, progress: Callable[[int], None] | None = None) -> LogInfo:
+def describe_log(
+    log: OpenLog,
+    progress: Callable[[int], None] | None = None,
+    no_return_bands: Sequence[tuple[float, float]] | None = None,
+) -> LogInfo:
     """Read ``log`` once (streaming) and summarise it; ``progress(scans_so_far)`` is called
-    every 100 scans."""
+    every 100 scans. ``no_return_bands`` (default ``ScannerConfig()``'s) are counted in
+    :attr:`LogInfo.no_returns`."""
+    bands = ScannerConfig().no_return_bands if no_return_bands is None else no_return_bands
     info = LogInfo(path=log.name, kind=log.kind)
+    info.no_returns = [NoReturnCount(float(lo), float(hi)) for lo, hi in bands]
     beams: set[int] = set()
     rmax: set[float] = set()
     prev: float | None = None
@@ -460,6 +487,8 @@ def describe_log(log: OpenLog, progress: Callable[[int], None] | None = None) ->
         info.scans_with_truth += rec.truth is not None
         if math.isfinite(scan.range_max) and len(rmax) < 10:
             rmax.add(scan.range_max)
+        if bands:
+            _count_no_returns(info.no_returns, scan, bands)
         if progress is not None and info.scans % 100 == 0:
             progress(info.scans)
     info.beams = sorted(beams)
@@ -476,3 +505,14 @@ def describe_log(log: OpenLog, progress: Callable[[int], None] | None = None) ->
     if isinstance(log.reader, BagReader):  # the bag reader's notes may grow while reading
         info.notes = list(dict.fromkeys([*log.notes, *log.reader.notes]))
     return info
+
+
+def _count_no_returns(
+    counts: list[NoReturnCount], scan: LaserScan, bands: Sequence[tuple[float, float]]
+) -> None:
+    """Add one scan's readings inside each band to ``counts``."""
+    removed = no_return_counts(scan.ranges, bands, among=scan.valid)
+    in_band = no_return_counts(scan.ranges, bands)
+    for c, r, b in zip(counts, removed, in_band):
+        c.removed += r
+        c.in_band += b

@@ -14,8 +14,21 @@
                     loads back with :meth:`~fuzzypos.config.Config.from_toml`)
 ``path.png``        the estimated path and the odometry over a map of every
                     ``map_every``-th scan's points placed by the estimate
+``covariance.csv``  a header line, then one row per scan: the stamp (``repr``, as in
+                    ``trajectory.tum``) and the six entries ``xx xy xθ yy yθ θθ`` of the
+                    increment's covariance (:attr:`~fuzzypos.pipeline.Estimate.covariance`),
+                    comma-separated (:data:`COVARIANCE_COLUMNS`); left out with a note where
+                    the positioner gives no covariance
 ``summary.json``    what ran on what, how fast, and how well (:func:`run_log`)
 ================  ==========================================================================
+
+With ``bag_out=`` the estimate also goes into a bag as it runs (:class:`_CovarianceOut`,
+:class:`~fuzzypos.io.OdometryBagWriter`): ``nav_msgs/Odometry`` on ``/fuzzypos/odom`` and
+``/tf``. The pose's covariance is the increments' propagated from the first scan
+(:func:`~fuzzypos.geometry.propagate`; the first pose's covariance is the first estimate's),
+turned into the ``odom`` frame (:func:`~fuzzypos.geometry.covariance_to_parent`); the twist
+is the increment over the time since the previous scan (its covariance the increment's over
+dt²), zero with unknown covariance at the first scan and where dt <= 0.
 
 Memory stays small on long logs: only the stamps and poses (estimate, odometry, truth)
 and the points of every ``map_every``-th scan are kept, never the scans.
@@ -36,10 +49,10 @@ import numpy as np
 from ._version import __version__
 from .config import Config
 from .evaluation import EvaluationError, relations_errors, trajectory_errors
-from .geometry import Pose2D
-from .io import CarmenWriter, LogRecord, Relations, write_tum
+from .geometry import Pose2D, covariance_to_parent, propagate
+from .io import CarmenWriter, LogRecord, OdometryBagWriter, Relations, write_tum
 from .logs import OpenLog, open_log, select_records
-from .pipeline import Positioner
+from .pipeline import Estimate, Positioner
 from .provenance import file_sha256, git_hash, write_json
 from .scan import LaserScan
 
@@ -57,6 +70,10 @@ Progress = Callable[[int, "int | None"], None]
 
 #: suffixes :func:`log_name` strips
 _LOG_SUFFIXES = (".gz", ".clf", ".log", ".bag", ".carmen")
+
+#: ``covariance.csv``'s columns: the stamp, then the increment covariance's upper triangle
+COVARIANCE_COLUMNS = ("stamp", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
+_UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 #: how often (in scans) :func:`run_log` reports its progress
 _PROGRESS_EVERY = 25
@@ -172,6 +189,86 @@ class _Track:
         return len(self.stamps)
 
 
+class _CovarianceOut:
+    """``covariance.csv`` (written to a temporary name, renamed by :meth:`close`) and, with
+    ``bag_out``, the bag, streamed scan by scan (module docstring). A scan without a
+    covariance is a ``ValueError`` naming it, but where the first has none and no bag is
+    asked for: then there is no ``covariance.csv`` (a note says so)."""
+
+    def __init__(
+        self, out: Path, source: str, bag_out: str | os.PathLike[str] | None, storage: str | None
+    ) -> None:
+        self.path, self.source = out / "covariance.csv", source
+        self._tmp = out / ".covariance.csv.part"
+        self._csv: Any = None
+        self.has_covariance = True
+        self.notes: list[str] = []
+        self.bag = None if bag_out is None else OdometryBagWriter(bag_out, storage)
+        self._pose_cov = np.zeros((3, 3))
+        self._stamp = math.nan
+
+    def _covariance(self, k: int, est: Estimate) -> np.ndarray | None:
+        """The estimate's covariance, checked; None where the run has none."""
+        where = f"{self.source}: scan {k + 1} (stamp {est.stamp!r})"
+        if est.covariance is None:
+            if k == 0 and self.bag is None:
+                self.has_covariance = False
+                self.notes.append("no covariance.csv: the positioner gave no covariance")
+            if not self.has_covariance:
+                return None
+            raise ValueError(f"{where}: the estimate has no covariance (Estimate.covariance)")
+        cov = np.asarray(est.covariance, dtype=np.float64)
+        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+            raise ValueError(f"{where}: the covariance must be a finite 3x3 array")
+        return cov
+
+    def write(self, k: int, est: Estimate) -> None:
+        cov = self._covariance(k, est)
+        if cov is None:
+            return
+        if self._csv is None:
+            self._csv = open(self._tmp, "w", encoding="utf-8")  # noqa: SIM115 (closed by close)
+            self._csv.write(",".join(COVARIANCE_COLUMNS) + "\n")
+        row = [repr(float(est.stamp)), *(repr(float(cov[i, j])) for i, j in _UPPER)]
+        self._csv.write(",".join(row) + "\n")
+        if self.bag is not None:
+            self._write_bag(k, est, cov)
+
+    def _write_bag(self, k: int, est: Estimate, cov: np.ndarray) -> None:
+        inc = est.increment
+        self._pose_cov = cov if k == 0 else propagate(self._pose_cov, inc.as_array(), cov)
+        dt = est.stamp - self._stamp
+        twist, twist_cov = (0.0, 0.0, 0.0), None
+        if k > 0 and dt > 0.0:
+            twist, twist_cov = (inc.x / dt, inc.y / dt, inc.theta / dt), cov / (dt * dt)
+        self._stamp = est.stamp
+        world_cov = covariance_to_parent(est.pose.as_array(), self._pose_cov)
+        assert self.bag is not None
+        self.bag.write(est.stamp, est.pose, world_cov, twist, twist_cov)
+
+    def close(self) -> dict[str, Path]:
+        """Finish the files; name → path of those written."""
+        files: dict[str, Path] = {}
+        if self._csv is not None:
+            self._csv.close()
+            os.replace(self._tmp, self.path)
+            files["covariance.csv"] = self.path
+        else:  # no stale file from an earlier run
+            self.path.unlink(missing_ok=True)
+        if self.bag is not None:
+            self.bag.close()
+            files["bag"] = self.bag.path
+        return files
+
+    def abort(self) -> None:
+        """Remove what was written."""
+        if self._csv is not None:
+            self._csv.close()
+            self._tmp.unlink(missing_ok=True)
+        if self.bag is not None:
+            self.bag.abort()
+
+
 def _position_along(
     records: Iterator[LogRecord],
     positioner: Positioner,
@@ -181,10 +278,12 @@ def _position_along(
     map_every: int,
     progress: Progress | None,
     total: int | None,
+    outputs: _CovarianceOut,
 ) -> _Track:
-    """Run ``positioner`` over ``records``, streaming the estimate into ``clf`` (aborted on
-    any error) and keeping the :class:`_Track`."""
+    """Run ``positioner`` over ``records``, streaming the estimate into ``clf`` and
+    ``outputs`` (both aborted on any error) and keeping the :class:`_Track`."""
     track = _Track()
+    bands = positioner.config.scanner.no_return_bands  # the map shows what the positioner saw
     t_start = time.perf_counter()
     try:
         for k, rec in enumerate(records):
@@ -199,12 +298,14 @@ def _position_along(
             track.truths.append(_row(rec.truth))
             track.degraded += bool(est.degraded)
             if plot:
-                track.map_points.append(scan.points_robot() if k % map_every == 0 else None)
+                track.map_points.append(scan.points_robot(bands) if k % map_every == 0 else None)
             clf.write(scan, odom, rec.truth, pose=pose)
+            outputs.write(k, est)
             if progress is not None and (k + 1) % _PROGRESS_EVERY == 0:
                 progress(k + 1, total)
     except BaseException:
         clf.abort()
+        outputs.abort()
         raise
     track.seconds = time.perf_counter() - t_start
     return track
@@ -289,6 +390,7 @@ def _write_results(
     track: _Track,
     clf: CarmenWriter,
     *,
+    outputs: _CovarianceOut,
     out_tum: str | os.PathLike[str] | None,
     plot: bool,
     map_every: int,
@@ -302,6 +404,8 @@ def _write_results(
         a.poses,
         header_comment=f"fuzzypos {__version__} estimate of {log.name} (t = the scan's stamp)",
     )
+    files.update(outputs.close())
+    notes.extend(outputs.notes)
     if out_tum is not None:
         comment = f"fuzzypos {__version__} estimate of {log.name}"
         write_tum(out_tum, a.stamps, a.poses, header_comment=comment)
@@ -370,6 +474,7 @@ def _finish(
     cfg: Config,
     track: _Track,
     clf: CarmenWriter,
+    outputs: _CovarianceOut,
     *,
     jumps: int,
     labels: dict[str, Any],
@@ -383,7 +488,17 @@ def _finish(
     notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
     a = _Arrays.of(track)
     files = _write_results(
-        out, log, cfg, a, track, clf, out_tum=out_tum, plot=plot, map_every=map_every, notes=notes
+        out,
+        log,
+        cfg,
+        a,
+        track,
+        clf,
+        outputs=outputs,
+        out_tum=out_tum,
+        plot=plot,
+        map_every=map_every,
+        notes=notes,
     )
     truth_errors = _truth_errors(a.truth, a.poses, a.odometry, track.degraded)
     rel = _relations_errors(a.stamps, a.poses, relations, notes)
@@ -435,12 +550,17 @@ def run_log(
     map_every: int = 10,
     plot: bool = True,
     hash_input: bool = True,
+    bag_out: str | os.PathLike[str] | None = None,
+    bag_storage: str | None = None,
 ) -> RunSummary:
     """Position the robot along ``log`` (an :class:`~fuzzypos.logs.OpenLog`, or a path opened
     with :func:`~fuzzypos.logs.open_log`'s defaults) and write the results folder
     ``results_dir`` (created; files in it are replaced): ``trajectory.tum``,
     ``trajectory.clf``, ``config.toml``, ``path.png`` (unless ``plot=False``) and
-    ``summary.json`` (module docstring). ``out_tum``: also write the trajectory there.
+    ``summary.json`` and ``covariance.csv`` (module docstring). ``out_tum``: also write the
+    trajectory there. ``bag_out``: also write the estimate into a new bag there (an existing
+    path is a :class:`FileExistsError`; ``bag_storage``: ``"ros1"``, ``"sqlite3"``, ``"mcap"``
+    or None, :func:`~fuzzypos.io.rosbag_write.bag_storage_for`).
 
     ``start``, ``end``, ``max_scans`` choose a stretch (:func:`~fuzzypos.logs.select_records`).
     ``preset`` and ``config_file`` only label the configuration in ``summary.json``.
@@ -476,12 +596,21 @@ def run_log(
         total = max_scans if total is None else min(total, max_scans)
 
     positioner = Positioner(cfg)
+    outputs = _CovarianceOut(out, log.name, bag_out, bag_storage)
     clf = CarmenWriter(out / "trajectory.clf", estimate_of=log.name)
     track = _position_along(
-        records, positioner, clf, plot=plot, map_every=map_every, progress=progress, total=total
+        records,
+        positioner,
+        clf,
+        plot=plot,
+        map_every=map_every,
+        progress=progress,
+        total=total,
+        outputs=outputs,
     )
     if len(track) == 0:
         clf.abort()
+        outputs.abort()
         raise _no_scans(log, start, end)
     if progress is not None:
         progress(len(track), len(track))
@@ -495,6 +624,7 @@ def run_log(
         cfg,
         track,
         clf,
+        outputs,
         jumps=int(positioner.odometry_jumps),
         labels=labels,
         out_tum=out_tum,

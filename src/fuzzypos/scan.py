@@ -5,12 +5,17 @@ forward as in REP-103); a negative increment (upside-down mount) is allowed. A r
 valid iff it is finite, ``> 0`` and ``range_min <= r < range_max``: 0, NaN and ±inf are invalid
 (REP-117), and so is a reading at the maximum ("no return"). Invalid readings are data, not
 errors; malformed metadata raises :class:`ScanError`.
+
+Some scanners also report "no return" as codes below their maximum (SICK in cm mode: 81.83 …
+81.91 m). :func:`no_return_mask` marks the readings inside such bands (``config.scanner``),
+:func:`usable` is ``valid`` without them: the readings that become points.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -22,10 +27,14 @@ from .geometry import Pose2D, transform_points
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-__all__ = ["ScanError", "LaserScan"]
+__all__ = ["ScanError", "LaserScan", "no_return_mask", "no_return_counts", "usable"]
 
 #: slack on the "at most one turn" check, radians (float round-off of n*increment)
 _TURN_TOL = 1e-9
+
+#: a "no return" band's bounds widen by this fraction of themselves: one float32 epsilon, twice
+#: the rounding of a float32 reading (ROS bags), so that 81.91 stored as 81.9100037 still matches
+NO_RETURN_SLACK = 2.0**-23
 
 
 class ScanError(ValueError):
@@ -198,11 +207,67 @@ class LaserScan:
         inc = abs(self.angle_increment)
         return self.n_beams * inc >= 2.0 * math.pi - inc / 2.0
 
-    def points_sensor(self) -> FloatArray:
-        """All beams as ``(n, 2)`` points in the sensor frame; NaN rows for invalid beams."""
-        r = np.where(self.valid, self.ranges, np.nan)
+    def points_sensor(self, no_return_bands: Sequence[tuple[float, float]] = ()) -> FloatArray:
+        """All beams as ``(n, 2)`` points in the sensor frame; NaN rows for invalid beams and
+        for readings in ``no_return_bands`` (see :func:`usable`)."""
+        r = np.where(usable(self, no_return_bands), self.ranges, np.nan)
         return np.stack([r * np.cos(self.angles), r * np.sin(self.angles)], axis=-1)
 
-    def points_robot(self) -> FloatArray:
+    def points_robot(self, no_return_bands: Sequence[tuple[float, float]] = ()) -> FloatArray:
         """:meth:`points_sensor` moved into the robot frame by ``sensor_pose``."""
-        return transform_points(self.sensor_pose.as_array(), self.points_sensor())
+        return transform_points(self.sensor_pose.as_array(), self.points_sensor(no_return_bands))
+
+
+# -- "no return" codes below range_max ------------------------------------------------------
+def _band_bounds(bands: Sequence[tuple[float, float]]) -> tuple[FloatArray, FloatArray]:
+    """The bands' widened ``(low, high)`` as arrays; ScanError for a malformed band."""
+    lo, hi = [], []
+    for i, band in enumerate(bands):
+        try:
+            low, high = (float(b) for b in band)
+        except (TypeError, ValueError):
+            raise ScanError(
+                f"no-return band {i} must be a (low, high) pair, got {band!r}"
+            ) from None
+        if not (math.isfinite(low) and math.isfinite(high) and 0.0 <= low <= high):
+            raise ScanError(f"no-return band {i} needs finite 0 <= low <= high, got {band!r}")
+        lo.append(low * (1.0 - NO_RETURN_SLACK))
+        hi.append(high * (1.0 + NO_RETURN_SLACK))
+    return np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64)
+
+
+def _in_bands(ranges: ArrayLike, bands: Sequence[tuple[float, float]]) -> BoolArray:
+    """``(n_bands, n)``: reading ``j`` lies in band ``i`` (bounds widened, NaN in none)."""
+    r = np.asarray(ranges, dtype=np.float64).reshape(-1)
+    lo, hi = _band_bounds(bands)
+    with np.errstate(invalid="ignore"):
+        return (r[None, :] >= lo[:, None]) & (r[None, :] <= hi[:, None])
+
+
+def no_return_mask(ranges: ArrayLike, bands: Sequence[tuple[float, float]]) -> BoolArray:
+    """Which readings lie in a "no return" band: ``low·(1-s) <= r <= high·(1+s)`` for some
+    ``(low, high)`` of ``bands`` (metres, inclusive; ``s`` = :data:`NO_RETURN_SLACK`).
+
+    Shape ``(n,)``; NaN and readings outside every band are False; no bands, all False.
+    ScanError for a band that is not a finite ``0 <= low <= high`` pair."""
+    return np.asarray(_in_bands(ranges, bands).any(axis=0), dtype=np.bool_)
+
+
+def no_return_counts(
+    ranges: ArrayLike, bands: Sequence[tuple[float, float]], among: ArrayLike | None = None
+) -> list[int]:
+    """How many readings (of those where ``among`` is True, default all) each band holds; a
+    reading in several bands counts for the first of them only, so the counts add up to
+    ``no_return_mask(ranges, bands)[among].sum()``."""
+    inside = _in_bands(ranges, bands)
+    if among is not None:
+        inside &= np.asarray(among, dtype=np.bool_).reshape(-1)[None, :]
+    first = inside & (np.cumsum(inside, axis=0) == 1)
+    return [int(c) for c in first.sum(axis=1)]
+
+
+def usable(scan: LaserScan, bands: Sequence[tuple[float, float]]) -> BoolArray:
+    """The readings that become points: :attr:`LaserScan.valid` and in no "no return" band."""
+    if not bands:
+        return scan.valid
+    return scan.valid & ~no_return_mask(scan.ranges, bands)

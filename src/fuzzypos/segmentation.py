@@ -10,7 +10,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from .config import Config
+from .config import Config, FuzzyConfig
 from .fuzzy import RuleBases
 
 FloatArray = NDArray[np.float64]
@@ -21,6 +21,7 @@ __all__ = [
     "gap_thresholds",
     "break_points",
     "detection_angles",
+    "distance_scale",
     "point_uncertainty",
     "filter_points",
     "clusters",
@@ -134,11 +135,30 @@ def detection_angles(
     return np.where(isolated, 0.0, beta)
 
 
-def point_uncertainty(ranges: FloatArray, beta: FloatArray, bases: RuleBases) -> FloatArray:
-    """Eq. 4 / Table 1: the fuzzy uncertainty of each point from ρ and β."""
+def distance_scale(ranges: FloatArray, cfg: FuzzyConfig) -> float:
+    """The factor the distance sets (ρ, d_v) and the virtual points' distance limit are
+    stretched by for a scan with these valid ranges: 1 with ``distance_scale = "fixed"``, else
+    max(1, the ``distance_scale_quantile`` of the ranges / ``distance_scale_reference``).
+    A scan with structure near the robot (a room, a corridor) keeps a scale of 1."""
+    if cfg.distance_scale == "fixed" or ranges.shape[0] == 0:
+        return 1.0
+    q = float(np.quantile(ranges, cfg.distance_scale_quantile))
+    return max(1.0, q / cfg.distance_scale_reference)
+
+
+def point_uncertainty(
+    ranges: FloatArray, beta: FloatArray, bases: RuleBases, scale: float = 1.0
+) -> FloatArray:
+    """Eq. 4 / Table 1: the fuzzy uncertainty of each point from ρ and β.
+
+    With a distance ``scale`` (:func:`distance_scale`) the sets are stretched by it, computed
+    as ρ / scale on the unstretched sets: for triangles, μ_{sA}(ρ) = μ_A(ρ / s) exactly (the
+    stretch is about 0, feet, peaks and the clamping range alike), and the cached rule base
+    stays one per config.
+    """
     if ranges.shape[0] == 0:
         return np.zeros(0)
-    return bases.points(ranges, beta)
+    return bases.points(ranges if scale == 1.0 else ranges / scale, beta)
 
 
 def filter_points(beta: FloatArray, threshold: float) -> BoolArray:

@@ -5,6 +5,8 @@
   :func:`write_carmen` and the run job's ``trajectory.clf``);
 - :mod:`fuzzypos.io.rosbag`: ROS1 and ROS2 bags (``sensor_msgs/LaserScan`` with
   ``nav_msgs/Odometry``) through the ``rosbags`` package;
+- :mod:`fuzzypos.io.rosbag_write`: :class:`OdometryBagWriter`, an estimate as
+  ``nav_msgs/Odometry`` and ``/tf`` into a ROS1 or ROS2 bag;
 - :mod:`fuzzypos.io.relations`: the Freiburg benchmark's relations files;
 - :mod:`fuzzypos.io.tum`: TUM trajectories (``t x y z qx qy qz qw``, what ``evo`` reads).
 
@@ -35,6 +37,7 @@ from .rosbag import (
     is_ros2_bag,
     read_bag,
 )
+from .rosbag_write import BAG_STORAGES, BagWriteError, OdometryBagWriter, covariance6
 from .tum import TumFormatError, read_tum, write_tum
 
 __all__ = [
@@ -49,6 +52,10 @@ __all__ = [
     "is_ros1_bag",
     "is_ros2_bag",
     "read_bag",
+    "BAG_STORAGES",
+    "BagWriteError",
+    "OdometryBagWriter",
+    "covariance6",
     "CONVENTIONS",
     "GZIP_MAGIC",
     "CarmenFormatError",

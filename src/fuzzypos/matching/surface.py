@@ -4,7 +4,7 @@ keyframe's surfaces (every filtered point of the scan, not only the features).""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 
 from ..config import RefinementConfig
 from ..geometry import stack_columns
-from ._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS, FloatArray
+from ._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS, FloatArray, IntArray
 
 __all__ = [
     "SurfacePoints",
@@ -128,12 +128,29 @@ def surface_points(
 class Refinement:
     """The refined increment, how many points paired at the last iteration, the fraction of
     the scan's points that did, and the fraction that lay within half the Huber scale of
-    their surface (the finer score when two refinements are compared)."""
+    their surface (the finer score when two refinements are compared).
+
+    For the covariance of the result, the last iteration's normal equations: ``information``
+    (the points' Σ w J Jᵀ with their weights w), ``prior_information`` (the prior's term, which
+    pulls toward ``prior``), ``hold_information`` (the term that holds a corridor's unobservable
+    direction at the start's value, ``hold_on_start``, or at the odometry's), the ``start``
+    and ``prior`` it was given, and ``gradient_covariance`` (Σ w² σ_r² J Jᵀ, the covariance of
+    the points' gradient Σ w r J under the noise σ_r² their residuals show: the weights are the
+    points' certainty
+    and the stretch of surface each stands for, not their inverse variances, so the estimate's
+    covariance is the sandwich M⁻¹ (gradient covariance + the prior's share) M⁻¹)."""
 
     increment: FloatArray
     n_paired: int
     inlier_fraction: float
     close_fraction: float = 0.0
+    information: FloatArray = field(default_factory=lambda: np.zeros((3, 3)))
+    prior_information: FloatArray = field(default_factory=lambda: np.zeros((3, 3)))
+    hold_information: FloatArray = field(default_factory=lambda: np.zeros((3, 3)))
+    hold_on_start: bool = False
+    start: FloatArray = field(default_factory=lambda: np.zeros(3))
+    prior: FloatArray = field(default_factory=lambda: np.zeros(3))
+    gradient_covariance: FloatArray = field(default_factory=lambda: np.zeros((3, 3)))
 
 
 def refine_point_to_line(
@@ -147,6 +164,8 @@ def refine_point_to_line(
     *,
     max_distance: float,
     prior_scale: float,
+    prior_information: FloatArray | None = None,
+    spacing: FloatArray | None = None,
 ) -> Refinement | None:
     """Refine the increment ``start`` (the pose of the scan in the reference's frame) so that
     the scan's ``points`` land on the reference's surfaces (``settings``: the refinement
@@ -165,61 +184,47 @@ def refine_point_to_line(
         return None
     cfg = settings
     min_distance, iterations, residual_scale = cfg.min_distance, cfg.iterations, cfg.residual_scale
-    point_sigma, degenerate_ratio, hold_tolerance = (
-        cfg.point_sigma,
-        cfg.degenerate_ratio,
-        cfg.hold_tolerance,
-    )
-    prior_sigma, prior_sigma_angle = (
-        cfg.prior_sigma * prior_scale,
-        cfg.prior_sigma_angle * prior_scale,
-    )
+    point_sigma, degenerate_ratio = cfg.point_sigma, cfg.degenerate_ratio
+    hold_tolerance = cfg.hold_tolerance
     pose = np.asarray(start, dtype=float).copy()
     start_xy = pose[:2].copy()
     hold_xy = np.asarray(hold, dtype=float)[:2]
     prior = np.asarray(prior, dtype=float)
-    info_prior = np.array([1.0 / prior_sigma**2, 1.0 / prior_sigma**2, 1.0 / prior_sigma_angle**2])
+    info_prior, prior_info = _prior_terms(cfg, prior_scale, prior_information)
     gates = np.geomspace(max_distance, min_distance, cfg.gate_steps)
+    reach = _reach(cfg, spacing)
     paired = 0
     trimming = False
     for it in range(iterations):
         gate = gates[min(it, gates.size - 1)]
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        rx = c * points[:, 0] - s * points[:, 1]
-        ry = s * points[:, 0] + c * points[:, 1]
-        qx, qy = rx + pose[0], ry + pose[1]
-        dist, j = reference.tree.query(stack_columns(qx, qy), distance_upper_bound=gate)
-        ok = np.isfinite(dist)
-        paired = int(ok.sum())
-        if paired < 3:
+        lin = _linearise(reference, points, pose, gate, reach)
+        if lin is None:
             return None
-        j = j[ok]
-        nx, ny = reference.normal[j, 0], reference.normal[j, 1]
-        r = nx * (qx[ok] - reference.xy[j, 0]) + ny * (qy[ok] - reference.xy[j, 1])
-        jt = nx * (-ry[ok]) + ny * rx[ok]  # d r / d θ
+        ok, j, J, r = lin
+        paired = int(ok.sum())
         absr = np.abs(r)
         huber = np.where(absr <= residual_scale, 1.0, residual_scale / np.maximum(absr, 1e-12))
         w = weights[ok] * reference.weight[j] * huber / point_sigma**2
-        J = np.stack((nx, ny, jt))  # (3, m)
         # degeneracy (a corridor): where the points fix the translation in one direction only,
         # the other direction, which only the noise of the normals speaks for, stays at start
         a, b, c = (J[0] * w) @ J[0], (J[0] * w) @ J[1], (J[1] * w) @ J[1]
         if trimming:
-            # once converged: pairs far beyond the residuals' robust spread are false (a far
-            # wall's point next to a nearer object) and get no weight (never a tighter cut
-            # than ``trim_floor``)
-            m = absr.size // 2
-            cut = max(
-                OUTLIER_SIGMAS * MAD_TO_SIGMA * float(np.partition(absr, m)[m]), cfg.trim_floor
-            )
-            w = np.where(absr > cut, 0.0, w)
+            w = _trimmed(w, absr, cfg.trim_floor)
         H = (J * w) @ J.T
         g = (J * w) @ r
-        _hold_degenerate(H, g, (a, b, c), pose, start_xy, hold_xy, degenerate_ratio, hold_tolerance)
+        info_points = H.copy()
+        jw = J * w
+        hold_info, on_start = _hold_degenerate(
+            H, g, (a, b, c), pose, start_xy, hold_xy, degenerate_ratio, hold_tolerance
+        )
         dp = pose - prior
         dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
-        H[np.diag_indices(3)] += info_prior
-        g += info_prior * dp
+        if prior_information is None:
+            H[np.diag_indices(3)] += info_prior
+            g += info_prior * dp
+        else:
+            H += prior_info
+            g += prior_info @ dp
         try:
             delta = -np.linalg.solve(H, g)
         except np.linalg.LinAlgError:
@@ -235,7 +240,102 @@ def refine_point_to_line(
             trimming = True  # converged: trim the false pairs and converge again
     pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
     close = int(np.count_nonzero(absr < 0.5 * residual_scale))
-    return Refinement(pose, paired, paired / points.shape[0], close / points.shape[0])
+    return Refinement(
+        pose,
+        paired,
+        paired / points.shape[0],
+        close / points.shape[0],
+        information=info_points,
+        prior_information=prior_info,
+        hold_information=hold_info,
+        hold_on_start=on_start,
+        start=np.asarray(start, dtype=float).copy(),
+        prior=prior.copy(),
+        gradient_covariance=_residual_variance(w, r, residual_scale) * (jw @ jw.T),
+    )
+
+
+def _linearise(
+    reference: SurfacePoints,
+    points: FloatArray,
+    pose: FloatArray,
+    gate: float,
+    reach: FloatArray | None,
+) -> tuple[NDArray[np.bool_], IntArray, FloatArray, FloatArray] | None:
+    """The points moved by ``pose``, paired with the reference: which paired, their reference
+    points, the Jacobian (3, m) of the point-to-line residuals n·(T·p − q) and the residuals;
+    None with fewer than 3 pairs."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    rx = c * points[:, 0] - s * points[:, 1]
+    ry = s * points[:, 0] + c * points[:, 1]
+    qx, qy = rx + pose[0], ry + pose[1]
+    ok, j = _pair(reference, qx, qy, gate, reach)
+    if int(ok.sum()) < 3:
+        return None
+    j = j[ok]
+    nx, ny = reference.normal[j, 0], reference.normal[j, 1]
+    r = nx * (qx[ok] - reference.xy[j, 0]) + ny * (qy[ok] - reference.xy[j, 1])
+    jt = nx * (-ry[ok]) + ny * rx[ok]  # d r / d θ
+    return ok, j, np.stack((nx, ny, jt)), r
+
+
+def _prior_terms(
+    cfg: RefinementConfig, prior_scale: float, prior_information: FloatArray | None
+) -> tuple[FloatArray, FloatArray]:
+    """The prior's information: the diagonal from the section's standard deviations, and the
+    3×3 used (that diagonal, or ``prior_information``: the learned odometry's), both with the
+    standard deviations times ``prior_scale``."""
+    prior_sigma = cfg.prior_sigma * prior_scale
+    prior_sigma_angle = cfg.prior_sigma_angle * prior_scale
+    info_prior = np.array([1.0 / prior_sigma**2, 1.0 / prior_sigma**2, 1.0 / prior_sigma_angle**2])
+    if prior_information is None:
+        return info_prior, np.diag(info_prior)
+    return info_prior, np.asarray(prior_information, dtype=float) / prior_scale**2
+
+
+def _reach(cfg: RefinementConfig, spacing: FloatArray | None) -> FloatArray | None:
+    """How far each point may pair by its own beam spacing (None where no point is so sparse
+    that it reaches beyond the smallest pairing distance: the fixed distances decide)."""
+    if spacing is None or cfg.pairing_spacing <= 0.0:
+        return None
+    reach = cfg.pairing_spacing * np.asarray(spacing, dtype=float)
+    return reach if np.any(reach > cfg.min_distance) else None
+
+
+def _pair(
+    reference: SurfacePoints, qx: FloatArray, qy: FloatArray, gate: float, reach: FloatArray | None
+) -> tuple[NDArray[np.bool_], IntArray]:
+    """Each point's nearest reference point within ``gate`` (or its own ``reach``, where
+    larger): whether it paired, and the reference index."""
+    if reach is None:
+        dist, j = reference.tree.query(stack_columns(qx, qy), distance_upper_bound=gate)
+        return np.isfinite(dist), j
+    # sparse far points reach further: their own beam spacing times the factor
+    bound = np.maximum(reach, gate)
+    dist, j = reference.tree.query(stack_columns(qx, qy), distance_upper_bound=float(bound.max()))
+    return dist <= bound, j
+
+
+def _trimmed(w: FloatArray, absr: FloatArray, trim_floor: float) -> FloatArray:
+    """Once converged: pairs far beyond the residuals' robust spread are false (a far wall's
+    point next to a nearer object) and get no weight (never a tighter cut than
+    ``trim_floor``)."""
+    m = absr.size // 2
+    cut = max(OUTLIER_SIGMAS * MAD_TO_SIGMA * float(np.partition(absr, m)[m]), trim_floor)
+    out: FloatArray = np.where(absr > cut, 0.0, w)
+    return out
+
+
+def _residual_variance(weights: FloatArray, residuals: FloatArray, scale: float) -> float:
+    """The points' noise variance (m²) from the residuals of the points that had weight
+    (clipped at the Huber scale, as the fit sees them), with the fit's 3 degrees of freedom
+    taken off their count."""
+    used = weights > 0.0
+    n = int(np.count_nonzero(used))
+    if n <= 3:
+        return scale * scale
+    clipped = np.minimum(np.abs(residuals[used]), scale)
+    return float(clipped @ clipped) / (n - 3)
 
 
 def _hold_degenerate(
@@ -247,25 +347,31 @@ def _hold_degenerate(
     hold_xy: FloatArray,
     degenerate_ratio: float,
     hold_tolerance: float,
-) -> None:
+) -> tuple[FloatArray, bool]:
     """Where the points fix the translation in one direction less than ``degenerate_ratio``
     times the other (``block``: the translation block ``(a, b, c)`` of their information), a
     strong term (in place, on ``H`` and ``g``) keeps the translation along it at ``start_xy``'s
     where that lies within ``hold_tolerance`` of ``hold_xy``'s (the odometry), else at
-    ``hold_xy``'s."""
+    ``hold_xy``'s. Returns the term added to ``H`` (zero where none) and whether it holds the
+    start's value."""
     a, b, c = block
     half = math.hypot(0.5 * (a - c), b)
     lo, hi = 0.5 * (a + c) - half, 0.5 * (a + c) + half  # eigenvalues of the 2×2 block
-    if lo < degenerate_ratio * hi:
-        # its eigenvector for ``lo``: the direction the points hardly fix
-        v = (
-            np.array([b, lo - a])
-            if abs(b) > 1e-12 * hi
-            else (np.array([1.0, 0.0]) if a <= c else np.array([0.0, 1.0]))
-        )
-        v /= math.hypot(v[0], v[1])
-        # keep the start's value along v where it agrees with ``hold`` (the odometry)
-        # within ``hold_tolerance``, else the odometry's
-        target = start_xy if abs(float(v @ (start_xy - hold_xy))) <= hold_tolerance else hold_xy
-        H[:2, :2] += hi * np.outer(v, v)
-        g[:2] += hi * v * float(v @ (pose[:2] - target))
+    term = np.zeros((3, 3))
+    if not lo < degenerate_ratio * hi:
+        return term, False
+    # its eigenvector for ``lo``: the direction the points hardly fix
+    v = (
+        np.array([b, lo - a])
+        if abs(b) > 1e-12 * hi
+        else (np.array([1.0, 0.0]) if a <= c else np.array([0.0, 1.0]))
+    )
+    v /= math.hypot(v[0], v[1])
+    # keep the start's value along v where it agrees with ``hold`` (the odometry)
+    # within ``hold_tolerance``, else the odometry's
+    on_start = abs(float(v @ (start_xy - hold_xy))) <= hold_tolerance
+    target = start_xy if on_start else hold_xy
+    term[:2, :2] = hi * np.outer(v, v)
+    H[:2, :2] += term[:2, :2]
+    g[:2] += hi * v * float(v @ (pose[:2] - target))
+    return term, on_start

@@ -28,6 +28,8 @@ class Reason(str, enum.Enum):
     TOO_FEW_FEATURES = "too few features"
     #: the feature points paired, but too few pairs gave a pose (§4)
     TOO_FEW_PAIRS = "too few pairs"
+    #: the match disagreed with the odometry beyond the gate: the odometry was kept
+    GATED = "rejected by the gate"
 
     def __str__(self) -> str:
         return self.value
@@ -49,7 +51,10 @@ class Estimate:
     of the increment's error ε = ⊖(true increment) ⊕ ``increment`` as (x, y in m, θ in rad)
     in the previous scan's frame. ``keyframe_covariance``: the 3×3 covariance of this scan's
     pose relative to its keyframe, from the fit against the keyframe itself (what a pose
-    graph's edge between keyframes needs; not a sum of per-scan covariances).
+    graph's edge between keyframes needs; not a sum of per-scan covariances); the keyframe is
+    the one the scan was matched against (a scan that becomes the next keyframe is still
+    relative to the old one). ``gate``: the Mahalanobis distance squared of the match's
+    disagreement with the odometry under both covariances (None where not compared).
     """
 
     stamp: float
@@ -64,3 +69,4 @@ class Estimate:
     refined: bool = False
     covariance: NDArray[np.float64] | None = None
     keyframe_covariance: NDArray[np.float64] | None = None
+    gate: float | None = None

@@ -59,10 +59,10 @@ class LocalMap:
         """The pose at ``from_keyframe`` seen from the keyframe."""
         return compose(self._pose, from_keyframe)
 
-    def add(self, features: Features, pose: FloatArray, from_keyframe: FloatArray | None) -> None:
+    def add(self, features: Features, pose: FloatArray, from_keyframe: FloatArray | None) -> bool:
         """The scan just estimated: it becomes the keyframe where matching it failed
         (``from_keyframe`` None: start afresh from it) or it lies far enough from the
-        keyframe, else it is kept as the previous scan."""
+        keyframe, else it is kept as the previous scan. Whether it became the keyframe."""
         m = self.matching
         if (
             from_keyframe is None
@@ -70,8 +70,9 @@ class LocalMap:
             or abs(from_keyframe[2]) >= m.keyframe_angle
         ):
             self.set_keyframe(features, pose)
-        else:
-            self._previous = (features, pose)
+            return True
+        self._previous = (features, pose)
+        return False
 
     def set_keyframe(self, features: Features, pose: FloatArray) -> None:
         self._features = features

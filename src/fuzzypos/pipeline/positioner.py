@@ -25,9 +25,11 @@ from ..scan import LaserScan
 from .estimate import Estimate, Reason
 from .feature_match import FeatureMatch, FeatureMatcher
 from .local_map import LocalMap
+from .noise import OdometryNoise
 from .prior import OdometryPrior, Prior
 from .refine import Refiner, Starts
 from .search import Relocaliser
+from .uncertainty import Uncertainty
 
 __all__ = ["Positioner"]
 
@@ -35,6 +37,8 @@ FloatArray = NDArray[np.float64]
 
 _END = object()
 _IDENTITY = Pose2D()
+_NO_MOTION = np.zeros(3)
+_NO_MOTION.flags.writeable = False
 
 
 def _pose(a: FloatArray) -> Pose2D:
@@ -58,18 +62,22 @@ class Positioner:
     def __init__(self, config: Config | None = None) -> None:
         self.config = config if config is not None else Config()
         cfg = self.config
-        self.odometry_prior = OdometryPrior(cfg.odometry)
+        self.odometry_prior = OdometryPrior(cfg.odometry, cfg.odometry_noise.stale_periods)
+        self.odometry_noise = OdometryNoise(cfg.odometry_noise)
         self.local_map = LocalMap(cfg.matching, cfg.refinement)
         self.feature_matcher = FeatureMatcher(cfg.matching, cfg.fusion)
         self.refiner = Refiner(cfg.refinement, cfg.search)
         self.relocaliser = Relocaliser(cfg.search, self.refiner)
+        self.uncertainty = Uncertainty(cfg.covariance, cfg.gate)
         self.reset()
 
     def reset(self) -> None:
         """Forget every scan: the next one starts a new trajectory."""
         self._pose: FloatArray | None = None
         self.odometry_prior.reset()
+        self.odometry_noise.reset()
         self.local_map.reset()
+        self.uncertainty.reset()
 
     @property
     def pose(self) -> Pose2D | None:
@@ -89,47 +97,95 @@ class Positioner:
             raise TypeError(f"odom must be a Pose2D or None, got {type(odom).__name__}")
         if self._pose is None:
             return self._first(scan, odom)
-        prior = self.odometry_prior.predict(scan.stamp, odom)
+        prior = self._prior(scan.stamp, odom)
+        t_prev = self.local_map.from_keyframe(self._pose, _NO_MOTION)  # the previous scan's pose
         if prior.standing_still:  # the odometry says the robot stands still: so does the estimate
             self.odometry_prior.accept(np.zeros(3), prior.dt)
+            still = self.uncertainty.standing_still(t_prev)
             return Estimate(
-                scan.stamp,
-                _pose(self._pose),
-                _IDENTITY,
-                _IDENTITY,
-                0,
-                False,
-                None,
-                Reason.STANDING_STILL,
-            )
+                scan.stamp, _pose(self._pose), _IDENTITY, _IDENTITY, 0, False, None,
+                Reason.STANDING_STILL, covariance=still.covariance,
+                keyframe_covariance=still.keyframe_covariance,
+            )  # fmt: skip
         features = extract_features(scan, self.config)
         # the same prior from the keyframe: what was estimated up to the previous scan, then it
         key_prior = self.local_map.from_keyframe(self._pose, prior.increment)
         match = self.feature_matcher.match(self.local_map.features, features, key_prior)
-        fit = self._refine(features, match, key_prior, prior, scan.angle_increment)
+        prior_cov = self._prior_covariance(prior)
+        information = self._prior_information(t_prev, prior, prior_cov)
+        fit = self._refine(features, match, key_prior, prior, scan.angle_increment, information)
         from_key = match.increment if fit is None else fit.increment
+        judged = self.uncertainty.assess(
+            t_prev, prior.increment, prior_cov, from_key, fit, gate_open=self._gate_open(prior)
+        )
+        if judged.rejected:  # too unlikely under both covariances: the odometry stands
+            from_key = None
         if from_key is None:  # fall back to the prior, and start afresh from this scan
             increment = np.asarray(prior.increment, dtype=float)
             pose = compose(self._pose, increment)
         else:
             pose = self.local_map.pose_of(from_key)
             increment = relative(self._pose, pose)
-        self.local_map.add(features, pose, from_key)
+            self._learn(prior, increment, fit)
+        if self.local_map.add(features, pose, from_key):
+            self.uncertainty.renewed()
         self._pose = pose
         self.odometry_prior.accept(increment, prior.dt)
-        reason = Reason.MATCHED if fit is not None else match.reason
+        reason = Reason.GATED if judged.rejected else match.reason
+        refined = fit is not None and from_key is not None
         return Estimate(
-            stamp=scan.stamp,
-            pose=_pose(pose),
-            increment=_pose(increment),
-            prior=_pose(prior.increment),
-            n_pairs=match.n_pairs,
-            degraded=from_key is None,
-            features=features,
-            reason=reason,
-            odometry_rejected=prior.odometry_rejected,
-            refined=fit is not None,
-        )
+            stamp=scan.stamp, pose=_pose(pose), increment=_pose(increment),
+            prior=_pose(prior.increment), n_pairs=match.n_pairs, degraded=from_key is None,
+            features=features, reason=Reason.MATCHED if from_key is not None else reason,
+            odometry_rejected=prior.odometry_rejected, refined=refined,
+            covariance=judged.covariance, keyframe_covariance=judged.keyframe_covariance,
+            gate=judged.gate,
+        )  # fmt: skip
+
+    def _prior(self, stamp: float, odom: Pose2D | None) -> Prior:
+        """The odometry prior, its increment corrected by the learned calibration."""
+        prior = self.odometry_prior.predict(stamp, odom)
+        if not prior.from_odometry:
+            return prior
+        return replace(prior, increment=self.odometry_noise.calibrated(prior.increment))
+
+    def _prior_covariance(self, prior: Prior) -> FloatArray:
+        """The covariance of the prior: the odometry's learned noise (grown by the time it was
+        stale), or a broad one where the prior is the last increment."""
+        if not prior.from_odometry:
+            return self.uncertainty.broad()
+        return self.odometry_noise.covariance(prior.increment, prior.stale)
+
+    def _prior_information(
+        self, t_prev: FloatArray, prior: Prior, prior_cov: FloatArray
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """The information of the features' and of the odometry's motion from the keyframe
+        for the refinement's prior, from the learned noise (None: the fixed sigmas)."""
+        if not (self.config.odometry_noise.in_refinement and self.odometry_noise.warm):
+            return None
+        if not prior.from_odometry:
+            return None
+        odometry = self.uncertainty.key_prior_covariance(t_prev, prior.increment, prior_cov)
+        features = odometry + self.uncertainty.feature_covariance()
+        inv_features = np.asarray(np.linalg.inv(features), dtype=np.float64)
+        inv_odometry = np.asarray(np.linalg.inv(odometry), dtype=np.float64)
+        return inv_features, inv_odometry
+
+    def _gate_open(self, prior: Prior) -> bool:
+        """Whether a match is compared with the odometry: where the prior is the odometry's
+        and its noise is known (learned from enough matches, or not learned at all)."""
+        noise = self.odometry_noise
+        return self.config.gate.enabled and prior.from_odometry and noise.warm
+
+    def _learn(self, prior: Prior, increment: FloatArray, fit: Refinement | None) -> None:
+        """A refined match on time teaches the odometry's noise and calibration."""
+        if (
+            fit is not None
+            and prior.from_odometry
+            and prior.stale == 0.0
+            and prior.odometry is not None
+        ):
+            self.odometry_noise.learn(prior.odometry, increment)
 
     def _first(self, scan: LaserScan, odom: Pose2D | None) -> Estimate:
         """The first scan: the trajectory starts at its odometry pose, or the origin."""
@@ -138,16 +194,12 @@ class Positioner:
         self._pose = start
         self.odometry_prior.start(scan.stamp, odom)
         self.local_map.set_keyframe(features, start)
+        first = self.uncertainty.first()
         return Estimate(
-            scan.stamp,
-            Pose2D.from_array(start),
-            _IDENTITY,
-            _IDENTITY,
-            0,
-            False,
-            features,
-            Reason.FIRST_SCAN,
-        )
+            scan.stamp, Pose2D.from_array(start), _IDENTITY, _IDENTITY, 0, False, features,
+            Reason.FIRST_SCAN, covariance=first.covariance,
+            keyframe_covariance=first.keyframe_covariance,
+        )  # fmt: skip
 
     def _refine(
         self,
@@ -156,6 +208,7 @@ class Positioner:
         key_prior: FloatArray,
         prior: Prior,
         angle_increment: float,
+        information: tuple[FloatArray, FloatArray] | None,
     ) -> Refinement | None:
         """The refinement of the features' motion (else the prior's) against the local map,
         and the search where the prior cannot be trusted (after an odometry jump), or where the
@@ -170,6 +223,12 @@ class Positioner:
         start = key_prior if match.increment is None else match.increment
         from_features = match.increment is not None and r.prior_from_features
         starts = Starts(start=start, prior=start if from_features else key_prior, hold=key_prior)
+        if information is not None:  # the learned noise's: the features' prior, the odometry's
+            starts = replace(
+                starts,
+                prior_information=information[0] if from_features else information[1],
+                odometry_information=information[1],
+            )
         wide = prior.odometry_rejected
         best = self.refiner.refine(surface, points, starts, wide)
         if wide or best is None:

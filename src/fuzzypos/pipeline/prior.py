@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,6 +16,9 @@ __all__ = ["OdometryPrior", "Prior"]
 
 FloatArray = NDArray[np.float64]
 
+#: the usual scan period is the median of this many last time steps
+_STEPS = 51
+
 
 @dataclass(frozen=True, eq=False)
 class Prior:
@@ -25,7 +29,9 @@ class Prior:
     most as far as it went in its own time step). ``odometry``: the odometry increment, None
     without odometry. ``dt``: seconds since the previous scan (never negative).
     ``odometry_rejected``: the odometry increment was a jump. ``standing_still``: the odometry
-    pose did not change at all (the wheels did not turn).
+    pose did not change at all (the wheels did not turn). ``stale``: seconds of ``dt`` beyond
+    ``stale_periods`` usual scan periods (the running median of the time steps): time the
+    odometry was not updated (0 for a scan on time).
     """
 
     increment: FloatArray
@@ -33,13 +39,20 @@ class Prior:
     dt: float
     odometry_rejected: bool
     standing_still: bool
+    stale: float = 0.0
+
+    @property
+    def from_odometry(self) -> bool:
+        """Whether the increment is the odometry's (not a jump, not the last increment)."""
+        return self.odometry is not None and not self.odometry_rejected
 
 
 class OdometryPrior:
     """Turns the odometry poses into the prior of each scan's motion (``[odometry]``)."""
 
-    def __init__(self, settings: OdometryConfig) -> None:
+    def __init__(self, settings: OdometryConfig, stale_periods: float) -> None:
         self.settings = settings
+        self.stale_periods = stale_periods
         self.reset()
 
     def reset(self) -> None:
@@ -47,6 +60,7 @@ class OdometryPrior:
         self._prev_stamp = 0.0
         self._last_increment: FloatArray = np.zeros(3)
         self._last_dt = 0.0
+        self._steps: deque[float] = deque(maxlen=_STEPS)
         #: odometry increments rejected as jumps so far
         self.jumps = 0
 
@@ -79,7 +93,13 @@ class OdometryPrior:
             and odom == self._prev_odom  # the very same pose: the wheels did not turn
         )
         self._prev_odom = odom
-        return Prior(prior, odo_inc, dt, rejected, standing)
+        stale = 0.0
+        if self._steps:
+            usual = float(np.median(self._steps))
+            stale = max(0.0, dt - self.stale_periods * usual)
+        if dt > 0.0:
+            self._steps.append(dt)
+        return Prior(prior, odo_inc, dt, rejected, standing, stale)
 
     def accept(self, increment: FloatArray, dt: float) -> None:
         """The increment estimated for the scan ``dt`` after the previous one: the prior of a

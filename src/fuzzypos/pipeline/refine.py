@@ -21,21 +21,26 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True, eq=False)
 class ScanPoints:
-    """The scan's points to fit and the weight of each."""
+    """The scan's points to fit, the weight of each and the beam spacing at its range (m)."""
 
     xy: FloatArray
     weights: FloatArray
+    spacing: FloatArray | None = None
 
 
 @dataclass(frozen=True, eq=False)
 class Starts:
     """Where a scan's refinement starts, all from the keyframe: ``start`` (the features'
     motion, else the odometry's), ``prior`` (the motion the fit is held to) and ``hold`` (the
-    odometry's motion, which keeps its say along a corridor)."""
+    odometry's motion, which keeps its say along a corridor); ``prior_information`` and
+    ``odometry_information``: the information of ``prior`` and of ``hold`` where they come
+    from the learned noise (None: the refinement section's fixed standard deviations)."""
 
     start: FloatArray
     prior: FloatArray
     hold: FloatArray
+    prior_information: FloatArray | None = None
+    odometry_information: FloatArray | None = None
 
 
 class Refiner:
@@ -65,7 +70,7 @@ class Refiner:
                 weights = weights * np.clip(
                     length / median, 1.0 / r.length_weight_max, r.length_weight_max
                 )
-        return ScanPoints(pts, weights)
+        return ScanPoints(pts, weights, features.ranges * abs(float(angle_increment)))
 
     def refine(
         self, surface: SurfacePoints, points: ScanPoints, starts: Starts, wide: bool
@@ -78,7 +83,10 @@ class Refiner:
         r = self.refinement
         start, hold = starts.start, starts.hold
         max_distance = self.search.jump_distance if wide else r.max_distance
-        best = self.fit(surface, points, start, starts.prior, hold, max_distance=max_distance)
+        best = self.fit(
+            surface, points, start, starts.prior, hold, max_distance=max_distance,
+            prior_information=starts.prior_information,
+        )  # fmt: skip
         differ = start - hold
         if (
             not wide
@@ -87,7 +95,10 @@ class Refiner:
                 math.hypot(differ[0], differ[1]) > r.both_distance or abs(differ[2]) > r.both_angle
             )
         ):
-            other = self.fit(surface, points, hold, hold, hold, max_distance=r.max_distance)
+            other = self.fit(
+                surface, points, hold, hold, hold, max_distance=r.max_distance,
+                prior_information=starts.odometry_information,
+            )  # fmt: skip
             if other is not None and (
                 best is None or other.close_fraction > best.close_fraction + r.both_min_gain
             ):
@@ -104,6 +115,7 @@ class Refiner:
         *,
         max_distance: float,
         weak_prior: bool = False,
+        prior_information: FloatArray | None = None,
     ) -> Refinement | None:
         """One refinement against ``surface``; None where it is not trusted: fewer than
         ``min_points`` paired, less than the inlier fraction of the scan paired, or it moved
@@ -120,6 +132,8 @@ class Refiner:
             r,
             max_distance=max_distance,
             prior_scale=s.weak_prior_scale if weak_prior else 1.0,
+            prior_information=prior_information,
+            spacing=points.spacing,
         )
         min_fraction = s.min_inlier_fraction if weak_prior else r.min_inlier_fraction
         if res is None or res.n_paired < r.min_points or res.inlier_fraction < min_fraction:

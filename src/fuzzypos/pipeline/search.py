@@ -55,6 +55,7 @@ class Relocaliser:
                 starts.hold,
                 max_distance=s.jump_distance,
                 weak_prior=True,
+                prior_information=starts.odometry_information,
             )
         else:
             found = self.refiner.fit(
@@ -64,6 +65,7 @@ class Relocaliser:
                 starts.hold,
                 starts.hold,
                 max_distance=self.refiner.refinement.max_distance,
+                prior_information=starts.odometry_information,
             )
         if found is not None and (best is None or found.inlier_fraction > best.inlier_fraction):
             return found

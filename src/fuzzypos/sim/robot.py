@@ -470,7 +470,8 @@ def simulate_run(
     B21r defaults. The robot starts at ``start`` (default ``path.start``) at time 0 and runs for
     ``duration`` seconds (default the path's; beyond it the robot stands still); scans are taken
     at ``k / scanner.rate_hz`` for every such time within the duration, at the true pose (so
-    a path that does not last a whole number of scan periods ends after the last scan).
+    a path that does not last a whole number of scan periods ends after the last scan); scan
+    ``k`` is the scanner's scan ``index=k`` (an interlaced scanner's start angles cycle).
 
     The true pose follows the slip model in closed form (exact, whatever the step). The
     odometry integrates the encoder reports on a grid of at most ``max_step`` seconds (100 Hz),
@@ -511,8 +512,8 @@ def simulate_run(
     if with_scans:
         rng = np.random.default_rng(ss_scan)
         scans = [
-            simulate_scan(world, Pose2D.from_array(p), scanner, rng, float(t))
-            for p, t in zip(true_poses, stamps)
+            simulate_scan(world, Pose2D.from_array(p), scanner, rng, float(t), index=k)
+            for k, (p, t) in enumerate(zip(true_poses, stamps))
         ]
     return SimulatedRun(
         stamps=_readonly(stamps),

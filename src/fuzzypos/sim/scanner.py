@@ -76,6 +76,21 @@ class ScannerModel:
     spurious_probability`` must be at most 1 and each happens at exactly its own rate.
     ``rate_hz`` is the scan rate (scans per second), which sets the stamps of the scans of a
     simulated run (:func:`fuzzypos.sim.simulate_run`).
+
+    Interlacing and no-return codes (off by default; scan ``k`` of a sequence is the ``index``
+    of :func:`simulate_scan`, the scan number in :func:`simulate_scans` and a run):
+
+    - ``start_angle_offsets_deg``: a cycle of offsets added to ``angle_min_deg`` scan by scan,
+      ``offsets[k % len(offsets)]`` (a SICK LMS in interlaced mode: ``(0, 0.25, 0.5, 0.75)``
+      with 1° between beams, so four scans together sample every 0.25°). The increment stays
+      ``field_of_view / n_beams``.
+    - ``beam_counts``: a cycle of beam counts, ``beam_counts[k % len(beam_counts)]`` instead of
+      ``n_beams`` (the interlaced SICK: 181 beams at offset 0, -90°..+90°, 180 at the others);
+      when both cycles are given they must have the same length.
+    - ``no_return_value``: what a beam with no return reads (nothing within ``range_max``, or a
+      dropout); None (default) is ``range_max``, which :class:`~fuzzypos.scan.LaserScan` treats
+      as invalid. A SICK reports a no-return code below its maximum range (81.83 m under
+      81.9 m), which a scan sees as a valid reading: a consumer has to recognise the code.
     """
 
     n_beams: int = 180
@@ -90,6 +105,9 @@ class ScannerModel:
     dropout_probability: float = 0.0
     spurious_probability: float = 0.0
     rate_hz: float = 10.0
+    start_angle_offsets_deg: tuple[float, ...] = ()
+    beam_counts: tuple[int, ...] = ()
+    no_return_value: float | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.n_beams, bool) or int(self.n_beams) != self.n_beams or self.n_beams < 1:
@@ -142,6 +160,45 @@ class ScannerModel:
         if not self.rate_hz > 0.0:
             raise SimError(f"rate_hz must be positive, got {self.rate_hz}")
         object.__setattr__(self, "sensor_pose", _as_pose(self.sensor_pose))
+        self._check_cycles()
+
+    def _check_cycles(self) -> None:
+        """Validate the interlacing cycles and the no-return code (class docstring)."""
+        try:
+            offsets = tuple(float(v) for v in self.start_angle_offsets_deg)
+            counts = tuple(self.beam_counts)
+        except (TypeError, ValueError):
+            raise SimError(
+                "start_angle_offsets_deg and beam_counts must be sequences of numbers, got "
+                f"{self.start_angle_offsets_deg!r}, {self.beam_counts!r}"
+            ) from None
+        if not all(math.isfinite(v) for v in offsets):
+            raise SimError(f"start_angle_offsets_deg must be finite, got {offsets}")
+        for c in counts:
+            if isinstance(c, (bool, np.bool_)) or int(c) != c or c < 1:
+                raise SimError(f"beam_counts must be positive integers, got {counts}")
+        counts = tuple(int(c) for c in counts)
+        if offsets and counts and len(offsets) != len(counts):
+            raise SimError(
+                f"start_angle_offsets_deg ({len(offsets)}) and beam_counts ({len(counts)}) "
+                "must have the same length"
+            )
+        object.__setattr__(self, "start_angle_offsets_deg", offsets)
+        object.__setattr__(self, "beam_counts", counts)
+        v = self.no_return_value
+        if v is not None:
+            if isinstance(v, (bool, np.bool_)):
+                raise SimError(f"no_return_value must be a number or None, got {v!r}")
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise SimError(f"no_return_value must be a number or None, got {v!r}") from None
+            if not (math.isfinite(v) and self.range_min < v <= self.range_max):
+                raise SimError(
+                    f"no_return_value must be in (range_min, range_max] = ({self.range_min}, "
+                    f"{self.range_max}], got {v}"
+                )
+            object.__setattr__(self, "no_return_value", v)
 
     @classmethod
     def sick_lms200(cls, **overrides: Any) -> ScannerModel:
@@ -231,12 +288,38 @@ class ScannerModel:
             sigma = sigma + self.incidence_noise * (1.0 - sin_beta)
         return np.broadcast_to(sigma, np.broadcast_shapes(rho.shape, sin_beta.shape))
 
-    def angles(self) -> FloatArray:
-        """Beam bearings in the laser frame, ``(n_beams,)`` radians."""
-        return self.angle_min + np.arange(self.n_beams, dtype=np.float64) * self.angle_increment
+    @property
+    def no_return(self) -> float:
+        """What a beam with no return reads: ``no_return_value``, else ``range_max``."""
+        return self.range_max if self.no_return_value is None else self.no_return_value
+
+    @property
+    def is_interlaced(self) -> bool:
+        """Whether the start angle or the beam count changes from scan to scan."""
+        return bool(self.start_angle_offsets_deg) or bool(self.beam_counts)
+
+    def scan_angle_min(self, index: int = 0) -> float:
+        """Bearing of the first beam of scan ``index`` of a sequence (radians): ``angle_min``
+        plus that scan's start-angle offset."""
+        offsets = self.start_angle_offsets_deg
+        if not offsets:
+            return self.angle_min
+        return math.radians(self.angle_min_deg + offsets[index % len(offsets)])
+
+    def scan_n_beams(self, index: int = 0) -> int:
+        """The beam count of scan ``index`` of a sequence."""
+        counts = self.beam_counts
+        return counts[index % len(counts)] if counts else self.n_beams
+
+    def angles(self, index: int = 0) -> FloatArray:
+        """Beam bearings in the laser frame of scan ``index`` of a sequence (radians; the same
+        for every scan unless interlaced), ``(scan_n_beams(index),)``."""
+        n = self.scan_n_beams(index)
+        return self.scan_angle_min(index) + np.arange(n, dtype=np.float64) * self.angle_increment
 
     def covers(self, bearings: ArrayLike) -> NDArray[np.bool_]:
-        """Whether laser-frame bearings lie within the swept beams (first to last beam)."""
+        """Whether laser-frame bearings lie within the swept beams (first to last beam; scan 0's
+        beams for an interlaced scanner)."""
         b = np.asarray(bearings, dtype=float)
         if self.is_full_circle:
             return np.ones(b.shape, dtype=bool)
@@ -251,12 +334,15 @@ def laser_pose(robot_pose: Pose2D | ArrayLike, scanner: ScannerModel) -> Pose2D:
     return _as_pose(robot_pose).compose(scanner.sensor_pose)
 
 
-def _true_ranges(world: World, lp: Pose2D, scanner: ScannerModel) -> tuple[FloatArray, FloatArray]:
-    """True ranges (``inf`` for no return within ``range_max``) and ``sin β`` of every beam
-    (``|sin|`` of the angle between the beam and the wall it hits; 0 for no return)."""
-    ang = lp.theta + scanner.angles()
+def _true_ranges(
+    world: World, lp: Pose2D, scanner: ScannerModel, index: int = 0
+) -> tuple[FloatArray, FloatArray]:
+    """True ranges (``inf`` for no return within ``range_max``) and ``sin β`` of every beam of
+    scan ``index`` (``|sin|`` of the angle between the beam and the wall it hits; 0 for no
+    return)."""
+    ang = lp.theta + scanner.angles(index)
     r, idx = cast_rays(world, (lp.x, lp.y), ang, scanner.range_max, return_segment=True)
-    sin_beta = np.zeros(scanner.n_beams)
+    sin_beta = np.zeros(ang.shape[0])
     hit = idx >= 0
     if hit.any():
         seg = world.segments[idx[hit]]
@@ -272,10 +358,15 @@ def simulate_scan(
     scanner: ScannerModel = ScannerModel(),
     rng: np.random.Generator | None = None,
     stamp: float = 0.0,
+    *,
+    index: int = 0,
 ) -> LaserScan:
-    """Simulate one scan of ``world`` by ``scanner`` on a robot at ``robot_pose``.
+    """Simulate one scan of ``world`` by ``scanner`` on a robot at ``robot_pose``; ``index`` is
+    the scan's number in a sequence, which picks an interlaced scanner's start angle and beam
+    count (:class:`ScannerModel`).
 
-    Beams with no return within ``range_max`` read ``range_max``. Gaussian noise of std
+    Beams with no return within ``range_max`` read ``range_max`` (the scanner's
+    ``no_return_value`` when set, here and for dropouts). Gaussian noise of std
     σ(ρ, β) (:meth:`ScannerModel.range_std`) is added to hits at or beyond ``range_min`` and the
     result clipped to ``[range_min, range_max]``; a hit nearer than ``range_min`` is reported
     noise-free at its true range (below ``range_min``, so invalid). Then each beam drops out
@@ -289,14 +380,16 @@ def simulate_scan(
     ``sensor_pose`` is the scanner's.
     """
     lp = laser_pose(robot_pose, scanner)
-    r, sin_beta = _true_ranges(world, lp, scanner)
+    r, sin_beta = _true_ranges(world, lp, scanner, index)
+    n = int(r.shape[0])
     hit = np.isfinite(r)
     ranges = np.where(hit, r, scanner.range_max)
+    no_return: NDArray[np.bool_] = np.logical_not(hit)  # the beams that read "no return"
     if scanner.is_noisy and rng is None:
         rng = np.random.default_rng()
     if scanner.has_range_noise:
         assert rng is not None
-        z = rng.standard_normal(scanner.n_beams)
+        z = rng.standard_normal(n)
         noise = scanner._range_std(ranges, sin_beta) * z
         noisy = hit & (r >= scanner.range_min)
         ranges = np.where(
@@ -304,8 +397,8 @@ def simulate_scan(
         )
     if scanner.has_outliers:
         assert rng is not None
-        u = rng.random(scanner.n_beams)
-        w = rng.random(scanner.n_beams)
+        u = rng.random(n)
+        w = rng.random(n)
         p_drop = scanner.dropout_probability
         drop = u < p_drop
         top = np.minimum(r, scanner.range_max)  # the true range, range_max for no return
@@ -313,9 +406,12 @@ def simulate_scan(
         spurious &= top > scanner.range_min
         short = scanner.range_min + w * (top - scanner.range_min)
         ranges = np.where(drop, scanner.range_max, np.where(spurious, short, ranges))
+        no_return = (no_return & np.logical_not(spurious)) | drop
+    if scanner.no_return_value is not None:
+        ranges = np.where(no_return, scanner.no_return_value, ranges)
     return LaserScan(
         ranges,
-        angle_min=scanner.angle_min,
+        angle_min=scanner.scan_angle_min(index),
         angle_increment=scanner.angle_increment,
         range_min=scanner.range_min,
         range_max=scanner.range_max,
@@ -331,7 +427,8 @@ def simulate_scans(
     rng: np.random.Generator | None = None,
     stamps: Iterable[float] | None = None,
 ) -> list[LaserScan]:
-    """One :func:`simulate_scan` per pose, sharing ``rng``; ``stamps`` default to 0, 1, 2, ..."""
+    """One :func:`simulate_scan` per pose, sharing ``rng`` (pose ``i`` is scan ``index=i``);
+    ``stamps`` default to 0, 1, 2, ..."""
     pose_list = [_as_pose(p) for p in poses]
     if stamps is None:
         stamp_list = [float(i) for i in range(len(pose_list))]
@@ -341,7 +438,10 @@ def simulate_scans(
             raise SimError(f"got {len(pose_list)} poses but {len(stamp_list)} stamps")
     if rng is None and scanner.is_noisy:
         rng = np.random.default_rng()
-    return [simulate_scan(world, p, scanner, rng, s) for p, s in zip(pose_list, stamp_list)]
+    return [
+        simulate_scan(world, p, scanner, rng, s, index=i)
+        for i, (p, s) in enumerate(zip(pose_list, stamp_list))
+    ]
 
 
 def visible_corners(

@@ -1,0 +1,130 @@
+"""The odometry's noise, learned online: a random walk whose variance grows with the distance
+and the rotation travelled and with the time the odometry was stale, its parameters a robust
+running estimate from where confident matches and the odometry disagree; and a running
+calibration of the odometry's scale and rotation factor."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import OdometryNoiseConfig
+from ..geometry import relative
+
+__all__ = ["OdometryNoise"]
+
+FloatArray = NDArray[np.float64]
+
+#: the medians of χ² with 2 and 1 degrees of freedom: a robust variance from squared errors
+_MEDIAN_CHI2_2 = 2.0 * math.log(2.0)
+_MEDIAN_CHI2_1 = 0.454936423119572
+#: increments shorter than this (m, or m-equivalent of turning) teach the model nothing
+_MIN_TRAVEL = 1e-3
+
+
+class OdometryNoise:
+    """The covariance of an odometry increment (``[odometry_noise]``), learned online.
+
+    Translation: σ² = floor² + α_t² d (+ (stale_speed · stale)²); rotation: σ² = floor² +
+    α_r² (d + turning_distance · |Δθ|) (+ (stale_turn_rate · stale)²), for an increment of
+    length d turning Δθ, ``stale`` seconds of it without odometry. α_t and α_r start at the
+    configured values; once ``min_samples`` confident matches have been seen, each is the
+    median over the last ``window`` of their disagreement with the odometry, normalised by
+    the travel, kept between its floor and ceiling.
+    """
+
+    def __init__(self, settings: OdometryNoiseConfig) -> None:
+        self.settings = settings
+        self.reset()
+
+    def reset(self) -> None:
+        s = self.settings
+        self.alpha_translation = s.translation_per_sqrt_m
+        self.alpha_rotation = s.rotation_per_sqrt_m
+        self._translation: deque[float] = deque(maxlen=s.window)
+        self._rotation: deque[float] = deque(maxlen=s.window)
+        # least squares of the matched against the odometry's motion: Σ m·o and Σ o²
+        self._scale_sums = np.zeros(2)
+        self._turn_sums = np.zeros(2)
+
+    @property
+    def warm(self) -> bool:
+        """Whether the noise is known: learned from ``min_samples`` matches (or not learned)."""
+        s = self.settings
+        return not s.learn or min(len(self._translation), len(self._rotation)) >= s.min_samples
+
+    @property
+    def scale(self) -> float:
+        """The odometry's translation scale factor (the matched distance over the odometry's)."""
+        return self._factor(self._scale_sums)
+
+    @property
+    def rotation_factor(self) -> float:
+        """The odometry's rotation factor (the matched rotation over the odometry's)."""
+        return self._factor(self._turn_sums)
+
+    def _factor(self, sums: FloatArray) -> float:
+        s = self.settings
+        if not s.calibrate or sums[1] <= 0.0:
+            return 1.0
+        bound = s.max_calibration
+        return float(min(max(sums[0] / sums[1], 1.0 - bound), 1.0 + bound))
+
+    def calibrated(self, increment: FloatArray) -> FloatArray:
+        """The odometry ``increment`` corrected by the calibration factors."""
+        k, r = self.scale, self.rotation_factor
+        if k == 1.0 and r == 1.0:
+            return increment
+        return np.array([increment[0] * k, increment[1] * k, increment[2] * r])
+
+    def covariance(self, increment: FloatArray, stale: float = 0.0) -> FloatArray:
+        """The 3×3 covariance of an odometry ``increment`` (x, y, θ in its start's frame),
+        ``stale`` seconds of it without odometry."""
+        s = self.settings
+        d = math.hypot(float(increment[0]), float(increment[1]))
+        turn = abs(float(increment[2]))
+        var_t = s.floor_translation**2 + self.alpha_translation**2 * d
+        var_r = s.floor_rotation**2 + self.alpha_rotation**2 * (d + s.turning_distance * turn)
+        if stale > 0.0:
+            var_t += (s.stale_speed * stale) ** 2
+            var_r += (s.stale_turn_rate * stale) ** 2
+        return np.diag([var_t, var_t, var_r])
+
+    def learn(self, odometry: FloatArray, matched: FloatArray) -> None:
+        """A confident match ``matched`` of an increment the odometry says was ``odometry``:
+        their disagreement teaches the noise, their ratio the calibration."""
+        s = self.settings
+        d = math.hypot(float(odometry[0]), float(odometry[1]))
+        travel = d + s.turning_distance * abs(float(odometry[2]))
+        if travel < _MIN_TRAVEL:
+            return
+        if s.calibrate:
+            dm = math.hypot(float(matched[0]), float(matched[1]))
+            self._scale_sums += (dm * d, d * d)
+            self._turn_sums += (float(matched[2]) * float(odometry[2]), float(odometry[2]) ** 2)
+        if not s.learn:
+            return
+        err = relative(self.calibrated(odometry), matched)
+        # the disagreement is the odometry's error and the match's: taken whole, the learned
+        # noise errs on the large side (the match's own share is not subtracted, since its
+        # covariance is an estimate too and the difference of two estimates is unstable)
+        if d >= _MIN_TRAVEL:
+            e2 = float(err[0] ** 2 + err[1] ** 2) / _MEDIAN_CHI2_2 - s.floor_translation**2
+            self._translation.append(max(e2, 0.0) / d)
+        e2r = float(err[2] ** 2) / _MEDIAN_CHI2_1 - s.floor_rotation**2
+        self._rotation.append(max(e2r, 0.0) / travel)
+        self._update()
+
+    def _update(self) -> None:
+        s = self.settings
+        if len(self._translation) >= s.min_samples:
+            a = math.sqrt(float(np.median(self._translation)))
+            lo, hi = s.min_translation_per_sqrt_m, s.max_translation_per_sqrt_m
+            self.alpha_translation = min(max(a, lo), hi)
+        if len(self._rotation) >= s.min_samples:
+            a = math.sqrt(float(np.median(self._rotation)))
+            lo, hi = s.min_rotation_per_sqrt_m, s.max_rotation_per_sqrt_m
+            self.alpha_rotation = min(max(a, lo), hi)

@@ -1,0 +1,226 @@
+"""The uncertainty stage: the covariance of every increment and of every scan's pose relative
+to its keyframe, and the gate that rejects a match too unlikely under both its own and the
+odometry's covariance.
+
+Conventions. A pose error is a right perturbation: ε = ⊖(true) ⊕ estimate, (x, y in m, θ in
+rad) in the frame of the pose itself; that is what ``Estimate.covariance`` (of the increment,
+so in the previous scan's frame) and ``Estimate.keyframe_covariance`` (of the pose relative to
+the keyframe) hold. Inside, the fit against the keyframe is solved in additive coordinates of
+the keyframe's frame (δ = estimate − true, what Gauss-Newton updates); :func:`local` turns
+those into the right-perturbation form.
+
+The fit (:class:`~fuzzypos.matching.Refinement`) minimises the points' residuals with
+weights ``A`` plus a prior term ``P`` (the odometry's motion, and the hold of a corridor's
+unobservable direction). Its estimate is δT = M⁻¹ (g + P δp) with M = A + P, g the points'
+gradient (covariance ``G`` under the noise their residuals show, times ``point_correlation``)
+and δp the error of the prior: that of the previous scan's pose relative to the keyframe
+carried on by the odometry's increment. The sandwich M⁻¹ (G + P Σ_p P) M⁻¹ is then the covariance
+whatever weight the fit gave its prior: the odometry's information enters once, and where the
+points do not constrain a direction (a corridor) the covariance along it is the prior's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from ..config import CovarianceConfig, GateConfig
+from ..geometry import compose, relative
+from ..matching import Refinement
+
+__all__ = ["Assessment", "Uncertainty", "compose_jacobians", "local"]
+
+FloatArray = NDArray[np.float64]
+
+_ZERO = np.zeros((3, 3))
+_ZERO.flags.writeable = False
+
+
+def compose_jacobians(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """∂(a ⊕ b)/∂a and ∂(a ⊕ b)/∂b in additive (x, y, θ) coordinates."""
+    c, s = math.cos(float(a[2])), math.sin(float(a[2]))
+    bx, by = float(b[0]), float(b[1])
+    ja = np.array([[1.0, 0.0, -s * bx - c * by], [0.0, 1.0, c * bx - s * by], [0.0, 0.0, 1.0]])
+    jb = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return ja, jb
+
+
+def local(cov: FloatArray, theta: float) -> FloatArray:
+    """An additive covariance of a pose with heading ``theta`` as the covariance of its right
+    perturbation (in the pose's own frame)."""
+    c, s = math.cos(theta), math.sin(theta)
+    g = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    out: FloatArray = g @ cov @ g.T
+    sym: FloatArray = 0.5 * (out + out.T)
+    return sym
+
+
+@dataclass(frozen=True, eq=False)
+class Assessment:
+    """How good one scan's estimate is: ``covariance`` of its increment and
+    ``keyframe_covariance`` of its pose relative to the keyframe it was matched against (both
+    right perturbations, see the module), ``gate`` the Mahalanobis distance squared of the
+    match's disagreement with the odometry (None where nothing was compared) and
+    ``rejected`` whether the gate rejected the match."""
+
+    covariance: FloatArray
+    keyframe_covariance: FloatArray
+    gate: float | None = None
+    rejected: bool = False
+
+
+class Uncertainty:
+    """Covariances (``[covariance]``) and the gate (``[gate]``); owns the covariance of the
+    previous scan's pose relative to the keyframe, which the next fit's prior inherits."""
+
+    def __init__(self, covariance: CovarianceConfig, gate: GateConfig) -> None:
+        self.settings = covariance
+        self.gate_settings = gate
+        self.threshold = float(chi2.ppf(gate.probability, 3))
+        f = covariance
+        self.floor = np.diag([f.floor_translation**2, f.floor_translation**2, f.floor_rotation**2])
+        self.floor.flags.writeable = False
+        self.reset()
+
+    def reset(self) -> None:
+        #: the previous scan's pose relative to the keyframe: its additive covariance
+        self._previous = np.zeros((3, 3))
+
+    def first(self) -> Assessment:
+        """The first scan: the keyframe itself."""
+        self._previous = np.zeros((3, 3))
+        return Assessment(self.floor.copy(), self.floor.copy())
+
+    def standing_still(self, t_prev: FloatArray) -> Assessment:
+        """The robot stands still at ``t_prev`` from the keyframe: no motion, the pose
+        relative to the keyframe unchanged."""
+        kf = local(self._previous, float(t_prev[2])) + self.floor
+        return Assessment(self.floor.copy(), kf)
+
+    def key_prior_covariance(
+        self, t_prev: FloatArray, prior: FloatArray, prior_covariance: FloatArray
+    ) -> FloatArray:
+        """The additive covariance, in the keyframe's frame, of the prior from the keyframe:
+        the previous scan's pose relative to it carried on by ``prior``."""
+        ja, jb = compose_jacobians(t_prev, prior)
+        out: FloatArray = ja @ self._previous @ ja.T + jb @ prior_covariance @ jb.T + self.floor
+        return out
+
+    def feature_covariance(self) -> FloatArray:
+        """The features' own error, isotropic in translation."""
+        f = self.settings
+        return np.diag([f.feature_translation**2] * 2 + [f.feature_rotation**2])
+
+    def broad(self) -> FloatArray:
+        """The covariance of a prior without (sane) odometry: the last increment."""
+        f = self.settings
+        t, r = f.no_odometry_translation**2, f.no_odometry_rotation**2
+        return np.diag([t, t, r])
+
+    def assess(
+        self,
+        t_prev: FloatArray,
+        prior: FloatArray,
+        prior_covariance: FloatArray,
+        from_key: FloatArray | None,
+        fit: Refinement | None,
+        gate_open: bool,
+    ) -> Assessment:
+        """The covariances of a scan whose previous scan lies at ``t_prev`` from the keyframe,
+        whose motion since then was predicted as ``prior`` with ``prior_covariance`` (the
+        odometry's, or a broad one), estimated from the keyframe as ``from_key`` by ``fit``
+        (None: the features alone; ``from_key`` None: nothing, the prior stands). With
+        ``gate_open`` the match is compared with the prior and rejected past the gate."""
+        ja, jb = compose_jacobians(t_prev, prior)
+        prev = ja @ self._previous @ ja.T
+        odo = jb @ prior_covariance @ jb.T
+        if from_key is None:
+            return self._fallback(t_prev, prior, prior_covariance, prev, odo)
+        inc = relative(t_prev, from_key)
+        jb_inv = jb.T  # a rotation: its inverse is its transpose
+        f = self.settings
+        # the features' error (isotropic in translation: the same in every frame)
+        feature = np.diag([f.feature_translation**2] * 2 + [f.feature_rotation**2])
+        if fit is None:  # the features alone: a measurement of the pose relative to the
+            # keyframe, independent of the previous scan's error
+            kf = feature
+            scan_part = feature + prev
+            pull = np.zeros((3, 3))
+        else:
+            kf, scan_part, pull = self._fit_parts(fit, compose(t_prev, prior), prev, odo, feature)
+        inc_cov = jb_inv @ (scan_part + pull @ odo @ pull.T) @ jb_inv.T
+        gate, rejected = None, False
+        if gate_open:
+            # the disagreement with the prior: (pull − 1) of the odometry's error plus the scan's
+            k = jb_inv @ pull @ jb - np.eye(3)
+            cov_d = jb_inv @ scan_part @ jb_inv.T + k @ prior_covariance @ k.T + self.floor
+            d = relative(prior, inc)
+            gate = float(d @ np.linalg.solve(cov_d, d))
+            rejected = gate > self.threshold
+        if rejected:
+            return self._fallback(t_prev, prior, prior_covariance, prev, odo, gate)
+        self._previous = 0.5 * (kf + kf.T)
+        return Assessment(
+            local(inc_cov, float(inc[2])) + self.floor,
+            local(self._previous, float(from_key[2])) + self.floor,
+            gate,
+        )
+
+    def _fit_parts(
+        self,
+        fit: Refinement,
+        key_prior: FloatArray,
+        prev: FloatArray,
+        odo: FloatArray,
+        feature: FloatArray,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The sandwich of a fit (module docstring): the covariance relative to the keyframe,
+        the increment's share that is not the odometry's error, and how much of the odometry's
+        error the fit took over. The prior's and the hold's terms pull toward the odometry's
+        motion or toward the features' (or the search's), which started from the odometry's
+        and keep its error where the scan does not see (along a corridor the lines' motion is
+        the prior's): both carry the odometry's error, and a target that is not the odometry's
+        motion itself also the features' own error."""
+        m = fit.information + fit.prior_information + fit.hold_information
+        m_inv = np.linalg.inv(m + 1e-12 * np.eye(3))
+        odometric = fit.prior_information + fit.hold_information
+        other = np.zeros((3, 3))
+        for term, target in (
+            (fit.prior_information, fit.prior),
+            (fit.hold_information, fit.start if fit.hold_on_start else key_prior),
+        ):
+            if not np.allclose(target, key_prior, rtol=0.0, atol=1e-12):
+                other = other + term
+        points = self.settings.point_correlation * fit.gradient_covariance
+        own = points + other @ feature @ other
+        kf = m_inv @ (own + odometric @ (prev + odo) @ odometric) @ m_inv
+        rest = m - odometric  # what pulls toward the scan's own evidence
+        scan_part = m_inv @ (own + rest @ prev @ rest) @ m_inv
+        return kf, scan_part, m_inv @ odometric
+
+    def _fallback(
+        self,
+        t_prev: FloatArray,
+        prior: FloatArray,
+        prior_covariance: FloatArray,
+        prev: FloatArray,
+        odo: FloatArray,
+        gate: float | None = None,
+    ) -> Assessment:
+        """The prior stands: its own covariance for the increment; relative to the keyframe
+        the previous scan's carried on by it."""
+        pose = np.asarray(prior, dtype=float)
+        theta = float(t_prev[2] + pose[2])
+        kf = local(prev + odo, theta) + self.floor
+        self._previous = prev + odo
+        return Assessment(
+            0.5 * (prior_covariance + prior_covariance.T) + self.floor, kf, gate, gate is not None
+        )
+
+    def renewed(self) -> None:
+        """The scan just assessed became the keyframe: the next scan's prior starts from it."""
+        self._previous = np.zeros((3, 3))

@@ -1,0 +1,277 @@
+"""How good every increment is: covariances against simulated motions with known truth, the
+odometry noise learned online, and the gate between the two."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fuzzypos import Config, Pose2D, Positioner, Reason, sim
+from fuzzypos.geometry import compose, relative
+from fuzzypos.matching import Refinement
+from fuzzypos.pipeline import OdometryNoise, Uncertainty
+from fuzzypos.pipeline.uncertainty import compose_jacobians, local
+
+CFG = Config()
+#: the gate on (it is off by default)
+GATED = Config().with_overrides({"gate": {"enabled": True}})
+
+
+def scanner(noise: float = 0.01, beams: int = 180, fov: float = 180.0) -> sim.ScannerModel:
+    return sim.ScannerModel(
+        n_beams=beams, field_of_view_deg=fov, angle_min_deg=-fov / 2, range_max=8.0,
+        range_noise_std=noise,
+    )  # fmt: skip
+
+
+def positive_definite(cov: np.ndarray) -> bool:
+    return bool(np.allclose(cov, cov.T) and np.linalg.eigvalsh(cov).min() > 0.0)
+
+
+# -- geometry of the covariances ---------------------------------------------------------------
+@settings(max_examples=50, deadline=None)
+@given(
+    st.tuples(*[st.floats(-3.0, 3.0)] * 2, st.floats(-math.pi, math.pi)),
+    st.tuples(*[st.floats(-1.0, 1.0)] * 2, st.floats(-math.pi, math.pi)),
+)
+def test_compose_jacobians_match_numerical_derivatives(a, b) -> None:
+    a, b = np.array(a), np.array(b)
+    ja, jb = compose_jacobians(a, b)
+    h = 1e-6
+    for k in range(3):
+        d = np.zeros(3)
+        d[k] = h
+        num_a = (compose(a + d, b) - compose(a - d, b)) / (2 * h)
+        num_b = (compose(a, b + d) - compose(a, b - d)) / (2 * h)
+        for num in (num_a, num_b):
+            num[2] = (num[2] + math.pi / h) % (2 * math.pi / h) - math.pi / h
+        np.testing.assert_allclose(ja[:, k], num_a, atol=1e-6)
+        np.testing.assert_allclose(jb[:, k], num_b, atol=1e-6)
+
+
+def test_local_covariance_is_that_of_the_right_perturbation() -> None:
+    """Samples of an additive error δ, seen as ε = ⊖true ⊕ (true + δ), have covariance
+    ``local(cov, θ)`` (Monte Carlo, 20,000 samples)."""
+    rng = np.random.default_rng(0)
+    true = np.array([1.0, -2.0, 1.1])
+    cov = np.array([[4e-4, 1e-4, 0.0], [1e-4, 1e-4, 2e-5], [0.0, 2e-5, 1e-4]])
+    deltas = rng.multivariate_normal(np.zeros(3), cov, 20_000)
+    eps = np.array([relative(true, true + d) for d in deltas])
+    np.testing.assert_allclose(np.cov(eps.T), local(cov, true[2]), rtol=0.05, atol=2e-6)
+
+
+# -- covariances of simulated motions ------------------------------------------------------------
+def motion_nees(noise: float, n: int = 30) -> np.ndarray:
+    """NEES of ``n`` simulated increments whose odometry error is drawn from the model."""
+    world = sim.furnished_room(0)
+    sc = scanner(noise)
+    model = OdometryNoise(CFG.odometry_noise)
+    out = []
+    for i, trial in enumerate(sim.random_motions(world, sc, n, 5, odometry_error=(0.0, 0.0))):
+        rng = np.random.default_rng((11, i))
+        e = rng.multivariate_normal(np.zeros(3), model.covariance(trial.increment))
+        pos = Positioner()
+        pos.update(sim.simulate_scan(world, trial.start, sc, rng, stamp=0.0), Pose2D())
+        est = pos.update(
+            sim.simulate_scan(world, trial.end, sc, rng, stamp=1.0),
+            Pose2D.from_array(compose(trial.increment, e)),
+        )
+        assert est.covariance is not None and positive_definite(est.covariance)
+        err = relative(trial.increment, est.increment.as_array())
+        out.append(float(err @ np.linalg.solve(est.covariance, err)))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("noise", [0.005, 0.02])
+def test_the_covariance_is_honest_on_simulated_motions(noise: float) -> None:
+    """The NEES of simulated increments looks like a χ²(3) draw (median 2.37, 90th percentile
+    6.25): neither overconfident nor hiding the error behind a huge covariance."""
+    nees = motion_nees(noise)
+    assert 0.3 <= float(np.median(nees)) <= 8.0, np.median(nees)
+    assert float(np.percentile(nees, 90)) <= 25.0, np.percentile(nees, 90)
+
+
+def corridor_run(odometry: bool) -> list:
+    walls = sim.World.from_segments([[-30.0, -1.0, 30.0, -1.0], [-30.0, 1.0, 30.0, 1.0]])
+    truth = [Pose2D(0.1 * k, 0.0, 0.0) for k in range(4)]
+    rng = np.random.default_rng(3)
+    scans = [sim.simulate_scan(walls, p, scanner(0.005, 360, 360.0), rng, stamp=0.2 * k)
+             for k, p in enumerate(truth)]  # fmt: skip
+    return Positioner().run(scans, truth if odometry else None)
+
+
+def test_in_a_featureless_corridor_the_covariance_is_long_along_it() -> None:
+    for odometry in (True, False):
+        est = corridor_run(odometry)[1]
+        cov = est.covariance
+        assert cov is not None and positive_definite(cov)
+        along, across = math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
+        assert along > 5.0 * across, (odometry, along, across)
+        if odometry:  # along the corridor the odometry's own uncertainty, no better
+            odo = OdometryNoise(CFG.odometry_noise).covariance(np.array([0.1, 0.0, 0.0]))
+            assert along >= 0.5 * math.sqrt(odo[0, 0]), (along, odo)
+        else:  # without odometry: the broad prior's
+            assert along > 0.3, along
+
+
+def test_first_scan_and_standing_still_have_a_small_positive_floor() -> None:
+    world = sim.furnished_room(0)
+    scans = [sim.simulate_scan(world, Pose2D(), scanner(), stamp=0.1 * k) for k in range(3)]
+    est = Positioner().run(scans, [Pose2D()] * 3)
+    assert est[0].reason is Reason.FIRST_SCAN and est[1].reason is Reason.STANDING_STILL
+    for e in est:
+        assert positive_definite(e.covariance) and positive_definite(e.keyframe_covariance)
+        assert np.sqrt(np.diag(e.covariance)).max() < 0.01
+
+
+def test_a_degraded_scan_takes_the_odometry_covariance() -> None:
+    world = sim.furnished_room(0)
+    poses = [Pose2D(0.1 * k, 0.0, 0.0) for k in range(3)]
+    scans = [sim.simulate_scan(world, p, scanner(), stamp=0.1 * k) for k, p in enumerate(poses)]
+    scans[2] = replace(scans[2], ranges=np.full(scans[2].n_beams, np.inf))
+    est = Positioner().run(scans, poses)
+    assert est[2].degraded
+    odo = OdometryNoise(CFG.odometry_noise).covariance(np.array([0.1, 0.0, 0.0]))
+    # the odometry's (its increment corrected by the calibration learned so far)
+    floor = Uncertainty(CFG.covariance, CFG.gate).floor
+    np.testing.assert_allclose(est[2].covariance, odo + floor, rtol=0.02)
+    assert est[1].covariance[0, 0] < odo[0, 0]  # a matched scan knows better than odometry
+
+
+def test_keyframe_covariance_is_the_fit_against_the_keyframe() -> None:
+    """Scans fitted against one keyframe: their keyframe covariance does not grow as the sum
+    of the increments' covariances would."""
+    world = sim.furnished_room(0)
+    poses = [Pose2D(0.05 * k, 0.0, 0.01 * k) for k in range(8)]
+    rng = np.random.default_rng(2)
+    scans = [
+        sim.simulate_scan(world, p, scanner(), rng, stamp=0.1 * k) for k, p in enumerate(poses)
+    ]
+    est = Positioner().run(scans, poses)
+    summed = sum(e.covariance for e in est[1:])
+    last = est[-1].keyframe_covariance
+    assert positive_definite(last)
+    assert np.trace(last) < np.trace(summed), (np.trace(last), np.trace(summed))
+
+
+# -- the odometry's noise, learned --------------------------------------------------------------
+def test_the_noise_is_learned_from_disagreements_and_kept_within_bounds() -> None:
+    rng = np.random.default_rng(4)
+    noise = OdometryNoise(CFG.odometry_noise)
+    true_t, true_r = 0.08, math.radians(1.0)  # per √m: a poorer odometry than configured
+    for _ in range(400):
+        u = np.array([rng.uniform(0.05, 0.3), rng.normal(0, 0.02), rng.normal(0, 0.05)])
+        d = math.hypot(u[0], u[1])
+        var_r = true_r**2 * (d + CFG.odometry_noise.turning_distance * abs(u[2]))
+        err = rng.normal(0.0, [true_t * math.sqrt(d)] * 2 + [math.sqrt(var_r)])
+        matched = compose(u, err)  # the truth, which a confident match sees
+        noise.learn(u, matched)
+    assert noise.warm
+    assert noise.alpha_translation == pytest.approx(true_t, rel=0.2)
+    assert noise.alpha_rotation == pytest.approx(true_r, rel=0.2)
+    # a ceiling: a run of nonsense cannot teach it to accept anything
+    for _ in range(400):
+        noise.learn(np.array([0.1, 0.0, 0.0]), np.array([5.0, 3.0, 2.0]))
+    assert noise.alpha_translation == CFG.odometry_noise.max_translation_per_sqrt_m
+    assert noise.alpha_rotation == CFG.odometry_noise.max_rotation_per_sqrt_m
+
+
+def test_the_calibration_learns_a_rotation_under_read() -> None:
+    noise = OdometryNoise(replace(CFG.odometry_noise, calibrate=True))
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        u = np.array([0.2, 0.0, rng.uniform(-0.3, 0.3)])
+        noise.learn(u, np.array([0.2, 0.0, u[2] / 0.99]))  # under-reads 1 %
+    assert noise.rotation_factor == pytest.approx(1 / 0.99, abs=1e-6)
+    assert OdometryNoise(CFG.odometry_noise).rotation_factor == 1.0  # off by default
+    assert noise.scale == pytest.approx(1.0, abs=1e-9)
+    np.testing.assert_allclose(noise.calibrated(np.array([1.0, 0.0, 0.5])), [1.0, 0.0, 0.5 / 0.99])
+
+
+def test_a_stale_odometry_is_uncertain() -> None:
+    noise = OdometryNoise(CFG.odometry_noise)
+    u = np.array([0.2, 0.0, 0.1])
+    on_time, stale = noise.covariance(u), noise.covariance(u, stale=2.0)
+    assert stale[2, 2] > (math.radians(45.0)) ** 2 > on_time[2, 2]
+    assert stale[0, 0] > 0.5**2 > on_time[0, 0]
+
+
+# -- the gate ------------------------------------------------------------------------------------
+def fit_at(increment: np.ndarray, sigma: float) -> Refinement:
+    """A refinement that measured ``increment`` with ``sigma`` in every direction."""
+    info = np.eye(3) / sigma**2
+    return Refinement(
+        increment, 100, 1.0, 1.0, information=info, gradient_covariance=info * sigma**4,
+        start=increment, prior=increment,
+    )  # fmt: skip
+
+
+def test_the_gate_rejects_what_both_covariances_make_unlikely() -> None:
+    u = np.array([0.2, 0.0, 0.0])
+    odo = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])
+    for turn_deg, rejected in ((0.2, False), (7.0, True)):
+        unc = Uncertainty(GATED.covariance, GATED.gate)
+        match = compose(u, np.array([0.0, 0.0, math.radians(turn_deg)]))
+        judged = unc.assess(np.zeros(3), u, odo, match, fit_at(match, 0.002), gate_open=True)
+        assert judged.rejected is rejected, judged.gate
+        assert judged.gate is not None and (judged.gate > unc.threshold) is rejected
+    assert Uncertainty(CFG.covariance, CFG.gate).threshold == pytest.approx(11.3449, abs=1e-3)
+
+
+def learning_run(turn_at: int | None, gap_at: int | None, n: int = 60) -> list:
+    """A robot driving an arc in a furnished room with precise odometry; at ``turn_at`` the
+    scan is matched 7° off by a false match (the refinement forced there); at ``gap_at`` the
+    robot turns 50° during a 3 s gap the odometry missed."""
+    world = sim.furnished_room(1)
+    truth = sim.arc_path(Pose2D(-1.0, -0.5, 0.2), n, 0.03, 1.0)
+    odom = list(truth)
+    stamps = [0.2 * k for k in range(n)]
+    if gap_at is not None:
+        # the robot turns 50° on the spot where the gap begins, unseen by the odometry
+        pivot = compose(truth[gap_at].as_array(), np.array([0.0, 0.0, math.radians(50.0)]))
+        base = truth[gap_at].as_array()
+        turned = [compose(pivot, relative(base, p.as_array())) for p in truth[gap_at:]]
+        truth = truth[:gap_at] + [Pose2D.from_array(p) for p in turned]
+        stamps = stamps[:gap_at] + [s + 3.0 for s in stamps[gap_at:]]
+    rng = np.random.default_rng(0)
+    scans = [sim.simulate_scan(world, p, scanner(0.005, 360, 360.0), rng, stamp=t)
+             for p, t in zip(truth, stamps)]  # fmt: skip
+    pos = Positioner(GATED)
+    if turn_at is not None:
+        real = pos.refiner.refine
+
+        def false_match(surface, points, starts, wide):
+            best = real(surface, points, starts, wide)
+            if len(out) == turn_at and best is not None:
+                wrong = best.increment + np.array([0.0, 0.0, math.radians(7.0)])
+                return replace(best, increment=wrong)
+            return best
+
+        pos.refiner.refine = false_match  # type: ignore[method-assign]
+    out: list = []
+    for s, o in zip(scans, odom):
+        out.append(pos.update(s, o))
+    return [truth, out]
+
+
+def test_a_false_match_is_gated_once_the_odometry_noise_is_known() -> None:
+    truth, est = learning_run(turn_at=50, gap_at=None)
+    assert est[50].reason is Reason.GATED and est[50].degraded
+    assert est[50].gate is not None and est[50].gate > 11.34
+    assert not any(e.reason is Reason.GATED for e in est[:50])
+    d = relative(truth[-1].as_array(), est[-1].pose.as_array())
+    assert abs(math.degrees(d[2])) < 0.5 and math.hypot(d[0], d[1]) < 0.03, d
+
+
+def test_after_a_gap_the_stale_odometry_lets_the_search_find_the_turn() -> None:
+    """The robot turns 50° during a 3 s gap: the odometry there is stale, its covariance
+    wide, and the wide search's match passes the gate (aces, scan 2,945)."""
+    truth, est = learning_run(turn_at=None, gap_at=45)
+    assert est[45].reason is Reason.MATCHED and not est[45].degraded, est[45]
+    d = relative(truth[-1].as_array(), est[-1].pose.as_array())
+    assert abs(math.degrees(d[2])) < 0.5 and math.hypot(d[0], d[1]) < 0.03, d
