@@ -449,7 +449,7 @@ def test_surface_lengths_are_bounded_and_do_not_depend_on_the_frame(n, th, tx, t
 
 def test_sparse_far_structure_pairs_within_the_points_own_beam_spacing() -> None:
     """Walls 10-50 m away sampled every degree (0.6 m apart at 36 m): with the pairing reach
-    of 1.5 beam spacings at each point's range the refinement pairs the scan and recovers a
+    of two beam spacings at each point's range the refinement pairs the scan and recovers a
     known motion; with the fixed distances alone too few points pair to trust it."""
     world = sim.outdoor_yard()
     sc = sim.sick_interlaced_scanner(

@@ -369,11 +369,13 @@ class RefinementConfig:
         le=1.0,
     )
     pairing_spacing: float = _field(
-        1.5,
+        2.0,
         "a point pairs with the nearest keyframe point within the shrinking distance or "
-        "within this many beam spacings at its own range, whichever is larger: far walls are "
-        "sampled sparsely (a degree is 0.6 m at 36 m), and a fixed distance leaves most of a "
-        "scan of far structure unpaired (0: the fixed distance alone)",
+        "within two beam spacings at its own range, whichever is larger: the keyframe samples "
+        "a surface about as sparsely as the scan, so a point's neighbour on it lies up to a "
+        "spacing away, plus the start's error; far walls are sampled sparsely (a degree is "
+        "0.6 m at 36 m), where a fixed distance leaves most of a scan unpaired (0: the fixed "
+        "distance alone)",
         ge=0.0,
     )
     trim_floor: float = _field(
