@@ -1,0 +1,88 @@
+"""What the switches that are off by default would do on the shared logs.
+
+Runs the default and the default with each of ``gate.enabled``, ``odometry_noise.in_refinement``
+and ``odometry_noise.calibrate`` turned on over every shared CARMEN log (the relations metric,
+as ``fuzzypos benchmark`` scores it), in parallel processes, and prints one table with the
+scans the gate rejected and the learned odometry noise at the end of the log.
+
+    python benchmarks/bench_switches.py [--data DIR] [--jobs N] [--max-scans N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fuzzypos import Config, Positioner, Reason
+from fuzzypos.benchmark import find_benchmark_logs
+from fuzzypos.evaluation import relations_errors
+from fuzzypos.io.relations import read_relations
+from fuzzypos.logs import open_log
+
+VARIANTS: dict[str, dict[str, dict[str, Any]]] = {
+    "default": {},
+    "gate on": {"gate": {"enabled": True}},
+    "learned prior on": {"odometry_noise": {"in_refinement": True}},
+    "calibration on": {"odometry_noise": {"calibrate": True}},
+}
+
+
+def run(job: tuple[str, str, str, int | None]) -> dict[str, Any]:
+    """One variant over one log: its relations figures and what the noise model learned."""
+    variant, log_path, relations_path, max_scans = job
+    pos = Positioner(Config().with_overrides(VARIANTS[variant]))
+    stamps, poses, gated = [], [], 0
+    for k, rec in enumerate(open_log(log_path).records()):
+        if max_scans is not None and k >= max_scans:
+            break
+        est = pos.update(rec.scan, rec.odometry)
+        stamps.append(est.stamp)
+        poses.append(est.pose.as_array())
+        gated += est.reason is Reason.GATED
+    scores = relations_errors(np.array(stamps), np.array(poses), read_relations(relations_path))
+    noise = pos.odometry_noise
+    return {
+        "log": Path(log_path).name,
+        "variant": variant,
+        **scores.as_dict(),
+        "gated": gated,
+        "alpha_translation": noise.alpha_translation,
+        "alpha_rotation_deg": math.degrees(noise.alpha_rotation),
+        "scale": noise.scale,
+        "rotation_factor": noise.rotation_factor,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", default=os.environ.get("FUZZYPOS_DATA", "../shared/data"))
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--max-scans", type=int, default=None)
+    args = parser.parse_args()
+    logs = [(str(log), str(rel)) for log, rel in find_benchmark_logs(args.data)]
+    logs = [(log, rel) for log, rel in logs if not log.endswith(".bag")]
+    jobs = [(v, log, rel, args.max_scans) for log, rel in logs for v in VARIANTS]
+    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        rows = list(pool.map(run, jobs))
+    print(
+        "| log | variant | all trans m | local trans m | local rot ° | gated "
+        "| learned σ_t m/√m | learned σ_θ °/√m | scale | rotation factor |"
+    )
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        print(
+            f"| {r['log']} | {r['variant']} | {r['all_trans_mean_m']:.3f} "
+            f"| {r['local_trans_mean_m']:.4f} | {r['local_rot_mean_deg']:.3f} | {r['gated']} "
+            f"| {r['alpha_translation']:.4f} | {r['alpha_rotation_deg']:.3f} "
+            f"| {r['scale']:.4f} | {r['rotation_factor']:.4f} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
