@@ -221,3 +221,13 @@ def standard(
         msgs += [("/odom", t + 0.005, b.odom(t, truth(t))) for t in ODOM_T]
     msgs.sort(key=lambda m: m[1])
     return msgs
+
+
+#: ScannerModel settings of a noise-free scanner (no noise, dropouts or spurious returns)
+EXACT_SCANNER = {
+    "range_noise_std": 0.0,
+    "range_noise_per_metre": 0.0,
+    "incidence_noise": 0.0,
+    "dropout_probability": 0.0,
+    "spurious_probability": 0.0,
+}

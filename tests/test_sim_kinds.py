@@ -25,15 +25,10 @@ from fuzzypos.geometry import Pose2D
 from fuzzypos.io import CarmenRecord, read_carmen, write_carmen
 from fuzzypos.scan import LaserScan
 from fuzzypos.sim import ScannerModel, SimError, World
+from helpers import EXACT_SCANNER
 
 OFFSETS = (0.0, 0.25, 0.5, 0.75)
-EXACT = {
-    "range_noise_std": 0.0,
-    "range_noise_per_metre": 0.0,
-    "incidence_noise": 0.0,
-    "dropout_probability": 0.0,
-    "spurious_probability": 0.0,
-}
+EXACT = EXACT_SCANNER
 
 
 def _bench() -> ModuleType:

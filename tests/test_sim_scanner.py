@@ -12,14 +12,9 @@ from scipy import stats
 from fuzzypos import sim
 from fuzzypos.geometry import Pose2D
 from fuzzypos.sim import ScannerModel, SimError, World, rectangular_room, simulate_scan
+from helpers import EXACT_SCANNER
 
-EXACT = {
-    "range_noise_std": 0.0,
-    "range_noise_per_metre": 0.0,
-    "incidence_noise": 0.0,
-    "dropout_probability": 0.0,
-    "spurious_probability": 0.0,
-}
+EXACT = EXACT_SCANNER
 
 
 def tilted_wall(d: float, psi: float, half: float = 100.0) -> World:
