@@ -1,7 +1,8 @@
-"""What the switches that are off by default would do on the shared logs.
+"""What the gate and the switches that are off by default do on the shared logs.
 
-Runs the default and the default with each of ``gate.enabled``, ``odometry_noise.in_refinement``
-and ``odometry_noise.calibrate`` turned on over every shared CARMEN log (the relations metric,
+Runs the default, the default without the gate, with the gate open even where the odometry is
+the poorer (``gate.only_where_odometry_is_better`` off), and with ``odometry_noise.in_refinement``
+or ``odometry_noise.calibrate`` turned on, over every shared CARMEN log (the relations metric,
 as ``fuzzypos benchmark`` scores it), in parallel processes, and prints one table with the
 scans the gate rejected and the learned odometry noise at the end of the log.
 
@@ -27,7 +28,8 @@ from fuzzypos.logs import open_log
 
 VARIANTS: dict[str, dict[str, dict[str, Any]]] = {
     "default": {},
-    "gate on": {"gate": {"enabled": True}},
+    "gate off": {"gate": {"enabled": False}},
+    "gate everywhere": {"gate": {"only_where_odometry_is_better": False}},
     "learned prior on": {"odometry_noise": {"in_refinement": True}},
     "calibration on": {"odometry_noise": {"calibrate": True}},
 }

@@ -275,3 +275,30 @@ def test_after_a_gap_the_stale_odometry_lets_the_search_find_the_turn() -> None:
     assert est[45].reason is Reason.MATCHED and not est[45].degraded, est[45]
     d = relative(truth[-1].as_array(), est[-1].pose.as_array())
     assert abs(math.degrees(d[2])) < 0.5 and math.hypot(d[0], d[1]) < 0.03, d
+
+
+@pytest.mark.parametrize(
+    "odometry_sigma, match_sigma, better", [(0.01, 0.03, True), (0.08, 0.01, False)]
+)
+def test_the_matches_share_is_taken_off_and_the_better_one_known(
+    odometry_sigma: float, match_sigma: float, better: bool
+) -> None:
+    """Disagreements of an odometry with σ per √m and matches with their own (known)
+    covariance: the learned noise is the odometry's alone, and the noise model knows which
+    of the two is the more precise."""
+    rng = np.random.default_rng(6)
+    noise = OdometryNoise(CFG.odometry_noise)
+    for _ in range(400):
+        u = np.array([0.25, 0.0, 0.0])
+        d = 0.25
+        own = np.diag([match_sigma**2 * d] * 2 + [(math.radians(2.0) * match_sigma) ** 2 * d])
+        odo_err = rng.normal(0.0, [odometry_sigma * math.sqrt(d)] * 2 + [
+            math.radians(2.0) * odometry_sigma * math.sqrt(d)
+        ])  # fmt: skip
+        truth = compose(u, -odo_err)  # the odometry u is the truth plus its error
+        matched = compose(truth, rng.multivariate_normal(np.zeros(3), own))
+        noise.learn(u, matched, own)
+    assert noise.alpha_translation == pytest.approx(
+        max(odometry_sigma, CFG.odometry_noise.min_translation_per_sqrt_m), rel=0.35
+    )
+    assert noise.better_than_matching is better

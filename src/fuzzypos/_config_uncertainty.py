@@ -179,12 +179,11 @@ class OdometryNoiseConfig:
     )
     in_refinement: bool = _field(
         False,
-        "once learned, the refinement's prior is the odometry's covariance (carried on from "
-        "the previous scan's covariance relative to the keyframe) instead of the refinement "
-        "section's fixed standard deviations: precise odometry keeps its say where the scan "
-        "is coarse (far structure), poor odometry leaves the scan to decide. Off until it is "
-        "measured to help: the noise is learned only from refined matches, which scans of "
-        "sparse far structure rarely give",
+        "once learned, the refinement's prior is the odometry's motion with its learned "
+        "covariance (carried on from the previous scan's covariance relative to the keyframe) "
+        "instead of the features' motion with the refinement section's fixed standard "
+        "deviations. Off: the noise is then learned from matches the prior has pulled toward "
+        "the odometry, and it shrinks to its floor (a feedback loop)",
     )
     calibrate: bool = _field(
         False,
@@ -209,12 +208,19 @@ class GateConfig:
     rejected: the odometry is kept and the scan flagged."""
 
     enabled: bool = _field(
-        False,
+        True,
         "reject matches whose disagreement with the odometry has a Mahalanobis distance "
-        "squared (under the sum of both covariances) above the χ²(3) quantile below. Off: "
-        "on real logs the per-scan disagreement of a keyframe-based front end holds the "
-        "features' jitter along corridors and the odometry's slips, heavier-tailed than the "
-        "learned random walk, and the gate rejected true matches by the thousand",
+        "squared (under the sum of both covariances) above the χ²(3) quantile below, where "
+        "the odometry is the more precise (see only_where_odometry_is_better): a false line "
+        "pairing that turns the scan by degrees where a good odometry says it went straight "
+        "is caught, and the odometry's increment is kept",
+    )
+    only_where_odometry_is_better: bool = _field(
+        True,
+        "the gate is open only where the learned odometry is more precise than the matches "
+        "(per unit of travel, in translation and rotation): where the odometry is poorer, a "
+        "disagreement says more about the odometry than about the match (on poor odometry "
+        "the gate rejected true matches by the thousand)",
     )
     probability: float = _field(
         0.99,

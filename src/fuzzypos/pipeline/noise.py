@@ -46,6 +46,9 @@ class OdometryNoise:
         self.alpha_rotation = s.rotation_per_sqrt_m
         self._translation: deque[float] = deque(maxlen=s.window)
         self._rotation: deque[float] = deque(maxlen=s.window)
+        # the matches' own variance per unit of travel, beside the disagreements
+        self._translation_own: deque[float] = deque(maxlen=s.window)
+        self._rotation_own: deque[float] = deque(maxlen=s.window)
         # least squares of the matched against the odometry's motion: Σ m·o and Σ o²
         self._scale_sums = np.zeros(2)
         self._turn_sums = np.zeros(2)
@@ -93,9 +96,16 @@ class OdometryNoise:
             var_r += (s.stale_turn_rate * stale) ** 2
         return np.diag([var_t, var_t, var_r])
 
-    def learn(self, odometry: FloatArray, matched: FloatArray) -> None:
-        """A confident match ``matched`` of an increment the odometry says was ``odometry``:
-        their disagreement teaches the noise, their ratio the calibration."""
+    def learn(
+        self,
+        odometry: FloatArray,
+        matched: FloatArray,
+        matched_covariance: FloatArray | None = None,
+    ) -> None:
+        """A confident match ``matched`` (with its own covariance, where known) of an
+        increment the odometry says was ``odometry``: their disagreement teaches the noise,
+        their ratio the calibration."""
+        own = None if matched_covariance is None else np.diag(matched_covariance)
         s = self.settings
         d = math.hypot(float(odometry[0]), float(odometry[1]))
         travel = d + s.turning_distance * abs(float(odometry[2]))
@@ -108,23 +118,40 @@ class OdometryNoise:
         if not s.learn:
             return
         err = relative(self.calibrated(odometry), matched)
-        # the disagreement is the odometry's error and the match's: taken whole, the learned
-        # noise errs on the large side (the match's own share is not subtracted, since its
-        # covariance is an estimate too and the difference of two estimates is unstable)
+        # the disagreement is the odometry's error and the match's; the match's share (its
+        # own variance) is taken off the medians, not sample by sample (a difference of two
+        # noisy estimates clipped at zero would bias the median toward the floor)
         if d >= _MIN_TRAVEL:
             e2 = float(err[0] ** 2 + err[1] ** 2) / _MEDIAN_CHI2_2 - s.floor_translation**2
             self._translation.append(max(e2, 0.0) / d)
+            if own is not None:
+                self._translation_own.append(float(own[0] + own[1]) / 2.0 / d)
         e2r = float(err[2] ** 2) / _MEDIAN_CHI2_1 - s.floor_rotation**2
         self._rotation.append(max(e2r, 0.0) / travel)
+        if own is not None:
+            self._rotation_own.append(float(own[2]) / travel)
         self._update()
+
+    @property
+    def better_than_matching(self) -> bool:
+        """Whether the learned odometry is more precise than the matches, per unit of travel,
+        in translation and in rotation (False until both are known)."""
+        s = self.settings
+        if min(len(self._translation_own), len(self._rotation_own)) < s.min_samples:
+            return False
+        own_t = float(np.median(self._translation_own))
+        own_r = float(np.median(self._rotation_own))
+        return self.alpha_translation**2 < own_t and self.alpha_rotation**2 < own_r
 
     def _update(self) -> None:
         s = self.settings
         if len(self._translation) >= s.min_samples:
-            a = math.sqrt(float(np.median(self._translation)))
+            own = float(np.median(self._translation_own)) if self._translation_own else 0.0
+            a = math.sqrt(max(float(np.median(self._translation)) - own, 0.0))
             lo, hi = s.min_translation_per_sqrt_m, s.max_translation_per_sqrt_m
             self.alpha_translation = min(max(a, lo), hi)
         if len(self._rotation) >= s.min_samples:
-            a = math.sqrt(float(np.median(self._rotation)))
+            own = float(np.median(self._rotation_own)) if self._rotation_own else 0.0
+            a = math.sqrt(max(float(np.median(self._rotation)) - own, 0.0))
             lo, hi = s.min_rotation_per_sqrt_m, s.max_rotation_per_sqrt_m
             self.alpha_rotation = min(max(a, lo), hi)

@@ -126,7 +126,7 @@ class Positioner:
         else:
             pose = self.local_map.pose_of(from_key)
             increment = relative(self._pose, pose)
-            self._learn(prior, increment, fit)
+            self._learn(prior, increment, fit, judged.covariance)
         if self.local_map.add(features, pose, from_key):
             self.uncertainty.renewed()
         self._pose = pose
@@ -174,10 +174,14 @@ class Positioner:
     def _gate_open(self, prior: Prior) -> bool:
         """Whether a match is compared with the odometry: where the prior is the odometry's
         and its noise is known (learned from enough matches, or not learned at all)."""
-        noise = self.odometry_noise
-        return self.config.gate.enabled and prior.from_odometry and noise.warm
+        noise, gate = self.odometry_noise, self.config.gate
+        if not (gate.enabled and prior.from_odometry and noise.warm):
+            return False
+        return noise.better_than_matching or not gate.only_where_odometry_is_better
 
-    def _learn(self, prior: Prior, increment: FloatArray, fit: Refinement | None) -> None:
+    def _learn(
+        self, prior: Prior, increment: FloatArray, fit: Refinement | None, covariance: FloatArray
+    ) -> None:
         """A refined match on time teaches the odometry's noise and calibration."""
         if (
             fit is not None
@@ -185,7 +189,7 @@ class Positioner:
             and prior.stale == 0.0
             and prior.odometry is not None
         ):
-            self.odometry_noise.learn(prior.odometry, increment)
+            self.odometry_noise.learn(prior.odometry, increment, covariance)
 
     def _first(self, scan: LaserScan, odom: Pose2D | None) -> Estimate:
         """The first scan: the trajectory starts at its odometry pose, or the origin."""
@@ -223,12 +227,11 @@ class Positioner:
         start = key_prior if match.increment is None else match.increment
         from_features = match.increment is not None and r.prior_from_features
         starts = Starts(start=start, prior=start if from_features else key_prior, hold=key_prior)
-        if information is not None:  # the learned noise's: the features' prior, the odometry's
+        if information is not None:  # the learned odometry is the prior, the features the start
             starts = replace(
-                starts,
-                prior_information=information[0] if from_features else information[1],
+                starts, prior=key_prior, prior_information=information[1],
                 odometry_information=information[1],
-            )
+            )  # fmt: skip
         wide = prior.odometry_rejected
         best = self.refiner.refine(surface, points, starts, wide)
         if wide or best is None:
