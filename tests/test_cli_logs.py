@@ -216,6 +216,34 @@ def test_benchmark_on_a_temporary_data_dir(sim_log, tmp_path):
     assert len(env_rows) == 3
 
 
+def test_benchmark_exits_1_when_a_run_fails(sim_log, tmp_path):
+    """A broken log among good ones: its rows fail (named, with the error), the good log's
+    rows are scored, and the exit code is 1 (a failed run, not bad input), also with --json."""
+    path, run = sim_log
+    data = tmp_path / "data"
+    (data / "sim").mkdir(parents=True)
+    (data / "broken").mkdir()
+    (data / "sim" / "sim.clf").write_bytes(path.read_bytes())
+    st, truth = np.asarray(run.stamps), np.asarray(run.true_poses)
+    pairs = [(k, k + 2) for k in range(len(st) - 2)]
+    write_relations(data / "sim" / "sim.relations", st, truth, pairs)
+    lines = path.read_text().splitlines()
+    lines[len(lines) // 2] = "FLASER 3 1.0 x 2.0"
+    (data / "broken" / "broken.clf").write_text("\n".join(lines) + "\n")
+    write_relations(data / "broken" / "broken.relations", st, truth, pairs)
+    res = runner.invoke(app, ["benchmark", "--data", str(data), "--out", str(tmp_path / "b")])
+    assert res.exit_code == 1, res.output
+    assert "broken.clf" in res.output and "failed" in res.output
+    rows = json.loads((tmp_path / "b" / "benchmark.json").read_text())["rows"]
+    assert any("error" in r and r["log"] == "broken.clf" for r in rows)
+    assert any("error" not in r and r["log"] == "sim.clf" for r in rows)
+    res = runner.invoke(
+        app, ["benchmark", "--data", str(data), "--out", str(tmp_path / "j"), "--json"]
+    )
+    assert res.exit_code == 1
+    assert any("error" in r for r in json.loads(res.output))
+
+
 # -- the shared logs -------------------------------------------------------------------------------
 @needs_data
 def test_run_and_evaluate_a_stretch_of_intel(tmp_path):

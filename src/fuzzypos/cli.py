@@ -666,8 +666,11 @@ def benchmark(
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
     _print_warnings(caught)
+    failed = any("error" in r for r in result.data["rows"])
     if json_out:
         typer.echo(json.dumps(result.data["rows"], indent=2))
+        if failed:  # a run failed (not bad input): exit 1
+            raise typer.Exit(code=1)
         return
     title = "relations metric" + (f" (first {max_scans} scans of each log)" if max_scans else "")
     table = Table(title=title)
@@ -712,6 +715,8 @@ def benchmark(
     for line in problems:
         typer.echo(line)
     typer.echo(f"benchmark.json and the runs' results in {result.out_dir}/")
+    if failed:  # a run failed (not bad input): exit 1
+        raise typer.Exit(code=1)
 
 
 def _unwrap(doc: str) -> str:
