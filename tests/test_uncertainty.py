@@ -12,10 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fuzzypos import Config, Pose2D, Positioner, Reason, sim
-from fuzzypos.geometry import compose, relative
+from fuzzypos.geometry import compose, compose_jacobians, relative
 from fuzzypos.matching import Refinement
 from fuzzypos.pipeline import OdometryNoise, Uncertainty
-from fuzzypos.pipeline.uncertainty import compose_jacobians, local
+from fuzzypos.pipeline.uncertainty import local
 
 CFG = Config()
 #: the gate on (it is off by default)

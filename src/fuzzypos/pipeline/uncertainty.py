@@ -29,24 +29,12 @@ from numpy.typing import NDArray
 from scipy.stats import chi2
 
 from ..config import CovarianceConfig, GateConfig
-from ..geometry import compose, relative
+from ..geometry import compose, compose_jacobians, relative
 from ..matching import Refinement
 
-__all__ = ["Assessment", "Uncertainty", "compose_jacobians", "local"]
+__all__ = ["Assessment", "Uncertainty", "local"]
 
 FloatArray = NDArray[np.float64]
-
-_ZERO = np.zeros((3, 3))
-_ZERO.flags.writeable = False
-
-
-def compose_jacobians(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """∂(a ⊕ b)/∂a and ∂(a ⊕ b)/∂b in additive (x, y, θ) coordinates."""
-    c, s = math.cos(float(a[2])), math.sin(float(a[2]))
-    bx, by = float(b[0]), float(b[1])
-    ja = np.array([[1.0, 0.0, -s * bx - c * by], [0.0, 1.0, c * bx - s * by], [0.0, 0.0, 1.0]])
-    jb = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return ja, jb
 
 
 def local(cov: FloatArray, theta: float) -> FloatArray:
@@ -142,9 +130,7 @@ class Uncertainty:
             return self._fallback(t_prev, prior, prior_covariance, prev, odo)
         inc = relative(t_prev, from_key)
         jb_inv = jb.T  # a rotation: its inverse is its transpose
-        f = self.settings
-        # the features' error (isotropic in translation: the same in every frame)
-        feature = np.diag([f.feature_translation**2] * 2 + [f.feature_rotation**2])
+        feature = self.feature_covariance()
         if fit is None:  # the features alone: a measurement of the pose relative to the
             # keyframe, independent of the previous scan's error
             kf = feature
