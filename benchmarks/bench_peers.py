@@ -29,6 +29,11 @@ skipped with a note. Every run reads the log afresh with
 matcher call alone (``Positioner.update``, which for fuzzypos includes its feature
 extraction; small_gicp's ``align``; ``KissICP.register_frame``), "loop" the whole loop per
 scan (reading and parsing the log, the points, normals and covariances, the keyframes).
+fuzzypos's compiled kernels are compiled (or loaded from numba's disk cache) before the runs,
+by ``fuzzypos.pipeline.warm.warm_up``, whose time is printed apart. After the table, the
+ratios of this run: fuzzypos's ``Positioner.update`` per scan over small_gicp GICP's
+``align`` (1 m / 30° keyframes) and over kiss-icp's ``register_frame`` (odometry, default
+voxels), on the same scans (below 1: fuzzypos is faster).
 """
 
 from __future__ import annotations
@@ -60,6 +65,7 @@ from fuzzypos import LaserScan, Pose2D, Positioner, __version__  # noqa: E402
 from fuzzypos.evaluation import EvaluationError, relations_errors  # noqa: E402
 from fuzzypos.io import read_relations  # noqa: E402
 from fuzzypos.logs import open_log  # noqa: E402
+from fuzzypos.pipeline.warm import warm_up  # noqa: E402
 from fuzzypos.provenance import git_hash, write_json  # noqa: E402
 
 try:
@@ -410,6 +416,28 @@ def print_table(rows: list[dict[str, Any]]) -> None:
         )
 
 
+#: the peers the ratios are taken against (method names as in the table)
+RATIO_PEERS = ("small_gicp GICP, 1 m / 30° keyframes", "kiss-icp, odometry, default voxels")
+
+
+def print_ratios(rows: list[dict[str, Any]]) -> None:
+    """fuzzypos's matcher time per scan over each of RATIO_PEERS', per log (this run)."""
+    print()
+    print("fuzzypos Positioner.update time per scan over the peer's (this run, the same scans):")
+    print()
+    print("| log | fuzzypos ms/scan | peer | peer ms/scan | fuzzypos ÷ peer |")
+    print("|---|---:|---|---:|---:|")
+    for log in dict.fromkeys(r["log"] for r in rows):
+        of_log = {r["method"]: r for r in rows if r["log"] == log}
+        base = of_log.get(FuzzyposDefault.name)
+        if base is None:
+            continue
+        for peer in RATIO_PEERS:
+            if peer in of_log:
+                f, p = base["matcher_ms_per_scan"], of_log[peer]["matcher_ms_per_scan"]
+                print(f"| {log} | {f:.3f} | {peer} | {p:.3f} | {f / p:.2f} |")
+
+
 def main() -> None:
     here = Path(__file__).resolve().parent
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -431,6 +459,7 @@ def main() -> None:
     if unknown:
         sys.exit(f"--logs: unknown log(s) {', '.join(unknown)} (known: {', '.join(LOGS)})")
 
+    print(f"fuzzypos: every compiled kernel ready in {warm_up():.2f} s", file=sys.stderr)
     rows: list[dict[str, Any]] = []
     for name in names:
         log_path = Path(args.data) / LOGS[name]
@@ -475,6 +504,7 @@ def main() -> None:
         rows.extend(log_rows)
 
     print_table(rows)
+    print_ratios(rows)
     for note in notes:
         print(f"\n{note}")
     if args.json is not None:

@@ -1,10 +1,13 @@
 """What the gate and the switches that are off by default do on the shared logs.
 
 Runs the default, the default without the gate, with the gate open even where the odometry is
-the poorer (``gate.only_where_odometry_is_better`` off), and with ``odometry_noise.in_refinement``
-or ``odometry_noise.calibrate`` turned on, over every shared CARMEN log (the relations metric,
+the poorer (``gate.only_where_odometry_is_better`` off), with the learned odometry as the
+refinement's prior or its calibration applied everywhere (``odometry_noise.in_refinement``,
+``odometry_noise.calibrate``), and not trusting the odometry where it is the more precise
+(``odometry_noise.trust_where_better`` off), over every shared CARMEN log (the relations metric,
 as ``fuzzypos benchmark`` scores it), in parallel processes, and prints one table with the
-scans the gate rejected and the learned odometry noise at the end of the log.
+scans the gate rejected, the share of scans where the odometry was trusted, and the learned
+odometry noise and calibration at the end of the log.
 
     python benchmarks/bench_switches.py [--data DIR] [--jobs N] [--max-scans N]
 """
@@ -30,8 +33,9 @@ VARIANTS: dict[str, dict[str, dict[str, Any]]] = {
     "default": {},
     "gate off": {"gate": {"enabled": False}},
     "gate everywhere": {"gate": {"only_where_odometry_is_better": False}},
-    "learned prior on": {"odometry_noise": {"in_refinement": True}},
-    "calibration on": {"odometry_noise": {"calibrate": True}},
+    "learned prior everywhere": {"odometry_noise": {"in_refinement": True}},
+    "calibration everywhere": {"odometry_noise": {"calibrate": True}},
+    "better odometry not trusted": {"odometry_noise": {"trust_where_better": False}},
 }
 
 
@@ -39,7 +43,7 @@ def run(job: tuple[str, str, str, int | None]) -> dict[str, Any]:
     """One variant over one log: its relations figures and what the noise model learned."""
     variant, log_path, relations_path, max_scans = job
     pos = Positioner(Config().with_overrides(VARIANTS[variant]))
-    stamps, poses, gated = [], [], 0
+    stamps, poses, gated, trusted = [], [], 0, 0
     for k, rec in enumerate(open_log(log_path).records()):
         if max_scans is not None and k >= max_scans:
             break
@@ -47,6 +51,7 @@ def run(job: tuple[str, str, str, int | None]) -> dict[str, Any]:
         stamps.append(est.stamp)
         poses.append(est.pose.as_array())
         gated += est.reason is Reason.GATED
+        trusted += pos.odometry_noise.trusted
     scores = relations_errors(np.array(stamps), np.array(poses), read_relations(relations_path))
     noise = pos.odometry_noise
     return {
@@ -54,6 +59,7 @@ def run(job: tuple[str, str, str, int | None]) -> dict[str, Any]:
         "variant": variant,
         **scores.as_dict(),
         "gated": gated,
+        "trusted": trusted / max(len(stamps), 1),
         "alpha_translation": noise.alpha_translation,
         "alpha_rotation_deg": math.degrees(noise.alpha_rotation),
         "scale": noise.scale,
@@ -73,14 +79,15 @@ def main() -> None:
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(run, jobs))
     print(
-        "| log | variant | all trans m | local trans m | local rot ° | gated "
+        "| log | variant | all trans m | local trans m | local rot ° | gated | trusted "
         "| learned σ_t m/√m | learned σ_θ °/√m | scale | rotation factor |"
     )
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         print(
             f"| {r['log']} | {r['variant']} | {r['all_trans_mean_m']:.3f} "
             f"| {r['local_trans_mean_m']:.4f} | {r['local_rot_mean_deg']:.3f} | {r['gated']} "
+            f"| {100.0 * r['trusted']:.0f} % "
             f"| {r['alpha_translation']:.4f} | {r['alpha_rotation_deg']:.3f} "
             f"| {r['scale']:.4f} | {r['rotation_factor']:.4f} |"
         )

@@ -1,14 +1,18 @@
 """Helpers the test modules share (import them with ``from helpers import …``; pytest's default
 ``prepend`` import mode puts ``tests/`` on ``sys.path``): where the shared logs are
 (:data:`DATA`), a small simulated CARMEN log (:func:`write_sim_log`), a relations file
-(:func:`write_relations`), and ROS1/ROS2 bags written with rosbags' writers (:func:`make_bag`
-with :func:`standard`'s scans and odometry)."""
+(:func:`write_relations`), ROS1/ROS2 bags written with rosbags' writers (:func:`make_bag`
+with :func:`standard`'s scans and odometry), and pipes a thread fills (:func:`fifo_with`,
+:func:`pipe_with`)."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
-from collections.abc import Callable, Sequence
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -231,3 +235,51 @@ EXACT_SCANNER = {
     "dropout_probability": 0.0,
     "spurious_probability": 0.0,
 }
+
+
+# -- pipes -------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def fifo_with(tmp_path: Path, data: bytes, name: str = "log.fifo") -> Iterator[Path]:
+    """A named pipe (``os.mkfifo``) that a thread fills with ``data`` once, as a shell's
+    ``<(zcat log.gz)`` would: a reader that opens it again later reads nothing (it does not
+    hang)."""
+    path = tmp_path / name
+    os.mkfifo(path)
+    stop = threading.Event()
+
+    def feed() -> None:
+        with open(path, "wb") as w:  # blocks until a reader opens the pipe
+            w.write(data)
+        while not stop.is_set():  # any later open: an empty stream
+            with open(path, "wb"):
+                pass
+            time.sleep(0.01)
+
+    writer = threading.Thread(target=feed, daemon=True)
+    writer.start()
+    try:
+        yield path
+    finally:
+        stop.set()
+        while writer.is_alive():  # let a writer blocked in open() through
+            os.close(os.open(path, os.O_RDONLY | os.O_NONBLOCK))
+            writer.join(0.05)
+
+
+@contextlib.contextmanager
+def pipe_with(data: bytes) -> Iterator[Path]:
+    """An anonymous pipe filled with ``data`` by a thread, as the path ``/dev/fd/N`` (what
+    ``<(…)`` and ``/dev/stdin`` are): every open of it reads the same pipe, once."""
+    r, w = os.pipe()
+
+    def feed() -> None:
+        with os.fdopen(w, "wb") as f:
+            f.write(data)
+
+    writer = threading.Thread(target=feed, daemon=True)
+    writer.start()
+    try:
+        yield Path(f"/dev/fd/{r}")
+    finally:
+        writer.join(5)
+        os.close(r)

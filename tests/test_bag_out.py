@@ -278,18 +278,18 @@ def test_run_log_writes_the_bag_and_covariance_csv(sim_log, tmp_path, monkeypatc
 def test_run_log_without_covariance(sim_log, tmp_path, monkeypatch):
     """No covariance from the positioner: no covariance.csv (a note says so), and a bag asked
     for is a ValueError naming the first scan, leaving neither bag nor partial files."""
-    monkeypatch.setattr(run_module, "Positioner", _positioner_with(lambda k: None))
     out = tmp_path / "res"
-    out.mkdir()
-    (out / "covariance.csv").write_text("stale\n")
-    res = run_log(open_log(sim_log), results_dir=out, plot=False)
+    run_log(open_log(sim_log), results_dir=out, plot=False)  # an earlier run's covariance.csv
+    assert (out / "covariance.csv").is_file()
+    monkeypatch.setattr(run_module, "Positioner", _positioner_with(lambda k: None))
+    res = run_log(open_log(sim_log), results_dir=out, plot=False, overwrite=True)
     assert "covariance.csv" not in res.files and not (out / "covariance.csv").exists()
     assert any("no covariance" in n for n in res.notes)
     bag = tmp_path / "b.bag"
     out2 = tmp_path / "res2"
     with pytest.raises(ValueError, match=r"sim\.clf: scan 1 \(stamp 0\.0\): .*no covariance"):
         run_log(open_log(sim_log), results_dir=out2, plot=False, bag_out=bag)
-    assert not bag.exists() and list(out2.iterdir()) == []
+    assert not bag.exists() and not out2.exists()
 
 
 def test_a_covariance_missing_mid_run_names_the_scan(sim_log, tmp_path, monkeypatch):
@@ -299,10 +299,12 @@ def test_a_covariance_missing_mid_run_names_the_scan(sim_log, tmp_path, monkeypa
     out = tmp_path / "res"
     with pytest.raises(ValueError, match=r"scan 5 \(stamp 0\.4\): the estimate has no covariance"):
         run_log(open_log(sim_log), results_dir=out, plot=False)
-    assert list(out.iterdir()) == []
+    _header, rows = _covariance_rows(out / "covariance.csv")  # the 4 scans before it are kept
+    assert len(rows) == 4 and len(read_tum(out / "trajectory.tum")[0]) == 4
     monkeypatch.setattr(run_module, "Positioner", _positioner_with(lambda k: np.eye(2)))
     with pytest.raises(ValueError, match=r"scan 1 .*finite 3x3"):
-        run_log(open_log(sim_log), results_dir=out, plot=False)
+        run_log(open_log(sim_log), results_dir=tmp_path / "res2", plot=False)
+    assert not (tmp_path / "res2").exists()
 
 
 def test_the_bag_glue_on_known_estimates(tmp_path):

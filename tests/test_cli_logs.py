@@ -106,7 +106,7 @@ def test_run_default_folder_stretch_and_config_file(sim_log, tmp_path, monkeypat
             "0.1,0,0",
         ]
     )
-    out = tmp_path / "results" / "sim"
+    out = tmp_path / "results" / "sim.clf" / "latest"
     stamps, _ = read_tum(out / "trajectory.tum")
     assert len(stamps) == 4 and stamps[0] == pytest.approx(0.5)
     s = json.loads((out / "summary.json").read_text())
@@ -131,7 +131,8 @@ def test_run_skip_bad_lines(sim_log, tmp_path):
     bad = tmp_path / "bad.clf"
     bad.write_text("".join([*lines[:k], "FLASER 3 1 2\n", *lines[k:]]))
     one_line_error(["run", str(bad), "--results", str(tmp_path / "r")], "bad.clf:")
-    res = ok(["run", str(bad), "--results", str(tmp_path / "r"), "--skip-bad-lines"])
+    assert json.loads((tmp_path / "r" / "summary.json").read_text())["partial"] is True
+    res = ok(["run", str(bad), "--results", str(tmp_path / "r"), "--skip-bad-lines", "--overwrite"])
     assert "1 bad lines skipped" in res.output
 
 
@@ -156,10 +157,10 @@ def test_errors_are_one_line_and_exit_2(sim_log, tmp_path):
     one_line_error(["run", str(path), "--preset", "nope", "--results", r], "unknown preset")
     one_line_error(["run", str(path), "--config", str(tmp_path / "no.toml")], "no.toml")
     one_line_error(["run", str(path), "--odometry", "magic", "--results", r], "odometry")
-    one_line_error(["run", str(path), "--fov", "0", "--results", r], "field_of_view")
+    one_line_error(["run", str(path), "--fov", "0", "--results", r], "--fov")
     one_line_error(["run", str(path), "--start", "2", "--end", "1", "--results", r], "end")
     one_line_error(["run", str(path), "--start", "-1", "--results", r], "start")
-    one_line_error(["run", str(path), "--max-scans", "0", "--results", r], "max_scans")
+    one_line_error(["run", str(path), "--max-scans", "0", "--results", r], "--max-scans")
     one_line_error(["run", str(path), "--start", "1000", "--results", r], "no scans")
     one_line_error(["evaluate", str(tmp_path / "x.tum")], "--relations")
     one_line_error(["evaluate", str(tmp_path / "x.tum"), "--reference", str(path)], "x.tum")
@@ -171,7 +172,7 @@ def test_errors_are_one_line_and_exit_2(sim_log, tmp_path):
 
 def test_a_bag_with_two_scan_topics_needs_a_choice(tmp_path):
     bag = make_bag(tmp_path, "ros1", lambda b: standard(b, scan_topics=("/a", "/b")))
-    one_line_error(["run", str(bag), "--results", str(tmp_path / "r")], "scan_topic")
+    one_line_error(["run", str(bag), "--results", str(tmp_path / "r")], "--scan-topic")
     ok(["run", str(bag), "--scan-topic", "/b", "--results", str(tmp_path / "r")])
 
 

@@ -14,7 +14,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "fuzzypos"
 
 #: bottom up; a name is a module or a subpackage of ``fuzzypos``
 LAYERS = (
-    ("_version", "config", "geometry"),
+    ("_version", "config", "geometry", "_kernels"),
     ("fuzzy", "scan"),
     ("segmentation",),
     ("features",),
@@ -22,7 +22,7 @@ LAYERS = (
     ("pipeline",),
     ("io", "sim"),
     ("evaluation", "plot"),
-    ("logs", "provenance"),
+    ("logs", "provenance", "folders"),
     ("scoring", "run"),
     ("benchmark", "demo"),
     ("results",),

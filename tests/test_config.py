@@ -370,6 +370,41 @@ def test_invalid_toml_names_the_file(tmp_path: Path) -> None:
     assert "TOML" in str(info.value)
 
 
+def test_a_file_that_is_not_utf8_names_the_file_and_line(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.toml"
+    path.write_bytes("# réglages\n[odometry]\n# é\n".encode("latin-1"))
+    with pytest.raises(ConfigError) as info:
+        Config.from_toml(path)
+    assert str(info.value) == (
+        f"{path}:1: not UTF-8 text (TOML files are UTF-8): byte 0xe9 at offset 3"
+    )
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ("[odometry]\nmax_speed = 1" + "0" * 400, "odometry.max_speed"),  # a float setting
+        ("[refinement]\niterations = 1" + "0" * 400, "refinement.iterations"),  # an integer
+        ("[scanner]\nno_return_bands = [[1, 1" + "0" * 400 + "]]", "scanner.no_return_bands"),
+        ("[filtering]\ndetection_angle_threshold_deg = 1" + "0" * 400, "filtering.detection"),
+    ],
+)
+def test_a_number_too_big_for_a_float_is_a_config_error(
+    tmp_path: Path, text: str, key: str
+) -> None:
+    path = tmp_path / "big.toml"
+    path.write_text(text + "\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match=rf"big\.toml: {key}.* too large: an integer of 401"):
+        Config.from_toml(path)
+
+
+def test_arrays_nested_too_deeply_are_a_config_error(tmp_path: Path) -> None:
+    path = tmp_path / "deep.toml"
+    path.write_text("[scanner]\nno_return_bands = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(ConfigError, match=r"deep\.toml: invalid TOML: .* nested too deeply"):
+        Config.from_toml(path)
+
+
 # ---------------------------------------------------------------------------------------------
 # Presets
 # ---------------------------------------------------------------------------------------------

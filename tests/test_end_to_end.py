@@ -6,10 +6,15 @@ measured worst case rounded up (stated in the README):
 
 | run | default final / mean (m), seeds 0–2 | odometry final / mean (m) |
 | --- | --- | --- |
-| gym, 4 m circle, ½ lap | 0.030 / 0.026, 0.034 / 0.021, 0.024 / 0.023 | 0.33–0.35 / 0.15–0.16 |
-| office corridor, 16 m | 0.131 / 0.075, 0.127 / 0.058, 0.051 / 0.035 | 0.31–0.32 / 0.15–0.16 |
+| gym, 4 m circle, ½ lap | 0.018 / 0.020, 0.052 / 0.033, 0.013 / 0.018 | 0.33–0.35 / 0.15–0.16 |
+| office corridor, 16 m | 0.123 / 0.074, 0.125 / 0.054, 0.036 / 0.034 | 0.31–0.32 / 0.15–0.16 |
 
-(``python benchmarks/bench_sim_runs.py`` prints these runs, with the paper preset.)
+The gym's odometry is precise step by step but biased (slip, skid): the default trusts it
+where its learned noise is the smaller (``odometry_noise.trust_where_better``), which makes
+the increments as precise as the odometry's (over 2 scans 1.5 mm and 0.013° against the
+scans' own 15 mm and 0.05°) at the price of some of its bias (seed 1 ends 0.052 m off, 0.013 m
+without the trust). ``python benchmarks/bench_sim_runs.py`` prints these runs (beside the
+paper preset), ``python benchmarks/bench_sim_kinds.py`` the gym's with and without the trust.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ import pytest
 
 from fuzzypos import Config, Positioner, sim
 from fuzzypos.demo import DemoSettings
-from fuzzypos.evaluation import TrajectoryErrors, trajectory_errors
+from fuzzypos.evaluation import TrajectoryErrors, relative_pose_error, trajectory_errors
 
 
 def _run(
@@ -42,7 +47,7 @@ def _run(
 def test_gym_circle(seed: int) -> None:
     est, odo = _run(sim.gym(), sim.CommandedPath.circle(4.0, 0.5, 0.3), seed)
     assert est.scans_degraded == 0
-    assert est.final_position_error_m < 0.04 and est.mean_position_error_m < 0.03, est
+    assert est.final_position_error_m < 0.06 and est.mean_position_error_m < 0.04, est
     assert est.final_position_error_m < odo.final_position_error_m / 2, (est, odo)
     assert est.mean_position_error_m < odo.mean_position_error_m / 2, (est, odo)
 
@@ -56,3 +61,21 @@ def test_office_corridor(seed: int) -> None:
     assert est.final_position_error_m < 0.15 and est.mean_position_error_m < 0.08, est
     assert est.final_position_error_m < odo.final_position_error_m, (est, odo)
     assert est.mean_position_error_m < odo.mean_position_error_m, (est, odo)
+
+
+def test_gym_increments_are_as_precise_as_the_odometry() -> None:
+    """Locally the default is no worse than the odometry where that is the more precise: its
+    increments over 2 scans within 1 mm of the odometry's, its rotation no worse."""
+    run = sim.simulate_run(
+        sim.gym(), sim.CommandedPath.circle(4.0, 0.5, 0.3), DemoSettings().scanner,
+        sim.SlipModel(), 0,
+    )  # fmt: skip
+    pos = Positioner(Config())
+    poses = np.array(
+        [pos.update(s, run.odometry_pose(k)).pose.as_array() for k, s in enumerate(run.scans)]
+    )
+    t = run.stamps
+    est = relative_pose_error(t, run.true_poses, t, poses, delta=2)
+    odo = relative_pose_error(t, run.true_poses, t, run.odometry_poses, delta=2)
+    assert est.translation_m.mean <= odo.translation_m.mean + 0.001, (est, odo)
+    assert est.rotation_deg.mean <= odo.rotation_deg.mean, (est, odo)

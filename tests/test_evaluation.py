@@ -25,7 +25,7 @@ from fuzzypos.evaluation import (
     relative_pose_error,
     trajectory_errors,
 )
-from fuzzypos.geometry import compose, inverse, relative
+from fuzzypos.geometry import Pose2D, compose, inverse, relative
 from fuzzypos.io.relations import Relations
 from helpers import DATA
 
@@ -266,6 +266,40 @@ def test_relations_bad_input(kwargs, what) -> None:
     stamps, poses, rel = args.pop("stamps"), args.pop("poses"), args.pop("relations")
     with pytest.raises(EvaluationError, match=what):
         relations_errors(stamps, poses, rel, **args)
+
+
+def test_pose2d_sequences_score_like_arrays() -> None:
+    """``relations_errors(stamps, [est.pose …], rel)``: an Estimate's pose is a Pose2D."""
+    stamps = np.arange(5.0)
+    poses = walk(5)
+    as_poses = [Pose2D.from_array(p) for p in poses]
+    rel = Relations([0.0, 1.0], [2.0, 4.0], np.array([[1.0, 0.1, 0.2], [0.5, 0.0, -0.1]]))
+    a, b = relations_errors(stamps, poses, rel), relations_errors(stamps, as_poses, rel)
+    np.testing.assert_array_equal(b.translation_errors_m, a.translation_errors_m)
+    np.testing.assert_array_equal(b.rotation_errors_deg, a.rotation_errors_deg)
+    assert relations_errors(stamps, tuple(as_poses), rel).all.matched == 2
+    truth = trajectory_errors(as_poses, poses)
+    assert truth.final_position_error_m == 0.0
+    ate = absolute_trajectory_error(stamps, as_poses, stamps, poses)
+    assert ate.rmse_m == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("poses", "what"),
+    [
+        (["a", "b", "c", "d", "e"], r"poses must be an \(n, 3\) array of poses .* or a sequence"),
+        ([object()] * 5, r"sequence of Pose2D, got list"),
+        (Pose2D(1.0, 2.0, 0.0), "got a single Pose2D"),
+        ([Pose2D(), [0.0, 1.0]] * 2 + [Pose2D()], r"poses must be an \(n, 3\) array"),
+        ({"x": 1}, r"poses must be an \(n, 3\) array"),
+    ],
+)
+def test_poses_that_are_not_poses_are_evaluation_errors(poses, what) -> None:
+    rel = Relations([0.0], [1.0], np.zeros((1, 3)))
+    with pytest.raises(EvaluationError, match=what):
+        relations_errors(np.arange(5.0), poses, rel)
+    with pytest.raises(EvaluationError, match=r"stamps must be an \(n,\) array"):
+        relations_errors([object()] * 5, walk(5), rel)
 
 
 # -- ATE -----------------------------------------------------------------------------------

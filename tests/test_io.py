@@ -28,7 +28,7 @@ from fuzzypos.io import (
     write_tum,
 )
 from fuzzypos.scan import LaserScan
-from helpers import DATA
+from helpers import DATA, fifo_with, pipe_with
 
 ACES = DATA / "aces" / "aces.clf.gz"
 DEG = math.pi / 180.0
@@ -289,13 +289,23 @@ def test_carmen_writer_estimate_mode_follows_the_first_scan(tmp_path):
     w = CarmenWriter(path, estimate_of="some.log", field_of_view_deg=90.0)  # fov not used
     w.write(first, Pose2D(), pose=Pose2D(1.0, 0.0, 0.0))
     w.write(other, Pose2D(), pose=Pose2D(2.0, 0.0, 0.0))
-    assert w.close() and (w.written, w.skipped) == (1, 1)
+    # a mount off the robot's x axis: FLASER cannot hold it, so every scan is ROBOTLASER1
+    assert w.close() and (w.written, w.robotlaser1) == (2, 2) and w.notes == []
     text = path.read_text()
-    assert "from some.log" in text and "convention 'span'" in text and "--laser-offset" in text
-    assert [n.split(":")[0] for n in w.notes] == ["trajectory.clf", "trajectory.clf"]
-    assert "1 scans have beam angles FLASER cannot describe" in w.notes[1]
-    (back,) = read_carmen(path, convention="span", laser_offset=mount)
-    assert back.scan.stamp == 1.0 and back.odometry == Pose2D()
+    assert "from some.log" in text and "convention 'span'" not in text
+    a, b = read_carmen(path, odometry="interpolated")
+    assert (a.scan.stamp, b.scan.stamp) == (1.0, 2.0) and a.odometry == Pose2D()
+    np.testing.assert_allclose(a.scan.angles, first.angles, atol=1e-15)
+    np.testing.assert_allclose(b.scan.angles, other.angles, atol=1e-15)
+    np.testing.assert_allclose(a.scan.sensor_pose.as_array(), mount.as_array(), atol=1e-12)
+    # a forward mount: FLASER in the first scan's geometry, ROBOTLASER1 for the other
+    forward = LaserScan(np.full(180, 2.0), a0, inc, range_max=8.0, stamp=1.0)
+    w = CarmenWriter(path, estimate_of="some.log")
+    w.write(forward, Pose2D(), pose=Pose2D(1.0, 0.0, 0.0))
+    w.write(other, Pose2D(), pose=Pose2D(2.0, 0.0, 0.0))
+    assert w.close() and (w.written, w.robotlaser1) == (2, 1)
+    assert "convention 'span'" in path.read_text() and "1 of 2 scans" in w.notes[0]
+    assert [r.scan.n_beams for r in read_carmen(path, convention="span")] == [180, 180]
     empty = CarmenWriter(tmp_path / "none.clf", estimate_of="x")
     assert not empty.close() and not (tmp_path / "none.clf").exists()
 
@@ -1192,3 +1202,90 @@ def test_interpolated_matches_reference_on_monotone_streams(
     want = _reference_interpolation(ot, op, stamps)
     np.testing.assert_allclose(got[:, :2], want[:, :2], atol=1e-9)
     np.testing.assert_allclose(np.angle(np.exp(1j * (got[:, 2] - want[:, 2]))), 0.0, atol=1e-9)
+
+
+# -- pipes and damaged gzip streams ----------------------------------------------------------
+PIPED_LINES = [
+    "PARAM robot_front_laser_max 7.5",
+    flaser(R5, stamp=10.0),
+    robotlaser1([1.0, 2.0, 3.0], stamp=10.5),
+    flaser(R5, odom=(0.1, 0.0, 0.0), stamp=11.0),
+    flaser(R5, odom=(0.2, 0.0, 0.0), stamp=11.0),
+]
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_carmen_reads_a_fifo_whole_every_pass(tmp_path, compress):
+    """A FIFO (``<(zcat log.gz)``) can be read once: the reader copies it and every pass,
+    and the stamp pass, reads all of it, from its first byte."""
+    text = ("\n".join(PIPED_LINES) + "\n").encode()
+    data = gzip.compress(text) if compress else text
+    with fifo_with(tmp_path, data) as fifo:
+        reader = CarmenReader(fifo)
+        first = [r.scan.stamp for r in reader]
+        again = [r.scan.stamp for r in reader.records()]
+        stamps = reader.scan_stamps().tolist()
+    assert first == again == stamps == [10.0, 10.5, 11.0, 11.0]
+    assert reader.name == str(fifo) and reader.params["robot_front_laser_max"] == "7.5"
+
+
+def test_carmen_errors_from_a_fifo_name_it(tmp_path):
+    text = ("\n".join([*PIPED_LINES, "FLASER 3 1 2", flaser(R5)]) + "\n").encode()
+    with fifo_with(tmp_path, text) as fifo, pytest.raises(CarmenFormatError) as info:
+        list(CarmenReader(fifo))
+    assert str(info.value).startswith(f"{fifo}:{len(PIPED_LINES) + 1}: FLASER")
+
+
+def test_scan_stamps_are_the_records_stamps(tmp_path):
+    lines = [*PIPED_LINES, "ODOM 0 0 0 0 0 0 12 h 12", flaser(R5, stamp=9.0), "FLASER x"]
+    path = write_lines(tmp_path / "log.clf", lines)
+    reader = CarmenReader(path, skip_bad_lines=True)
+    assert reader.scan_stamps().tolist() == [r.scan.stamp for r in reader]
+    assert reader.bad_lines == 1
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_tum_reads_a_pipe_from_its_first_byte(tmp_path, compress):
+    """``/dev/stdin`` or ``<(…)``: opening the path twice would lose what the first open
+    read (the magic bytes)."""
+    path = tmp_path / "t.tum"
+    write_tum(path, [1.25, 2.5], [[1.0, 2.0, 0.5], [3.0, 4.0, -3.0]])
+    data = path.read_bytes()
+    with pipe_with(gzip.compress(data) if compress else data) as pipe:
+        t, p = read_tum(pipe)
+    assert t.tolist() == [1.25, 2.5]
+    np.testing.assert_allclose(p, [[1, 2, 0.5], [3, 4, -3.0]], atol=1e-12)
+
+
+def _damaged_gzip(text: str, how: str) -> bytes:
+    data = bytearray(gzip.compress(text.encode(), mtime=0))
+    if how == "truncated":
+        return bytes(data[: len(data) - 12])
+    if how == "corrupt":
+        data[12] ^= 0xFF  # inside the deflate stream
+        return bytes(data)
+    data[-8:-4] = b"\0\0\0\0"  # how == "crc": the stored CRC-32
+    return bytes(data)
+
+
+DAMAGE = ["truncated", "corrupt", "crc"]
+
+
+@pytest.mark.parametrize("how", DAMAGE)
+def test_a_damaged_gzip_tum_file_is_a_format_error(tmp_path, how):
+    text = "".join(f"{k}.5 {k} 0 0 0 0 0 1\n" for k in range(50))
+    path = tmp_path / "traj.tum.gz"
+    path.write_bytes(_damaged_gzip(text, how))
+    with pytest.raises(TumFormatError) as info:
+        read_tum(path)
+    assert str(info.value).startswith(f"{path}:") and "gzip stream" in info.value.reason
+    assert info.value.line >= 1
+
+
+@pytest.mark.parametrize("how", ["corrupt", "crc"])
+def test_a_corrupt_gzip_carmen_log_is_a_format_error(tmp_path, how):
+    text = "\n".join(flaser(R5, stamp=float(k)) for k in range(50)) + "\n"
+    path = tmp_path / "log.clf.gz"
+    path.write_bytes(_damaged_gzip(text, how))
+    with pytest.raises(CarmenFormatError, match=r"log\.clf\.gz:\d+: corrupt gzip stream"):
+        list(read_carmen(path))

@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from fuzzypos.geometry import Pose2D, compose, inverse, wrap_angle
 from fuzzypos.io import LogFormatError
 from fuzzypos.io.rosbag import (
+    ODOMETRY_TYPE,
     BagFormatError,
     BagReader,
     BagTopicError,
@@ -29,11 +31,13 @@ from helpers import (
     ANGLE_MIN,
     DATA,
     MOUNT_POSE,
+    N_BEAMS,
     ODOM_T,
     RANGE_MAX,
     SCAN_T,
     BagBuilder,
     make_bag,
+    pipe_with,
     scan_ranges,
     standard,
     truth,
@@ -254,6 +258,86 @@ def test_malformed_scan_names_bag_topic_and_message(tmp_path):
     err = info.value
     assert err.line == 2 and str(err).startswith(f"{path}:2: /scan: ")
     assert "range_max" in err.reason and isinstance(err, LogFormatError)
+
+
+@pytest.mark.parametrize("kind", ["ros1", "ros2-mcap"])
+def test_angle_max_on_the_wrong_side_of_angle_min_is_an_error(tmp_path, kind):
+    """Beams at angle_min + i*increment that sweep away from angle_max (the issue's scan of
+    57°…237°): an inconsistent message, named by bag, topic and index."""
+
+    def build(b: BagBuilder) -> list[tuple[str, float, Any]]:
+        return [
+            ("/scan", 1.0, b.scan(1.0, scan_ranges(0))),
+            ("/scan", 2.0, b.scan(2.0, scan_ranges(1), angle_min=1.0, angle_max=-1.0)),
+            ("/scan", 3.0, b.scan(3.0, scan_ranges(2))),
+        ]
+
+    path = make_bag(tmp_path, kind, build)
+    it = iter(BagReader(path))
+    assert next(it).scan.stamp == pytest.approx(1.0)
+    with pytest.raises(BagFormatError) as info:
+        next(it)
+    err = info.value
+    assert err.line == 2 and str(err).startswith(f"{path}:2: /scan: angle_max -1 lies below")
+    assert "57.3° to " in err.reason and isinstance(err, LogFormatError)
+    # and says what a consistent clockwise scan looks like
+    assert "negative increment" in err.reason
+
+
+def test_a_clockwise_scan_with_a_negative_increment_is_consistent(tmp_path):
+    """sensor_msgs/LaserScan: a scan may turn clockwise, angle_max < angle_min with a
+    negative increment (an upside-down mount): read as it is, no mismatch."""
+
+    def build(b: BagBuilder) -> list[tuple[str, float, Any]]:
+        a1 = 1.2 - (N_BEAMS - 1) * 0.3
+        return [("/scan", 1.0, b.scan(1.0, scan_ranges(0), angle_min=1.2, angle_max=a1,
+                                       angle_increment=-0.3))]  # fmt: skip
+
+    reader = BagReader(make_bag(tmp_path, "ros1", build))
+    (rec,) = list(reader)
+    np.testing.assert_allclose(rec.scan.angles, 1.2 - 0.3 * np.arange(N_BEAMS), atol=1e-6)
+    assert reader.angle_max_mismatches == 0
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_scan_stamps_from_the_headers_are_the_records_stamps(tmp_path, kind):
+    def build(b: BagBuilder) -> list[tuple[str, float, Any]]:
+        msgs = standard(b)
+        msgs.append(("/scan", 9.5, b.scan(0.0, scan_ranges(0))))  # zero stamp: record time
+        msgs.append(("/scan", 9.6, b.scan(1.0e9 + 0.123456789, scan_ranges(1))))
+        return msgs
+
+    reader = BagReader(make_bag(tmp_path, kind, build))
+    stamps = reader.scan_stamps()
+    assert stamps.tolist() == [r.scan.stamp for r in reader]
+    assert len(stamps) == len(SCAN_T) + 2 and stamps[-2] == pytest.approx(9.5)
+    assert not stamps.flags.writeable
+
+
+def test_a_damaged_message_definition_is_a_format_error(tmp_path):
+    """A bag stores its own message definitions: one whose Odometry lacks ``pose`` (a
+    damaged definition) decodes, but its fields are not there."""
+    fields = dict(get_typestore(Stores.ROS1_NOETIC).fielddefs)
+    del fields[ODOMETRY_TYPE]
+    store = get_typestore(Stores.EMPTY)
+    store.register(fields)
+    store.register(get_types_from_msg("std_msgs/Header header\nfloat64 speed", ODOMETRY_TYPE))
+    b = BagBuilder(1)
+    b.store, b.T = store, store.types
+    header = b.header(1.0, "odom")
+    msgs = [("/odom", 1.0, store.types[ODOMETRY_TYPE](header=header, speed=1.0))]
+    path = b.write(tmp_path / "odd.bag", "", [*msgs, ("/scan", 1.1, b.scan(1.1, scan_ranges(0)))])
+    with pytest.raises(BagFormatError, match=r"odd\.bag:1: /odom: malformed nav_msgs") as info:
+        BagReader(path)
+    assert isinstance(info.value.__cause__, AttributeError)
+
+
+def test_a_ros1_bag_through_a_pipe_reads(tmp_path):
+    path = make_bag(tmp_path, "ros1", standard)
+    with pipe_with(path.read_bytes()) as pipe:
+        reader = BagReader(pipe)
+    assert reader.name == str(pipe) and reader.ros_version == 1
+    assert [r.scan.stamp for r in reader] == [r.scan.stamp for r in BagReader(path)]
 
 
 # -- not bags, broken bags ---------------------------------------------------------------------

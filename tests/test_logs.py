@@ -2,25 +2,40 @@
 
 from __future__ import annotations
 
+import gc
 import gzip
 import math
+import os
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from fuzzypos.geometry import Pose2D
-from fuzzypos.io import BagReader, CarmenReader, LogRecord
+from fuzzypos.io import BagReader, CarmenReader, LogFormatError, LogRecord
 from fuzzypos.logs import (
     SelectionError,
+    StampCheck,
+    StampError,
     UnknownLogError,
     describe_log,
     log_kind,
     open_log,
     parse_laser_offset,
     select_records,
+    select_stamps,
 )
 from fuzzypos.scan import LaserScan
-from helpers import SCAN_T, make_bag, standard, write_sim_log
+from helpers import (
+    SCAN_T,
+    fifo_with,
+    make_bag,
+    pipe_with,
+    scan_ranges,
+    standard,
+    write_sim_log,
+)
 
 
 # -- helpers ----------------------------------------------------------------------------
@@ -247,3 +262,112 @@ def test_describe_counts_backwards_stamps_and_skipped_lines(tmp_path):
     assert info.scans == 3 and info.bad_lines == 1 and info.stamps_backwards == 1
     assert info.min_stamp == 9.5 and info.max_stamp == 11.0 and info.duration_s == 1.0
     assert not info.has_truth
+
+
+# -- pipes -------------------------------------------------------------------------------------
+def test_a_log_through_a_fifo_reads_whole(tmp_path):
+    """``fuzzypos info <(zcat LOG.clf.gz)``: sniffing, counting and reading each see all of
+    it (the issue: 1,979 of 1,988 scans and a wrong first stamp)."""
+    p = tmp_path / "sim.clf"
+    run = write_sim_log(p)
+    with fifo_with(tmp_path, gzip.compress(p.read_bytes())) as fifo:
+        log = open_log(fifo)
+        assert log.kind == "carmen" and log.name == str(fifo) == str(log.path)
+        assert log.scan_count_hint() == len(run)
+        info = describe_log(log)
+        assert len(list(log.records())) == len(run)  # again
+    assert info.scans == len(run) and info.first_stamp == run.stamps[0]
+    assert info.path == str(fifo)
+    spool = os.fspath(log.path)
+    assert spool != str(fifo) and os.path.isfile(spool)
+    del log
+    gc.collect()
+    assert not os.path.exists(spool)  # the copy goes with the log
+
+
+def test_a_bag_through_a_pipe_reads_whole(tmp_path):
+    path = make_bag(tmp_path, "ros1", standard)
+    with pipe_with(path.read_bytes()) as pipe:
+        log = open_log(pipe)
+    assert log.kind == "ros1" and log.name == str(pipe)
+    assert describe_log(log).scans == len(SCAN_T)
+
+
+# -- the stamps ------------------------------------------------------------------------------
+def test_stamp_check_counts_and_judges():
+    assert StampCheck.of([]).remark() is None and not StampCheck.of([5.0]).unusable
+    ok = StampCheck.of([0.0, 0.1, 0.2, 0.15, 0.3, 0.4])  # backwards now and then: fine
+    assert (ok.backwards, ok.repeated) == (1, 0) and not ok.corrupt and ok.remark() is None
+    assert ok.largest_gap_s == pytest.approx(0.15) and ok.largest_gap_at == 4
+    few = StampCheck.of([0.0, 0.1, 0.1, 0.2, 0.3, 0.4])
+    assert few.repeated == 1 and not few.corrupt
+    assert few.remark() == (
+        "1 of 6 scans repeat the stamp of the scan before them: their odometry is judged over 0 s"
+    )
+    bad = StampCheck.of([7.0] * 1937 + [7.0 + 2.0**32, 7.0, 1.0, 2.0])
+    assert bad.scans == 1941 and bad.repeated == 1936 and bad.backwards == 2
+    assert bad.unusable and bad.corrupt
+    assert "1,938 of 1,941 scans repeat or go back" in (bad.remark() or "")
+    jump = StampCheck.of([0.0, 1.0, 2.0, 2.0 + 2.0**32, 3.0 + 2.0**32])
+    assert jump.absurd_gap and jump.corrupt and not jump.unusable
+    assert "jump forward by 4.29497e+09 s between scans 2 and 3" in (jump.remark() or "")
+
+
+def _stamped_log(path, stamps):
+    lines = [
+        f"FLASER 3 1.0 2.0 3.0 0 0 0 {0.1 * k} 0 0 {t!r} host {t!r}" for k, t in enumerate(stamps)
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_describe_reports_corrupt_stamps_instead_of_a_duration(tmp_path):
+    path = _stamped_log(tmp_path / "corrupt.clf", [7.0] * 40 + [7.0 + 2.0**32, 9.0])
+    with pytest.warns(RuntimeWarning, match=r"corrupt\.clf: the scans' stamps are corrupt: 40"):
+        info = describe_log(open_log(path))
+    assert info.duration_s is None and info.stamps_repeated == 39
+    assert info.stamp_problem is not None and "40 of 42 scans" in info.stamp_problem
+    assert info.as_dict()["stamp_problem"] == info.stamp_problem
+
+
+def test_check_stamps_refuses_corrupt_stamps_and_warns_of_repeats(tmp_path):
+    corrupt = open_log(_stamped_log(tmp_path / "corrupt.clf", [7.0] * 30 + [8.0]))
+    with pytest.raises(StampError) as info:
+        corrupt.check_stamps()
+    err = info.value
+    assert str(err).startswith(f"{corrupt.name}: the scans' stamps are corrupt: 29 of 31")
+    assert isinstance(err, LogFormatError) and "\n" not in str(err)
+    # a stretch of good stamps is not refused for what comes after it
+    good_first = _stamped_log(tmp_path / "tail.clf", [float(k) for k in range(10)] + [20.0] * 30)
+    assert open_log(good_first).check_stamps(max_scans=10).scans == 10
+    with pytest.raises(StampError):
+        open_log(good_first).check_stamps()
+    few = open_log(_stamped_log(tmp_path / "few.clf", [0.0, 0.1, 0.1, 0.2, 0.3, 0.2, 0.4]))
+    with pytest.warns(RuntimeWarning, match=r"few\.clf: 1 of 7 scans repeat the stamp"):
+        check = few.check_stamps()
+    assert check.repeated == 1 and check.backwards == 1
+
+
+@given(
+    st.lists(st.sampled_from([0.0, 0.5, 1.0, 1.5, 2.0, 3.0]), max_size=12),
+    st.sampled_from([None, 0.0, 0.5, 1.0]),
+    st.sampled_from([None, 0.5, 2.0]),
+    st.sampled_from([None, 1, 3]),
+)
+def test_select_stamps_picks_what_select_records_picks(stamps, start, end, max_scans):
+    if start is not None and end is not None and end < start:
+        return
+    kw = {"start": start, "end": end, "max_scans": max_scans}
+    chosen = [r.scan.stamp for r in select_records(fake_records(stamps), **kw)]
+    assert select_stamps(stamps, **kw).tolist() == chosen
+
+
+def test_describe_a_bag_whose_scans_have_no_ranges(tmp_path):
+    def build(b):
+        empty = np.zeros(0, dtype=np.float32)
+        return [("/scan", 1.0, b.scan(1.0, scan_ranges(0))), ("/scan", 2.0, b.scan(2.0, empty))]
+
+    info = describe_log(open_log(make_bag(tmp_path, "ros1", build)))
+    assert info.scans == 2 and info.scans_without_ranges == 1 and info.beams == [0, 9]
+    assert info.angle_min_deg == pytest.approx(math.degrees(-1.2))
+    assert any("1 scans have no ranges" in n for n in info.notes)

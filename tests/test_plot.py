@@ -8,10 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from matplotlib import colormaps
 from matplotlib.collections import LineCollection, PathCollection
+from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
+from matplotlib.text import Text
 
-from fuzzypos import plot
+from fuzzypos import Config, plot, sim
 from fuzzypos.features import Features, extract_features
 from fuzzypos.geometry import Pose2D
 from fuzzypos.scan import LaserScan
@@ -21,11 +24,14 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 WORLD = furnished_room()
 
 
+SCAN = simulate_scan(
+    WORLD, Pose2D(0.2, 0.1, 0.3), ScannerModel(range_noise_std=0.01), rng=np.random.default_rng(1)
+)
+
+
 @pytest.fixture(scope="module")
 def features() -> Features:
-    scanner = ScannerModel(range_noise_std=0.01)
-    scan = simulate_scan(WORLD, Pose2D(0.2, 0.1, 0.3), scanner, rng=np.random.default_rng(1))
-    f = extract_features(scan)
+    f = extract_features(SCAN)
     # the scan exercises every figure
     assert f.kept.any() and (~f.kept).any()
     assert len(f.lines) >= 4 and len(f.virtual_points) >= 4 and len(f.angular_points) >= 1
@@ -359,3 +365,163 @@ def test_plots_do_not_register_pyplot_figures(features: Features) -> None:
     plot.plot_paths(circle(), None, {})
     assert plt.get_fignums() == open_before
     assert matplotlib.get_backend() == backend
+
+
+# ---------------------------------------------------------------------------------------------
+# readability (issue 11, items 18 and 19)
+# ---------------------------------------------------------------------------------------------
+def _relative_luminance(colour) -> float:
+    rgb = np.asarray(to_rgb(colour))
+    lin = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    return float(lin @ np.array([0.2126, 0.7152, 0.0722]))
+
+
+def _contrast(a, b) -> float:
+    la, lb = sorted((_relative_luminance(a), _relative_luminance(b)), reverse=True)
+    return (la + 0.05) / (lb + 0.05)
+
+
+def test_cluster_labels_are_readable_on_their_tags(features: Features) -> None:
+    """Each cluster's id sits on a tag of the cluster's colour, in black or white, whichever
+    contrasts more (WCAG's 4.5:1 for text at least 3:1 here: tab20's mid tones)."""
+    fig = plot.plot_clusters(features)
+    labels = [t for t in fig.axes[0].texts if str(t.get_gid()).startswith("cluster_label:")]
+    assert len(labels) == len(np.unique(features.cluster[features.cluster >= 0]))
+    cmap = plot._qualitative_cmap(features.n_clusters)
+    for t in labels:
+        k = int(t.get_gid().split(":")[1])
+        tag = t.get_bbox_patch()
+        assert tag is not None
+        assert np.allclose(tag.get_facecolor()[:3], to_rgb(cmap(k % cmap.N)))
+        assert _contrast(t.get_color(), tag.get_facecolor()) >= 3.0, (k, t.get_color())
+
+
+def test_light_cluster_colours_get_black_ink() -> None:
+    tab20 = colormaps["tab20"]
+    assert plot._ink_on(tab20(1)) == "black" and plot._ink_on(tab20(0)) == "white"
+    for k in range(20):
+        ink = plot._ink_on(tab20(k))
+        other = "white" if ink == "black" else "black"
+        assert _contrast(ink, tab20(k)) >= _contrast(other, tab20(k))
+
+
+def _ends(fig: Figure, prefix: str = "") -> dict[str, np.ndarray]:
+    ax = fig.axes[1] if prefix else fig.axes[0]
+    return {
+        a.get_gid().split(":")[-1]: a.get_xydata()[0]
+        for a in ax.get_lines()
+        if str(a.get_gid()).startswith(f"{prefix}end:")
+    }
+
+
+def test_paths_mark_every_end_and_zoom_on_the_ends() -> None:
+    true = circle()
+    odo = circle(r=2.3)
+    est = {"paper": circle(r=2.1)[:, :2], "default": circle(r=2.02)}
+    fig = plot.plot_paths(true[:, :2], odo, est, world=sim.gym())
+    last = {"true": true[-1, :2], "odometry": odo[-1, :2]} | {k: v[-1, :2] for k, v in est.items()}
+    for prefix in ("", "zoom:"):
+        ends = _ends(fig, prefix)
+        assert set(ends) == set(last)
+        for key, xy in last.items():
+            np.testing.assert_allclose(ends[key], xy)
+    ax, zoom = fig.axes[0], fig.axes[1]
+    assert zoom.get_gid() == "zoom" and zoom.get_aspect() == 1.0
+    # a zoom: every end inside, a view a fraction of the main one's
+    (x0, x1), (y0, y1) = zoom.get_xlim(), zoom.get_ylim()
+    for xy in last.values():
+        assert x0 < xy[0] < x1 and y0 < xy[1] < y1
+    assert (x1 - x0) < 0.5 * np.ptp(ax.get_xlim())
+    box = artist(fig, "zoom_region")
+    np.testing.assert_allclose(box.get_xy(), (x0, y0))
+    # each end's distance from the true end, drawn and named
+    texts = [t.get_text() for t in zoom.get_legend().get_texts()]
+    for key in ("odometry", "paper", "default"):
+        gap = float(np.hypot(*(last[key] - last["true"])))
+        line = [a for a in zoom.get_lines() if a.get_gid() == f"zoom:gap:{key}"]
+        assert len(line) == 1
+        np.testing.assert_allclose(line[0].get_xydata(), [last["true"], last[key]])
+        assert f"{key} ends {gap:.2f} m off" in texts
+    assert "end" in ax.get_legend_handles_labels()[1]
+
+
+def test_paths_view_is_the_paths_not_the_whole_world() -> None:
+    gym = sim.gym()
+    fig = plot.plot_paths(circle(), circle(r=2.3), {}, world=gym)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    assert len(artist(fig, "world").get_segments()) == gym.segments.shape[0]
+    assert np.ptp(ax.get_xlim()) < 0.5 * np.ptp(gym.segments[:, [0, 2]])
+
+
+def test_a_single_path_has_no_zoom() -> None:
+    fig = plot.plot_paths(circle(), None, {})
+    assert len(fig.axes) == 1 and set(_ends(fig)) == {"true"}
+
+
+def _overlapping_texts(fig: Figure) -> list[tuple[str, str]]:
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    texts = [
+        t
+        for t in fig.findobj(Text)
+        if t.get_visible() and t.get_text().strip() and t.get_figure() is fig
+    ]
+    boxes = [t.get_window_extent(renderer) for t in texts]
+    return [
+        (texts[i].get_text(), texts[j].get_text())
+        for i in range(len(texts))
+        for j in range(i + 1, len(texts))
+        if boxes[i].overlaps(boxes[j])
+    ]
+
+
+def _demo_like_errors() -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Curves shaped like the demo's: all near zero at first, where both estimates cross
+    odometry back and forth within the first metre, then the paper's swinging about it."""
+    rng = np.random.default_rng(4)
+    d = np.linspace(0.0, 50.0, 1500)
+    odo = 0.0008 * d**2 + 0.02 * d
+    paper = odo * (1.0 + 0.5 * np.sin(d / 3.0)) + 0.02 * rng.standard_normal(d.size) * (d < 1)
+    default = 0.005 + 0.004 * np.abs(rng.standard_normal(d.size))
+    return d, {"odometry": odo, "paper": paper, "default": default}
+
+
+def test_errors_vs_distance_marks_one_crossing_per_estimate() -> None:
+    d, errors = _demo_like_errors()
+    # the premise: the paper's curve crosses odometry many times, near zero and later
+    assert plot.error_crossings(d, errors["paper"], errors["odometry"]).size >= 6
+    fig = plot.plot_errors_vs_distance(d, errors)
+    texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    for label in ("paper", "default"):
+        x = plot.error_crossings(d, errors[label], errors["odometry"])[-1]
+        offsets = artist(fig, f"crossing:{label}").get_offsets()
+        assert offsets.shape == (1, 2) and offsets[0, 0] == pytest.approx(x)
+        assert np.all(errors[label][d > x + 1e-9] < errors["odometry"][d > x + 1e-9])
+        assert f"{label} below odometry from {x:.1f} m on" in texts
+
+
+def test_errors_vs_distance_texts_do_not_overlap() -> None:
+    d, errors = _demo_like_errors()
+    fig = plot.plot_errors_vs_distance(d, errors, title="Fig. 20 — position error")
+    assert len(fig.findobj(Text)) > 10
+    assert not _overlapping_texts(fig)
+
+
+def test_fig18_draws_the_virtual_points_removed_as_too_uncertain(features: Features) -> None:
+    """Those drawn hollow are virtual angular points §3.6 found and graded above the
+    threshold: extracted again with no threshold, each is one, more uncertain than it."""
+    cfg = Config()
+    removed = plot.too_uncertain_virtual_points(features, cfg)
+    fig = plot.plot_virtual_points(features, config=cfg)
+    np.testing.assert_allclose(artist(fig, "virtual_removed").get_offsets(), removed)
+    assert removed.shape[0] >= 3 and len(features.virtual_points) >= 3
+    keep_all = cfg.with_overrides({"virtual_points": {"max_uncertainty": 1.0}})
+    every = extract_features(SCAN, keep_all).virtual_points
+    gap = np.hypot(*(removed[:, None, :] - every.xy[None, :, :]).transpose(2, 0, 1))
+    match = gap.argmin(axis=1)
+    assert np.all(gap.min(axis=1) < 1e-9)
+    assert np.all(every.uncertainty[match] > cfg.virtual_points.max_uncertainty)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert f"too uncertain, removed ({removed.shape[0]})" in labels
+    assert f"virtual angular points ({len(features.virtual_points)})" in labels

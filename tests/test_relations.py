@@ -11,7 +11,7 @@ import pytest
 
 from fuzzypos.io import LogFormatError
 from fuzzypos.io.relations import Relations, RelationsFormatError, read_relations
-from helpers import DATA
+from helpers import DATA, pipe_with
 
 GOOD = """\
 # t1 t2 x y z roll pitch yaw
@@ -126,3 +126,25 @@ def test_shared_relations(name: str, count: int, local: int, backwards: int) -> 
     assert len(rel) == count
     assert int(rel.is_local(10.0).sum()) == local
     assert int((rel.dt < 0).sum()) == backwards
+
+
+@pytest.mark.parametrize("how", ["truncated", "corrupt", "crc"])
+def test_a_damaged_gzip_file_is_a_format_error(tmp_path: Path, how: str) -> None:
+    data = bytearray(gzip.compress((GOOD * 20).encode(), mtime=0))
+    if how == "truncated":
+        data = data[: len(data) - 12]
+    elif how == "corrupt":
+        data[12] ^= 0xFF
+    else:
+        data[-8:-4] = b"\0\0\0\0"  # the stored CRC-32
+    path = tmp_path / "log.relations.gz"
+    path.write_bytes(bytes(data))
+    with pytest.raises(RelationsFormatError) as info:
+        read_relations(path)
+    assert str(info.value).startswith(f"{path}:") and "gzip stream" in info.value.reason
+
+
+def test_reads_a_pipe_whole(tmp_path: Path) -> None:
+    with pipe_with(gzip.compress(GOOD.encode())) as pipe:
+        rel = read_relations(pipe)
+    assert len(rel) == 3 and rel.t1[-1] == 10.5

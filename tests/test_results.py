@@ -14,11 +14,12 @@ import pytest
 
 from fuzzypos.benchmark import BENCHMARK_CONFIGS, find_benchmark_logs, run_benchmark
 from fuzzypos.config import Config
+from fuzzypos.folders import ResultsFolderError
 from fuzzypos.geometry import Pose2D
-from fuzzypos.io import CarmenReader, LogRecord, read_tum
+from fuzzypos.io import CarmenReader, CarmenWriter, LogRecord, read_tum
 from fuzzypos.logs import open_log
 from fuzzypos.provenance import file_sha256, git_hash
-from fuzzypos.run import log_name, run_log, write_estimate_clf
+from fuzzypos.run import log_name, partial_results, run_log, write_estimate_clf
 from fuzzypos.scan import LaserScan
 from fuzzypos.scoring import evaluate_trajectory
 from helpers import write_relations, write_sim_log
@@ -122,18 +123,46 @@ def test_run_log_on_an_empty_log_is_an_error(tmp_path):
         run_log(p, results_dir=tmp_path / "r")
 
 
-def test_a_failure_mid_log_leaves_no_partial_trajectory(sim_log, tmp_path):
-    path, _run = sim_log
+def test_a_failure_mid_log_keeps_the_scans_before_it_marked_partial(sim_log, tmp_path):
+    path, run = sim_log
     lines = path.read_text().splitlines(keepends=True)
     k = next(i for i, ln in enumerate(lines) if ln.startswith("FLASER")) + 10
     bad = tmp_path / "bad.clf"
     bad.write_text("".join([*lines[:k], "FLASER 3 1 2\n", *lines[k:]]))
     out = tmp_path / "res"
-    with pytest.raises(ValueError, match="FLASER"):
+    with pytest.raises(ValueError, match="FLASER") as info:
+        run_log(bad, results_dir=out, out_tum=tmp_path / "x.tum")
+    kept = partial_results(info.value)
+    # the reader holds scan 5 for its TRUEPOS when the bad line stops it
+    assert kept is not None and kept.results_dir == out and kept.scans == 4
+    s = json.loads((out / "summary.json").read_text())
+    assert s["partial"] is True and s["scans"] == 4
+    assert (
+        s["partial_reason"].startswith("failed at scan 5: ") and "bad.clf:" in s["partial_reason"]
+    )
+    stamps, _ = read_tum(out / "trajectory.tum")
+    assert stamps.tolist() == list(run.stamps[:4])
+    assert [r.scan.stamp for r in CarmenReader(out / "trajectory.clf").records()] == stamps.tolist()
+    assert Config.from_toml(out / "config.toml") == Config()
+    assert not (out / "path.png").exists() and not (tmp_path / "x.tum").exists()
+    assert not list(out.glob(".*"))
+    # the next run into the folder is refused, or replaces it whole with overwrite=True
+    with pytest.raises(ResultsFolderError, match="holds the results of another run"):
+        run_log(open_log(bad, skip_bad_lines=True), results_dir=out, plot=False)
+    res = run_log(open_log(bad, skip_bad_lines=True), results_dir=out, plot=False, overwrite=True)
+    assert res.summary["bad_lines_skipped"] == 1 and res.summary["partial"] is False
+    assert json.loads((out / "summary.json").read_text())["partial_reason"] is None
+    assert partial_results(ValueError("x")) is None
+
+
+def test_a_failure_at_the_first_scan_keeps_nothing(tmp_path):
+    bad = tmp_path / "bad.clf"
+    bad.write_text("FLASER 3 1 2\n")
+    out = tmp_path / "new" / "res"
+    with pytest.raises(ValueError, match="FLASER") as info:
         run_log(bad, results_dir=out)
-    assert list(out.iterdir()) == []
-    res = run_log(open_log(bad, skip_bad_lines=True), results_dir=out, plot=False)
-    assert res.summary["bad_lines_skipped"] == 1
+    assert partial_results(info.value) is None
+    assert not (tmp_path / "new").exists()  # no empty folder left behind
 
 
 def test_run_log_rejects_bad_arguments(sim_log, tmp_path):
@@ -151,11 +180,57 @@ def test_progress_is_reported(sim_log, tmp_path):
     assert calls[-1] == (len(run), len(run)) and calls[0][1] == len(run)
 
 
+def test_the_progress_total_of_a_stretch_is_the_stretch(sim_log, tmp_path):
+    """--start/--end: the total is the scans of the stretch, not of the whole log."""
+    path, run = sim_log
+    calls: list[tuple[int, int | None]] = []
+    res = run_log(
+        path,
+        results_dir=tmp_path / "a",
+        progress=lambda d, t: calls.append((d, t)),
+        start=0.3,
+        end=2.9,
+        plot=False,
+    )
+    assert 25 <= res.scans < len(run)
+    assert [t for _, t in calls] == [res.scans] * len(calls) and calls[-1][0] == res.scans
+    calls.clear()
+    run_log(
+        path,
+        results_dir=tmp_path / "b",
+        progress=lambda d, t: calls.append((d, t)),
+        start=0.3,
+        max_scans=3,
+        plot=False,
+    )
+    assert calls == [(3, 3)]
+
+
+def test_ctrl_c_keeps_the_scans_done_marked_partial(sim_log, tmp_path):
+    path, run = sim_log
+    out = tmp_path / "res"
+
+    def stop(done: int, total: int | None) -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt) as info:
+        run_log(path, results_dir=out, progress=stop)
+    kept = partial_results(info.value)
+    assert kept is not None and kept.scans == 25 and kept.summary["partial"] is True
+    s = json.loads((out / "summary.json").read_text())
+    assert s["partial"] is True and s["partial_reason"] == "interrupted at scan 26"
+    assert s["scans"] == 25 and s["last_stamp"] == run.stamps[24]
+    assert read_tum(out / "trajectory.tum")[0].tolist() == list(run.stamps[:25])
+    assert len(list(CarmenReader(out / "trajectory.clf").records())) == 25
+    assert len((out / "covariance.csv").read_text().splitlines()) == 26  # header + 25
+    assert not (out / "path.png").exists() and not list(out.glob(".*"))
+
+
 # -- the estimate as CARMEN ------------------------------------------------------------------
-def test_write_estimate_clf_keeps_a_span_geometry_and_an_odd_mount(tmp_path):
+def test_write_estimate_clf_keeps_a_span_geometry_and_a_forward_mount(tmp_path):
     n = 180
     inc = math.pi / (n - 1)  # exactly -90° … +90°, like the aces bag
-    mount = Pose2D(0.2, 0.05, 0.1)
+    mount = Pose2D(0.2, 0.0, 0.0)
     recs = []
     for k in range(4):
         r = np.full(n, 2.0 + 0.1 * k)
@@ -167,20 +242,87 @@ def test_write_estimate_clf_keeps_a_span_geometry_and_an_odd_mount(tmp_path):
     p = tmp_path / "e.clf"
     assert write_estimate_clf(p, recs) == 4
     text = p.read_text()
-    assert "convention 'span'" in text and "--laser-offset" in text
-    back = list(CarmenReader(p, convention="span", laser_offset=mount).records())
+    assert "convention 'span'" in text and "ROBOTLASER1 99" not in text
+    back = list(CarmenReader(p, convention="span").records())
     assert [b.scan.stamp for b in back] == [1.0, 1.001, 1.002, 1.003]
+    assert back[0].scan.sensor_pose == mount  # PARAM robot_frontlaser_offset
     np.testing.assert_allclose(back[0].scan.angles, recs[0][0].angles, atol=1e-12)
     assert back[1].odometry == Pose2D(0, 1, 0)
     assert back[2].odometry == Pose2D(2, 0, 0)  # no odometry: the estimate
     assert not back[0].scan.valid[3] and back[0].scan.valid[0]
 
 
-def test_write_estimate_clf_leaves_nothing_for_an_unrepresentable_geometry(tmp_path):
-    scan = LaserScan(np.ones(5), 0.0, 0.1)  # not symmetric about the x axis
+def _robotlaser_scan(k: int, n: int = 361) -> LaserScan:
+    """A 361-beam 180° scan 0.007° off FLASER's angles, on a mount off the robot's x axis."""
+    r = np.linspace(1.0, 9.0, n) + 0.01 * k
+    r[3], r[4], r[5] = np.nan, 50.0, np.inf
+    inc = math.radians(180.007) / (n - 1)
+    return LaserScan(
+        r,
+        -math.pi / 2,
+        inc,
+        range_max=50.0,
+        stamp=7.0 + 0.1 * k,
+        sensor_pose=Pose2D(0.12, -0.03, 0.02),
+    )
+
+
+def test_write_estimate_clf_writes_robotlaser1_lines_that_read_back(tmp_path):
+    recs = []
+    for k in range(3):
+        odom = None if k == 1 else Pose2D(0.5 * k, 0.1, 0.05 * k)
+        truth = Pose2D(k, 0, 0) if k else None
+        recs.append((_robotlaser_scan(k), Pose2D(k, 2.0, -0.1 * k), odom, truth))
+    p = tmp_path / "e.clf"
+    assert write_estimate_clf(p, recs, source="x.clf") == 3
+    kinds = [ln.split()[0] for ln in p.read_text().splitlines() if not ln.startswith("#")]
+    assert kinds == [
+        "ODOM",
+        "ROBOTLASER1",
+        "ODOM",
+        "ROBOTLASER1",
+        "TRUEPOS",
+        "ODOM",
+        "ROBOTLASER1",
+        "TRUEPOS",
+    ]
+    for mode in ("scan", "interpolated"):
+        back = list(CarmenReader(p, odometry=mode).records())
+        assert len(back) == 3
+        for b, (scan, est, odom, truth) in zip(back, recs):
+            assert b.scan.stamp == scan.stamp and b.truth == truth
+            assert (b.scan.angle_min, b.scan.angle_increment) == (
+                scan.angle_min,
+                scan.angle_increment,
+            )
+            assert b.scan.range_max == scan.range_max
+            np.testing.assert_array_equal(b.scan.valid, scan.valid)
+            np.testing.assert_allclose(
+                b.scan.ranges[scan.valid], scan.ranges[scan.valid], atol=6e-5
+            )
+            np.testing.assert_allclose(
+                b.scan.sensor_pose.as_array(), scan.sensor_pose.as_array(), atol=1e-12
+            )
+            # the robot pose is the estimate; the log's odometry is in the ODOM line
+            want = est if mode == "scan" or odom is None else odom  # FLASER's rule
+            np.testing.assert_allclose(b.odometry.as_array(), want.as_array(), atol=1e-12)
+
+
+def test_write_estimate_clf_mixes_flaser_and_robotlaser1_where_needed(tmp_path):
+    """FLASER while the first scan's geometry fits; the scans that do not are ROBOTLASER1."""
+    flaser = LaserScan(np.full(180, 3.0), -math.pi / 2, math.pi / 180, stamp=1.0)
+    other = LaserScan(np.ones(5), 0.0, 0.1, stamp=2.0)  # not symmetric about the x axis
     p = tmp_path / "x.clf"
-    assert write_estimate_clf(p, [(scan, Pose2D(), None, None)]) == 0
-    assert not p.exists() and not list(tmp_path.iterdir())
+    w = CarmenWriter(p, estimate_of="log.clf")
+    for scan in (flaser, other, flaser):
+        w.write(scan, Pose2D(1, 0, 0), pose=Pose2D(2, 0, 0))
+    assert w.close() and (w.written, w.robotlaser1) == (3, 1)
+    assert len(w.notes) == 1 and w.notes[0].startswith("x.clf: 1 of 3 scans are ROBOTLASER1")
+    kinds = [ln.split()[0] for ln in p.read_text().splitlines() if not ln.startswith("#")]
+    assert kinds == ["FLASER", "ODOM", "ROBOTLASER1", "FLASER"]
+    back = list(CarmenReader(p).records())
+    assert [b.scan.n_beams for b in back] == [180, 5, 180]
+    np.testing.assert_allclose(back[1].scan.angles, other.angles, atol=1e-15)
 
 
 # -- provenance ------------------------------------------------------------------------------

@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fuzzypos import sim
+from fuzzypos import Config, Positioner, sim
+from fuzzypos.evaluation import relative_pose_error
 from fuzzypos.geometry import Pose2D
 from fuzzypos.io import CarmenRecord, read_carmen, write_carmen
 from fuzzypos.scan import LaserScan
@@ -227,9 +228,16 @@ LOCAL_TOL_DEG = 0.03
 
 
 @pytest.fixture(scope="module")
-def figures(run: sim.SimulatedRun) -> tuple[Any, Any]:
+def positioner(run: sim.SimulatedRun) -> tuple[Positioner, np.ndarray]:
+    """The default positioner after the run, and its poses."""
+    pos = Positioner()
+    return pos, _bench().estimate(run, pos)
+
+
+@pytest.fixture(scope="module")
+def figures(run: sim.SimulatedRun, positioner: tuple[Positioner, np.ndarray]) -> tuple[Any, Any]:
     bench = _bench()
-    return bench.figures(run, run.odometry_poses), bench.figures(run, bench.estimate(run))
+    return bench.figures(run, run.odometry_poses), bench.figures(run, positioner[1])
 
 
 def test_the_default_beats_odometry_over_the_whole_run(figures: tuple[Any, Any]) -> None:
@@ -238,9 +246,6 @@ def test_the_default_beats_odometry_over_the_whole_run(figures: tuple[Any, Any])
     assert default.mean_position_m < 0.5 * odo.mean_position_m
 
 
-@pytest.mark.xfail(
-    strict=True, reason="the default is worse than odometry on this kind (issue 10: gated fusion)"
-)
 def test_the_default_is_no_worse_than_odometry_locally(figures: tuple[Any, Any]) -> None:
     odo, default = figures
     for w in (2, 5):
@@ -250,3 +255,27 @@ def test_the_default_is_no_worse_than_odometry_locally(figures: tuple[Any, Any])
         assert default.local_rotation_deg[w] <= odo.local_rotation_deg[w] + LOCAL_TOL_DEG, (
             f"rotation over {w} scans"
         )
+
+
+def test_once_learned_the_odometry_is_trusted_and_calibrated(
+    run: sim.SimulatedRun, positioner: tuple[Positioner, np.ndarray]
+) -> None:
+    """The odometry here is more precise than the matches: once its noise is learned it is
+    the refinement's prior (``trust_where_better``), its 1% rotation under-read calibrated
+    away, and from then on the increments are as precise as the odometry's, not the scans'."""
+    pos, poses = positioner
+    noise = pos.odometry_noise
+    assert noise.better_than_matching and noise.trusted
+    assert noise.rotation_factor == pytest.approx(1.0 / 0.99, abs=0.005)
+    assert noise.scale == pytest.approx(1.0, abs=0.005)
+    learned = slice(80, None)  # the noise is learned from 30 matches, then trusted
+    stamps, truth = run.stamps[learned], run.true_poses[learned]
+    est = relative_pose_error(stamps, truth, stamps, poses[learned], delta=2)
+    odo = relative_pose_error(stamps, truth, stamps, run.odometry_poses[learned], delta=2)
+    assert est.translation_m.mean <= odo.translation_m.mean + 0.001
+    assert est.rotation_deg.mean <= odo.rotation_deg.mean
+    # not trusting it, the increments keep the scans' centimetre
+    plain = Positioner(Config().with_overrides({"odometry_noise": {"trust_where_better": False}}))
+    untrusted = _bench().estimate(run, plain)[learned]
+    alone = relative_pose_error(stamps, truth, stamps, untrusted, delta=2)
+    assert alone.translation_m.mean > 3.0 * odo.translation_m.mean

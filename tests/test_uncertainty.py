@@ -302,3 +302,68 @@ def test_the_matches_share_is_taken_off_and_the_better_one_known(
         max(odometry_sigma, CFG.odometry_noise.min_translation_per_sqrt_m), rel=0.35
     )
     assert noise.better_than_matching is better
+
+
+# -- the scan's own motion, which the noise is learned from --------------------------------------
+def test_the_scan_s_own_motion_undoes_the_prior_s_pull() -> None:
+    """A fit pulled toward its prior: :meth:`Uncertainty.scan_only` gives back the motion the
+    points alone give (x_s = A⁻¹ (M x − P p)) with the points' covariance A⁻¹ G A⁻¹."""
+    rng = np.random.default_rng(8)
+    root = rng.normal(size=(3, 3))
+    a = root @ root.T + np.diag([400.0, 300.0, 900.0])  # the points' information
+    p_info = np.diag([1.0 / 0.002**2] * 2 + [1.0 / math.radians(0.05) ** 2])
+    x_s, prior = np.array([0.31, -0.02, 0.05]), np.array([0.25, 0.01, 0.04])
+    x_f = np.linalg.solve(a + p_info, a @ x_s + p_info @ prior)
+    assert np.abs(x_f - x_s).max() > 0.01  # the prior pulled the fit far from the scan's motion
+    g = 2.0 * np.linalg.inv(a)  # the points' gradient covariance (any positive definite)
+    fit = Refinement(
+        x_f, 100, 1.0, 1.0, information=a, prior_information=p_info, start=x_f, prior=prior,
+        gradient_covariance=g,
+    )  # fmt: skip
+    unc = Uncertainty(CFG.covariance, CFG.gate)
+    for t_prev in (np.zeros(3), np.array([0.4, -0.1, 0.7])):
+        out = unc.scan_only(fit, t_prev)
+        assert out is not None
+        inc, cov = out
+        np.testing.assert_allclose(inc, relative(t_prev, x_s), atol=1e-12)
+        jb = compose_jacobians(t_prev, inc)[1]
+        a_inv = np.linalg.inv(a)
+        expected = local(jb.T @ (a_inv @ g @ a_inv) @ jb, float(inc[2])) + unc.floor
+        np.testing.assert_allclose(cov, expected, rtol=1e-9, atol=1e-15)
+    # a heading wrapped across ±π in the prior changes nothing
+    wrapped = replace(fit, prior=prior + np.array([0.0, 0.0, 2.0 * math.pi]))
+    out = unc.scan_only(wrapped, np.zeros(3))
+    assert out is not None
+    np.testing.assert_allclose(out[0], x_s, atol=1e-9)
+    # where the points do not fix the motion (a corridor held, or no information): nothing
+    assert unc.scan_only(replace(fit, hold_information=p_info), np.zeros(3)) is None
+    assert unc.scan_only(replace(fit, information=np.diag([1e3, 0.0, 1e3])), np.zeros(3)) is None
+
+
+def odometry_run(in_refinement: bool, n: int = 160) -> Positioner:
+    """A robot on an arc in a furnished room with a precise 360° scanner and odometry noisier
+    than the scans (1.5 cm and 0.3° per 0.1 m step), the learned prior everywhere or not."""
+    world = sim.furnished_room(2)
+    truth = sim.arc_path(Pose2D(-1.5, -0.8, 0.1), n, 0.1, 1.5)
+    rng = np.random.default_rng(3)
+    odom = sim.drifting_odometry(truth, noise_std=(0.015, 0.3), rng=rng)
+    pos = Positioner(CFG.with_overrides({"odometry_noise": {"in_refinement": in_refinement}}))
+    for k, (p, o) in enumerate(zip(truth, odom)):
+        pos.update(sim.simulate_scan(world, p, scanner(0.005, 360, 360.0), rng, stamp=0.2 * k), o)
+    return pos
+
+
+def test_the_learned_prior_does_not_teach_the_odometry_its_own_weight() -> None:
+    """With the learned odometry as the refinement's prior, the noise is still learned from
+    the scan's own motion: it does not shrink toward its floor (the fused motion would agree
+    with the odometry because it was pulled there), but stays where the prior-free run puts
+    it, near the odometry's true noise (1.5 cm per 0.1 m step: 4.7 cm per √m)."""
+    free, fused = odometry_run(False).odometry_noise, odometry_run(True).odometry_noise
+    assert fused.warm and free.warm
+    true_t = 0.015 / math.sqrt(0.1)
+    assert free.alpha_translation == pytest.approx(true_t, rel=0.35)
+    assert fused.alpha_translation == pytest.approx(free.alpha_translation, rel=0.2)
+    assert fused.alpha_rotation == pytest.approx(free.alpha_rotation, rel=0.2)
+    floor = CFG.odometry_noise.min_translation_per_sqrt_m
+    assert fused.alpha_translation > 5.0 * floor
+    assert not fused.better_than_matching and not fused.trusted  # the scans are the better

@@ -160,9 +160,13 @@ def check_field(key: str, value: Any, default: Any, spec: FieldSpec) -> None:
             raise ConfigError(
                 f"{where} must be {'an integer' if integer else 'a number'}, got {v!r}"
             )
-        if not math.isfinite(v):
+        try:
+            fv = float(v)
+        except OverflowError:  # an integer too large for a float
+            raise ConfigError(f"{where} is too large: {_short(v)}") from None
+        if not math.isfinite(fv):
             raise ConfigError(f"{where} must be a finite number, got {v!r}")
-        if not spec.within(float(v)):
+        if not spec.within(fv):
             got = f"{math.degrees(v):g}°" if spec.is_angle else repr(v)
             raise ConfigError(f"{where} must be {spec.bounds_text()}, got {got}")
 
@@ -231,6 +235,14 @@ def to_deg(v: Any) -> Any:
     return deg  # v is no degree value's radians: the nearest degrees
 
 
+def _short(v: Any) -> str:
+    """``repr(v)``, with a huge integer shown by its digit count."""
+    text = repr(v)
+    if len(text) <= 40:
+        return text
+    return f"an integer of {len(text)} digits (a number must be at most {sys.float_info.max:.4g})"
+
+
 def plain(v: Any) -> Any:
     if isinstance(v, tuple):
         return [plain(x) for x in v]
@@ -250,7 +262,10 @@ def coerce(raw: Any, current: Any, is_angle: bool, where: str) -> Any:
     if isinstance(current, float):
         if isinstance(raw, bool) or not isinstance(raw, (int, float)):
             raise ConfigError(f"{where} must be a number, got {raw!r}")
-        return math.radians(raw) if is_angle else float(raw)
+        try:
+            return math.radians(raw) if is_angle else float(raw)
+        except OverflowError:
+            raise ConfigError(f"{where} is too large: {_short(raw)}") from None
     if isinstance(current, str):
         if not isinstance(raw, str):
             raise ConfigError(f"{where} must be a string, got {raw!r}")
@@ -285,13 +300,23 @@ def read_toml(path: str | Path) -> dict[str, Any]:
     """The parsed TOML file; errors name the file."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        data = p.read_bytes()
     except OSError as exc:
         raise ConfigError(f"{p}: cannot read config: {exc.strerror or exc}") from None
     try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ConfigError(
+            f"{p}:{line}: not UTF-8 text (TOML files are UTF-8): byte "
+            f"0x{data[exc.start]:02x} at offset {exc.start}"
+        ) from None
+    try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{p}: invalid TOML: {exc}") from None
+        raise ConfigError(f"{p}: invalid TOML: {' '.join(str(exc).split())}") from None
+    except RecursionError:  # tomllib parses nested arrays and tables recursively
+        raise ConfigError(f"{p}: invalid TOML: arrays or tables nested too deeply") from None
 
 
 def base_for(

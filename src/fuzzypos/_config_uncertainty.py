@@ -179,18 +179,32 @@ class OdometryNoiseConfig:
     )
     in_refinement: bool = _field(
         False,
-        "once learned, the refinement's prior is the odometry's motion with its learned "
-        "covariance (carried on from the previous scan's covariance relative to the keyframe) "
-        "instead of the features' motion with the refinement section's fixed standard "
-        "deviations. Off: the noise is then learned from matches the prior has pulled toward "
-        "the odometry, and it shrinks to its floor (a feedback loop)",
+        "once learned, the refinement's prior is everywhere the odometry's motion with its "
+        "learned covariance (carried on from the previous scan's covariance relative to the "
+        "keyframe) instead of the features' motion with the refinement section's fixed "
+        "standard deviations. Off: on odometry poorer than matching, whose errors have heavy "
+        "tails the learned median does not see, the prior pulls wrong at the bad increments "
+        "(bench_switches.py shows it on the shared logs); trust_where_better turns it on "
+        "where it helps",
     )
     calibrate: bool = _field(
         False,
-        "calibrate the odometry's scale and rotation factor online (least squares of the "
-        "matched against the odometry's motion over confident matches) and correct the prior "
-        "with them. Off: per-scan increments from keyframe fits are biased short (each fit is "
-        "held toward its prior), so the factors run to their bounds on real logs",
+        "correct the prior everywhere by the odometry's scale and rotation factor, "
+        "calibrated online (least squares of the scan's own motion against the odometry's "
+        "over confident matches). Off: where the odometry is the poorer, its noise dilutes "
+        "the regression (the factors run to their bounds on the shared logs); "
+        "trust_where_better turns it on where the regression is sound",
+    )
+    trust_where_better: bool = _field(
+        True,
+        "where the learned odometry is more precise than the matches (per unit of travel, in "
+        "translation and rotation), the refinement's prior is the learned odometry "
+        "(in_refinement) corrected by the calibration (calibrate): the scan then adds what "
+        "it knows to odometry better than itself, and the regression of the scan's motion "
+        "on the odometry's is sound. Off: the increments are the scans' where the odometry "
+        "is ten times more precise step by step. The price: an odometry precise but biased "
+        "(slip, skid) passes for better, and its bias can drift the trajectory a little, "
+        "which a random walk does not model (bench_sim_kinds.py compares both)",
     )
     max_calibration: float = _field(
         0.05,

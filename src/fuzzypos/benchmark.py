@@ -112,6 +112,7 @@ def _run_config(
             log,
             Config.preset(config),
             results_dir=folder,
+            overwrite=True,  # the benchmark's own folder, from its last run
             progress=cb,
             max_scans=max_scans,
             preset=config,
@@ -212,7 +213,8 @@ def run_benchmark(
     score each against the log's relations.
 
     Per log ``L`` (its file name), ``out_dir/L/paper/`` and ``out_dir/L/default/`` are
-    :func:`~fuzzypos.run.run_log` results folders (with ``summary["relations"]``) and
+    :func:`~fuzzypos.run.run_log` results folders (with ``summary["relations"]``; an earlier
+    benchmark's are cleared, ``overwrite=True``) and
     ``out_dir/L/odometry/trajectory.tum`` holds the raw odometry poses of the same scans
     (taken from the first run: the log is not read a third time). ``max_scans`` runs only
     the first scans of each log (relations outside them are unmatched, not scored).

@@ -9,16 +9,18 @@ from __future__ import annotations
 import inspect
 import json
 import math
+import re
 import time
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
 from rich.console import Console
 from rich.progress import Progress, TaskID
 from rich.table import Table
 from rich.text import Text
+from typer.core import TyperArgument, TyperCommand, TyperGroup
 
 from ._version import __version__
 from .config import Config, ConfigError
@@ -26,7 +28,38 @@ from .config import Config, ConfigError
 if TYPE_CHECKING:
     from .logs import NoReturnCount, OpenLog
 
+
+class _Plain:
+    """Flags in the help without typer's ``<bool>`` (it shows a metavar in place of the type)."""
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        params: list[Any] = super().get_params(ctx)  # type: ignore[misc]
+        for p in params:
+            if getattr(p, "is_flag", False) and p.metavar is None:
+                p.metavar = ""
+        return params
+
+
+class _Group(_Plain, TyperGroup):
+    pass
+
+
+class _Command(_Plain, TyperCommand):
+    """A command whose usage line names its arguments ``LOG``, not typer's ``{log}``."""
+
+    def collect_usage_pieces(self, ctx: Any) -> list[str]:
+        pieces = [self.options_metavar] if self.options_metavar else []
+        for p in self.get_params(ctx):
+            if isinstance(p, TyperArgument):
+                name = (p.metavar or p.name or "").upper() + ("..." if p.nargs != 1 else "")
+                pieces.append(name if p.required else f"[{name}]")
+            else:
+                pieces.extend(p.get_usage_pieces(ctx))
+        return pieces
+
+
 app = typer.Typer(
+    cls=_Group,
     add_completion=False,
     no_args_is_help=True,
     help="Fuzzy-based positioning from 2D laser scans and odometry.",
@@ -74,9 +107,9 @@ def _read_toml(path: Path) -> dict:
 
 @app.command()
 def demo(
-    out: Annotated[Path, typer.Option(help="folder for the figures and summary.json")] = Path(
-        "demo-output"
-    ),
+    out: Annotated[
+        Path, typer.Option(help="folder for the figures and summary.json", readable=False)
+    ] = Path("demo-output"),
     seed: Annotated[int, typer.Option(help="random seed of the simulation")] = 0,
     laps: Annotated[float, typer.Option(help="laps of the 4 m circle")] = 2.0,
 ) -> None:
@@ -129,9 +162,12 @@ def demo(
 @app.command()
 def simulate(
     out: Annotated[
-        Path, typer.Option("--out", "-o", help="the CARMEN log to write (.gz: gzipped)")
+        Path,
+        typer.Option("--out", "-o", help="the CARMEN log to write (.gz: gzipped)", readable=False),
     ],
-    tum: Annotated[Path | None, typer.Option(help="also write the true trajectory as TUM")] = None,
+    tum: Annotated[
+        Path | None, typer.Option(help="also write the true trajectory as TUM", readable=False)
+    ] = None,
     world: Annotated[
         str,
         typer.Option(help="gym, office, furnished_room, rectangular_room, or a world file"),
@@ -191,7 +227,7 @@ def simulate(
 
 
 _PRESET = typer.Option(help="base configuration: default or paper")
-_CONFIG_FILE = typer.Option("--config", help="TOML file overriding keys")
+_CONFIG_FILE = typer.Option("--config", help="TOML file overriding keys", readable=False)
 
 
 @app.command()
@@ -212,43 +248,6 @@ def config(
     typer.echo(cfg.to_toml())
 
 
-@app.command("plot-scan")
-def plot_scan(
-    log: Annotated[Path, typer.Argument(help="a CARMEN log (plain or gzipped) or a ROS1/ROS2 bag")],
-    index: Annotated[int, typer.Option("--index", "-n", help="the scan to plot, 0-based")],
-    out: Annotated[
-        Path | None,
-        typer.Option(help="folder for the figures (default: plots/<log>-scan<N>/)"),
-    ] = None,
-    preset: Annotated[str, _PRESET] = "default",
-    config_file: Annotated[Path | None, _CONFIG_FILE] = None,
-) -> None:
-    """Draw the paper's Figs. 13–18 (filtering … virtual angular points) for one scan of a log."""
-    from .features import extract_features
-    from .logs import open_log
-    from .plot import plot_feature_figures
-
-    cfg = _load_config(preset, config_file)
-    if index < 0:
-        _fail(f"--index must be 0 or more, got {index}")
-    try:
-        record, count = None, 0
-        for rec in open_log(log).records():
-            if count == index:
-                record = rec
-                break
-            count += 1
-        if record is None:
-            _fail(f"{log}: has no scan {index} (it has {count} scans)")
-        features = extract_features(record.scan, cfg)
-        folder = out if out is not None else Path("plots") / f"{log.name}-scan{index}"
-        written = plot_feature_figures(features, folder, index)
-    except (ValueError, OSError) as exc:
-        _fail(_error_text(exc))
-    for number, path in sorted(written.items()):
-        console.print(f"Fig. {number}: {path}")
-
-
 # -- real logs ------------------------------------------------------------------------------
 err_console = Console(stderr=True)
 
@@ -258,7 +257,32 @@ def _error_text(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return f"{exc.filename}: {exc.strerror}"
     text = str(exc) or type(exc).__name__
-    return " ".join(text.split())  # one line
+    return _in_flags(" ".join(text.split()))  # one line
+
+
+#: the library's argument names as the command line's flags
+_FLAG_OF = {
+    "field_of_view_deg": "--fov",
+    "max_scans": "--max-scans",
+    "scan_topic": "--scan-topic",
+    "odom_topic": "--odom-topic",
+    "max_range": "--max-range",
+    "laser_offset": "--laser-offset",
+    "convention": "--convention",
+    "odometry": "--odometry",
+    "start": "--start",
+    "end": "--end",
+}
+_LIBRARY_NAME = re.compile(
+    r"(?<![\w./\-'\"])(" + "|".join(_FLAG_OF) + r")(?:(=)(?=\S)|=|(?= must\b| \(\d))"
+)
+
+
+def _in_flags(text: str) -> str:
+    """A library message in the command line's words: ``max_scans must …`` → ``--max-scans
+    must …``, ``scan_topic='/x'`` → ``--scan-topic '/x'``, ``pass scan_topic=`` → ``pass
+    --scan-topic``: a name followed by ``=``, `` must`` or `` (<number>``."""
+    return _LIBRARY_NAME.sub(lambda m: _FLAG_OF[m[1]] + (" " if m[2] else ""), text)
 
 
 def _open(
@@ -292,6 +316,22 @@ def _open(
         _fail(_error_text(exc))
 
 
+def _kept(exc: BaseException) -> str:
+    """What a run stopped by ``exc`` kept, as the end of its one line."""
+    from .run import partial_results
+
+    kept = partial_results(exc)
+    if kept is None:
+        return "; nothing kept" if isinstance(exc, KeyboardInterrupt) else ""
+    where = (
+        f"the {kept.scans} scans before it are kept in {kept.results_dir}/ (summary.json: "
+        '"partial": true)'
+    )
+    if isinstance(exc, KeyboardInterrupt):
+        return f" at scan {kept.scans + 1}; {where}"
+    return f" (stopped at scan {kept.scans + 1}; {where})"
+
+
 def _progress() -> Progress:
     """A transient progress display on stderr, shown only on a terminal."""
     return Progress(console=err_console, transient=True, disable=not err_console.is_terminal)
@@ -316,7 +356,8 @@ def _wide() -> Console:
 
 _LOG_ARG = typer.Argument(
     help="a CARMEN log (.clf, plain or gzip), a ROS1 bag or a ROS2 bag directory; the kind is "
-    "told by content, not by name"
+    "told by content, not by name",
+    readable=False,  # the reader's own error is one line, typer's a box
 )
 _SCAN_TOPIC = typer.Option("--scan-topic", help="bags: the LaserScan topic (when several)")
 _ODOM_TOPIC = typer.Option("--odom-topic", help="bags: the Odometry topic (when several)")
@@ -346,6 +387,59 @@ _LASER_OFFSET = typer.Option(
 _JSON = typer.Option("--json", help="print JSON instead of a table")
 
 
+@app.command("plot-scan")
+def plot_scan(
+    log: Annotated[Path, _LOG_ARG],
+    index: Annotated[int, typer.Option("--index", "-n", help="the scan to plot, 0-based")],
+    out: Annotated[
+        Path | None,
+        typer.Option(help="folder for the figures (default: plots/<log>-scan<N>/)", readable=False),
+    ] = None,
+    preset: Annotated[str, _PRESET] = "default",
+    config_file: Annotated[Path | None, _CONFIG_FILE] = None,
+    scan_topic: Annotated[str | None, _SCAN_TOPIC] = None,
+    skip_bad_lines: Annotated[bool, _SKIP_BAD] = False,
+    fov: Annotated[float, _FOV] = 180.0,
+    max_range: Annotated[float | None, _MAX_RANGE] = None,
+    convention: Annotated[str, _CONVENTION] = "auto",
+) -> None:
+    """Draw the paper's Figs. 13–18 (filtering … virtual angular points) for one scan of a log.
+
+    The log is read as run and info read it (the same reader options).
+    """
+    from .features import extract_features
+    from .folders import log_label
+    from .plot import plot_feature_figures
+
+    cfg = _load_config(preset, config_file)
+    if index < 0:
+        _fail(f"--index must be 0 or more, got {index}")
+    opened = _open(
+        log,
+        scan_topic=scan_topic,
+        skip_bad_lines=skip_bad_lines,
+        fov=fov,
+        max_range=max_range,
+        convention=convention,
+    )
+    try:
+        record, count = None, 0
+        for rec in opened.records():
+            if count == index:
+                record = rec
+                break
+            count += 1
+        if record is None:
+            _fail(f"{log}: has no scan {index} (it has {count} scans)")
+        features = extract_features(record.scan, cfg)
+        folder = out if out is not None else Path("plots") / f"{log_label(log)}-scan{index}"
+        written = plot_feature_figures(features, folder, index, config=cfg)
+    except (ValueError, OSError) as exc:
+        _fail(_error_text(exc))
+    for number, path in sorted(written.items()):
+        console.print(f"Fig. {number}: {path}")
+
+
 @app.command()
 def info(
     log: Annotated[Path, _LOG_ARG],
@@ -362,7 +456,7 @@ def info(
     Reads the log once and prints its kind, scans, beam counts and angles, field of view,
     duration (first and last stamp, and how often stamps go backwards), whether it has
     odometry and truth (TRUEPOS), the malformed lines skipped, and how many readings each
-    "no return" band of ``[scanner]`` (from ``--config``) removes.
+    "no return" band of the configuration's scanner section (from --config) removes.
     """
     from .logs import describe_log
 
@@ -409,6 +503,8 @@ def info(
         fov_text = f"{result.field_of_view_deg:.3f}° (beams × increment)"
     if result.duration_s is not None:
         duration = f"{result.duration_s:.3f} s"
+    elif result.stamp_problem is not None:
+        duration = "unknown: the stamps are corrupt (see the warning)"
     rows = [
         ("kind", result.kind),
         ("scans", str(result.scans)),
@@ -420,6 +516,7 @@ def info(
         ("last stamp", stamp(result.last_stamp)),
         ("duration", duration),
         ("stamps going backwards", str(result.stamps_backwards)),
+        ("stamps repeated", str(result.stamps_repeated)),
         ("odometry", f"yes ({result.scans_with_odometry} scans)" if result.has_odometry else "no"),
         ("truth (TRUEPOS)", f"yes ({result.scans_with_truth} scans)" if result.has_truth else "no"),
         ("bad lines skipped", str(result.bad_lines) + (" (truncated)" if result.truncated else "")),
@@ -449,12 +546,24 @@ def _no_return_rows(counts: list[NoReturnCount]) -> list[tuple[str, str]]:
 def run(
     log: Annotated[Path, _LOG_ARG],
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="also write the trajectory here (TUM)")
+        Path | None,
+        typer.Option("--out", "-o", help="also write the trajectory here (TUM)", readable=False),
     ] = None,
     results: Annotated[
         Path | None,
-        typer.Option("--results", help="the results folder (default: results/<log name>/)"),
+        typer.Option(
+            "--results",
+            help="the results folder (default: a new results/<log>/<date-time>/, linked from "
+            "results/<log>/latest); one holding another run's results is refused",
+            readable=False,
+        ),
     ] = None,
+    overwrite: Annotated[
+        bool,
+        typer.Option(
+            "--overwrite", help="clear the --results folder of another run's results first"
+        ),
+    ] = False,
     preset: Annotated[str, _PRESET] = "default",
     config_file: Annotated[Path | None, _CONFIG_FILE] = None,
     start: Annotated[
@@ -489,6 +598,7 @@ def run(
             help="also write the estimate into this new bag: nav_msgs/Odometry on "
             "/fuzzypos/odom and /tf (a name ending .bag: ROS1, else a ROS2 directory); "
             "an existing path is refused",
+            readable=False,
         ),
     ] = None,
     bag_storage: Annotated[
@@ -498,15 +608,17 @@ def run(
 ) -> None:
     """Position the robot along a log and write a results folder.
 
-    The folder (default results/<log name>/) gets trajectory.tum (one pose per scan, stamped
-    as in the log, in file order), trajectory.clf (the log with the estimate as FLASER's pose
-    and the odometry kept), config.toml, path.png (path, odometry and map) and summary.json
-    (versions, input hash, scans, degraded scans, odometry jumps, speed, errors against the
-    log's truth where it has some), and covariance.csv (each increment's covariance).
+    The folder (default a new results/<log>/<date-time>/) gets trajectory.tum (one pose per
+    scan, stamped as in the log, in file order), trajectory.clf (the log with the estimate
+    as FLASER's or ROBOTLASER1's pose and the odometry kept), config.toml, path.png (path,
+    odometry and map) and summary.json (versions, input hash, scans, degraded scans,
+    odometry jumps, speed, errors against the log's truth where it has some), and
+    covariance.csv (each increment's covariance).
     --bag-out also writes the estimate with its covariance into a bag. Prints the scan rate
-    and where the results are.
+    and where the results are. A run stopped by an error or Ctrl-C keeps the scans done,
+    marked "partial" in summary.json.
     """
-    from .run import default_results_dir, run_log
+    from .run import run_log
 
     cfg = _load_config(preset, config_file)
     opened = _open(
@@ -520,7 +632,6 @@ def run(
         max_range=max_range,
         convention=convention,
     )
-    folder = results if results is not None else default_results_dir(log)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -533,7 +644,8 @@ def run(
                 summary = run_log(
                     opened,
                     cfg,
-                    results_dir=folder,
+                    results_dir=results,
+                    overwrite=overwrite,
                     out_tum=out,
                     progress=report,
                     start=start,
@@ -544,8 +656,11 @@ def run(
                     bag_out=bag_out,
                     bag_storage=bag_storage,
                 )
+    except KeyboardInterrupt as exc:
+        typer.echo(f"fuzzypos: interrupted{_kept(exc)}", err=True)
+        raise typer.Exit(code=130) from None
     except (ValueError, OSError) as exc:
-        _fail(_error_text(exc))
+        _fail(_error_text(exc) + _kept(exc))
     _print_warnings(caught)
     s = summary.summary
     bad = f", {s['bad_lines_skipped']} bad lines skipped" if s["bad_lines_skipped"] else ""
@@ -564,7 +679,7 @@ def run(
     for note in summary.notes:
         typer.echo(f"note: {note}")
     typer.echo(
-        f"results in {folder}/"
+        f"results in {summary.results_dir}/"
         + (f"; trajectory also in {out}" if out else "")
         + (f"; odometry bag in {bag_out}" if bag_out else "")
     )
@@ -572,12 +687,19 @@ def run(
 
 @app.command()
 def evaluate(
-    estimate: Annotated[Path, typer.Argument(help="the estimated trajectory (TUM)")],
+    estimate: Annotated[
+        Path, typer.Argument(help="the estimated trajectory (TUM)", readable=False)
+    ],
     relations: Annotated[
         Path | None,
-        typer.Option(help="a relations file (t1 t2 x y z roll pitch yaw per line) of the log"),
+        typer.Option(
+            help="a relations file (t1 t2 x y z roll pitch yaw per line) of the log",
+            readable=False,
+        ),
     ] = None,
-    reference: Annotated[Path | None, typer.Option(help="a reference trajectory (TUM)")] = None,
+    reference: Annotated[
+        Path | None, typer.Option(help="a reference trajectory (TUM)", readable=False)
+    ] = None,
     json_out: Annotated[bool, _JSON] = False,
 ) -> None:
     """Score a trajectory against relations and/or a reference trajectory.
@@ -630,10 +752,14 @@ def benchmark(
             envvar="FUZZYPOS_DATA",
             help="folder searched for NAME.relations with NAME.clf.gz, NAME.clf or NAME.bag "
             "next to it",
+            readable=False,
         ),
     ] = Path("../shared/data"),
     out: Annotated[
-        Path, typer.Option("--out", help="folder for benchmark.json and the runs' results")
+        Path,
+        typer.Option(
+            "--out", help="folder for benchmark.json and the runs' results", readable=False
+        ),
     ] = Path("results/benchmark"),
     max_scans: Annotated[
         int | None, typer.Option("--max-scans", help="run only the first N scans of each log")
@@ -729,6 +855,8 @@ def _unwrap(doc: str) -> str:
 for _command in app.registered_commands:  # every command's help from its docstring, unwrapped
     if _command.help is None and _command.callback is not None and _command.callback.__doc__:
         _command.help = _unwrap(_command.callback.__doc__)
+    if _command.cls in (None, TyperCommand):
+        _command.cls = _Command
 
 
 def main() -> None:  # pragma: no cover - console entry point

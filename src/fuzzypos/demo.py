@@ -13,16 +13,29 @@ import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .config import Config
 from .evaluation import TrajectoryErrors, position_errors, trajectory_errors
-from .features import extract_features
+from .features import Features, extract_features
 from .pipeline import Positioner
 from .sim import CommandedPath, ScannerModel, SimulatedRun, SlipModel, gym, simulate_run
 
-__all__ = ["DemoSettings", "DemoResult", "simulate_gym_circle", "run_demo", "FEATURE_SCAN_INDEX"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "FEATURE_SCAN_INDEX",
+    "DemoResult",
+    "DemoSettings",
+    "errors_figure",
+    "feature_scan",
+    "paths_figure",
+    "run_demo",
+    "simulate_gym_circle",
+]
 
 FEATURE_SCAN_INDEX = 24  # the paper's 25th scan (Figs. 13–18), 0-based
 PRESETS = ("paper", "default")
@@ -81,6 +94,44 @@ def _estimate(
     return poses, degraded
 
 
+def feature_scan(run: SimulatedRun) -> Features:
+    """The features of the scan of Figs. 13–18 (the paper's 25th), with the default config."""
+    return extract_features(run.scans[min(FEATURE_SCAN_INDEX, len(run) - 1)], Config())
+
+
+def paths_figure(
+    run: SimulatedRun, estimates: dict[str, np.ndarray], path: Path | None = None
+) -> Figure:
+    """Fig. 19: the true path, odometry and each preset's estimate in the gym."""
+    from . import plot  # matplotlib only when figures are made
+
+    return plot.plot_paths(
+        run.true_poses,
+        run.odometry_poses,
+        estimates,
+        path=path,
+        world=run.world,
+        title="Fig. 19 — true path, odometry and fuzzy-based positioning",
+    )
+
+
+def errors_figure(
+    run: SimulatedRun, estimates: dict[str, np.ndarray], path: Path | None = None
+) -> Figure:
+    """Fig. 20: the position error of odometry and each preset against distance travelled."""
+    from . import plot
+
+    truth = run.true_poses
+    curves = {"odometry": position_errors(truth, run.odometry_poses)[0]}
+    curves.update({name: position_errors(truth, poses)[0] for name, poses in estimates.items()})
+    return plot.plot_errors_vs_distance(
+        run.distance_travelled,
+        curves,
+        path=path,
+        title="Fig. 20 — position error against distance travelled",
+    )
+
+
 def run_demo(
     out_dir: str | Path,
     settings: DemoSettings = DemoSettings(),
@@ -102,33 +153,18 @@ def run_demo(
     errors = {"odometry": trajectory_errors(truth, odometry, 0)}
     for name in PRESETS:
         errors[name] = trajectory_errors(truth, estimates[name], degraded[name])
-    distance = run.distance_travelled
 
     files: dict[str, Path] = {}
     index = min(FEATURE_SCAN_INDEX, len(run) - 1)
-    features = extract_features(run.scans[index], Config())
-    for number, path in plot.plot_feature_figures(features, out, index).items():
+    figures = plot.plot_feature_figures(feature_scan(run), out, index, config=Config())
+    for number, path in figures.items():
         files[f"fig{number}"] = path
     files["fig19"] = out / "fig19_paths.png"
-    plot.plot_paths(
-        truth,
-        odometry,
-        estimates,
-        path=files["fig19"],
-        world=run.world,
-        title="Fig. 19 — true path, odometry and fuzzy-based positioning",
-    )
-    curves = {"odometry": position_errors(truth, odometry)[0]}
-    curves.update({name: position_errors(truth, estimates[name])[0] for name in PRESETS})
+    paths_figure(run, estimates, files["fig19"])
     files["fig20"] = out / "fig20_position_error.png"
-    plot.plot_errors_vs_distance(
-        distance,
-        curves,
-        path=files["fig20"],
-        title="Fig. 20 — position error against distance travelled",
-    )
+    errors_figure(run, estimates, files["fig20"])
     summary: dict[str, object] = {
-        "distance_travelled_m": float(distance[-1]),
+        "distance_travelled_m": float(run.distance_travelled[-1]),
         "scans": len(run),
         "odometry": errors["odometry"].as_dict(),
         "paper": errors["paper"].as_dict(),

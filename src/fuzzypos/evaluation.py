@@ -1,6 +1,8 @@
 """Scoring trajectories against ground truth.
 
-Pure, vectorised functions over ``(n, 3)`` pose arrays ``[x, y, θ]`` (θ in radians).
+Pure, vectorised functions over ``(n, 3)`` pose arrays ``[x, y, θ]`` (θ in radians); a
+sequence of :class:`~fuzzypos.geometry.Pose2D` (e.g. ``[est.pose for est in estimates]``) is
+taken wherever such an array is. Anything else raises :class:`EvaluationError`.
 
 - :func:`position_errors`, :func:`trajectory_errors`: pose by pose, the same scans in both.
 - :func:`relations_errors`: the relations metric of the Freiburg SLAM benchmark (Kümmerle et
@@ -22,16 +24,19 @@ among equal (duplicate) stamps, the first in the given order wins. A match furth
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .geometry import compose, relative, rotation_matrix, wrap_angle
+from .geometry import Pose2D, compose, relative, rotation_matrix, wrap_angle
 from .io.relations import Relations
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
+#: poses as an ``(n, 3)`` array ``[x, y, θ]`` or a sequence of :class:`Pose2D`
+Poses = ArrayLike | Sequence[Pose2D]
 
 __all__ = [
     "DEFAULT_ASSOCIATION_GAP",
@@ -70,8 +75,19 @@ class EvaluationError(ValueError):
     """Trajectories that cannot be compared (shapes, lengths, non-finite values)."""
 
 
-def _poses(name: str, a: ArrayLike) -> FloatArray:
-    arr = np.asarray(a, dtype=float)
+def _poses(name: str, a: Poses) -> FloatArray:
+    """``a`` as an ``(n, 3)`` float array: an array-like of poses or a sequence of Pose2D."""
+    if isinstance(a, Pose2D):
+        raise EvaluationError(f"{name} must be a sequence of poses, got a single Pose2D")
+    if isinstance(a, (list, tuple)) and any(isinstance(p, Pose2D) for p in a):
+        a = [p.as_array() if isinstance(p, Pose2D) else p for p in a]
+    try:
+        arr = np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise EvaluationError(
+            f"{name} must be an (n, 3) array of poses (x, y, θ) or a sequence of Pose2D, got "
+            f"{type(a).__name__} ({' '.join(str(exc).split())})"
+        ) from None
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise EvaluationError(f"{name} must be an (n, 3) array of poses, got shape {arr.shape}")
     if not np.isfinite(arr).all():
@@ -79,14 +95,14 @@ def _poses(name: str, a: ArrayLike) -> FloatArray:
     return arr
 
 
-def distance_along(poses: ArrayLike) -> FloatArray:
+def distance_along(poses: Poses) -> FloatArray:
     """Cumulative distance travelled along a path, (n,), starting at 0."""
     p = _poses("poses", poses)
     steps = np.hypot(np.diff(p[:, 0]), np.diff(p[:, 1]))
     return np.concatenate([[0.0], np.cumsum(steps)])
 
 
-def position_errors(truth: ArrayLike, estimate: ArrayLike) -> tuple[FloatArray, FloatArray]:
+def position_errors(truth: Poses, estimate: Poses) -> tuple[FloatArray, FloatArray]:
     """Per pose: the position error (m) and the absolute heading error (rad)."""
     t = _poses("truth", truth)
     e = _poses("estimate", estimate)
@@ -111,9 +127,7 @@ class TrajectoryErrors:
         return asdict(self)
 
 
-def trajectory_errors(
-    truth: ArrayLike, estimate: ArrayLike, scans_degraded: int = 0
-) -> TrajectoryErrors:
+def trajectory_errors(truth: Poses, estimate: Poses, scans_degraded: int = 0) -> TrajectoryErrors:
     """Final, mean and maximum position error and mean heading error of ``estimate``."""
     d, h = position_errors(truth, estimate)
     if d.size == 0:
@@ -172,7 +186,13 @@ def _flat(prefix: str, unit: str, st: ErrorStatistics) -> dict[str, float]:
 
 # -- matching by timestamp -----------------------------------------------------------------
 def _stamps(name: str, a: ArrayLike, n: int | None = None) -> FloatArray:
-    arr = np.asarray(a, dtype=float)
+    try:
+        arr = np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise EvaluationError(
+            f"{name} must be an (n,) array of timestamps, got {type(a).__name__} "
+            f"({' '.join(str(exc).split())})"
+        ) from None
     if arr.ndim != 1:
         raise EvaluationError(f"{name} must be an (n,) array of timestamps, got shape {arr.shape}")
     if not np.isfinite(arr).all():
@@ -328,7 +348,7 @@ class RelationsErrors:
 
 def relations_errors(
     stamps: ArrayLike,
-    poses: ArrayLike,
+    poses: Poses,
     relations: Relations,
     *,
     local_max_dt: float = 10.0,
@@ -482,9 +502,9 @@ class AbsoluteTrajectoryError:
 
 def absolute_trajectory_error(
     ref_stamps: ArrayLike,
-    ref_poses: ArrayLike,
+    ref_poses: Poses,
     est_stamps: ArrayLike,
-    est_poses: ArrayLike,
+    est_poses: Poses,
     *,
     align: bool = True,
     max_stamp_gap: float = DEFAULT_ASSOCIATION_GAP,
@@ -587,9 +607,9 @@ class RelativePoseError:
 
 def relative_pose_error(
     ref_stamps: ArrayLike,
-    ref_poses: ArrayLike,
+    ref_poses: Poses,
     est_stamps: ArrayLike,
-    est_poses: ArrayLike,
+    est_poses: Poses,
     *,
     delta: float = 1,
     delta_unit: str = "frames",

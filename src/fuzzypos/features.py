@@ -22,6 +22,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from ._kernels import compiled
 from .config import Config, FuzzyConfig
 from .fuzzy import RuleBases
 from .geometry import stack_columns, transform_points
@@ -38,8 +39,7 @@ from .segmentation import (
     filter_points,
     gap_thresholds,
     point_uncertainty,
-    raw_segment_ids,
-    segments,
+    segment_ids,
 )
 
 FloatArray = NDArray[np.float64]
@@ -259,6 +259,65 @@ def fit_lines(
     fit, valid for vertical and horizontal walls alike); endpoints are the projections of the
     segment's extreme points (joined at angular points later, see :func:`join_at_corners`).
     """
+    if compiled():
+        return _fit_lines_compiled(points, uncertainty, segment, cluster, bases, cfg)
+    return _fit_lines_numpy(points, uncertainty, segment, cluster, bases, cfg)
+
+
+def _fit_lines_compiled(
+    points: FloatArray,
+    uncertainty: FloatArray,
+    segment: IntArray,
+    cluster: IntArray,
+    bases: RuleBases,
+    cfg: Config,
+) -> Lines:
+    """:func:`fit_lines` with the fits in one compiled loop (``_kernels.segmentation``)."""
+    from ._kernels.segmentation import finish_lines, segment_sums
+
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    seg = np.ascontiguousarray(segment, dtype=np.int64)
+    sums, first, last = segment_sums(p, np.ascontiguousarray(uncertainty, dtype=np.float64), seg)
+    if sums.shape[0] == 0:
+        return _empty_lines()
+    # the principal direction φ of each scatter (numpy's trigonometry, as the reference's)
+    phi = 0.5 * np.arctan2(2.0 * sums[:, 5], sums[:, 3] - sums[:, 4])
+    normal = stack_columns(-np.sin(phi), np.cos(phi))
+    ids, table, firsts = finish_lines(
+        p, seg, sums, first, last, normal, int(cfg.lines.min_points),
+        float(cfg.lines.min_length), _MIN_LINE_NOISE,
+    )  # fmt: skip
+    if ids.size == 0:
+        return _empty_lines()
+    start, end = table[:, 3:5].copy(), table[:, 5:7].copy()
+    sigma, delta = table[:, 7].copy(), table[:, 8].copy()
+    return Lines(
+        normal=table[:, 0:2].copy(),
+        distance=table[:, 2].copy(),
+        start=start,
+        end=end,
+        centre=0.5 * (start + end),
+        n_points=table[:, 11].astype(np.int64),
+        sigma=sigma,
+        delta=delta,
+        uncertainty=bases.lines(delta, sigma),  # eq. 9 / Table 2
+        segment=ids,
+        cluster=cluster[firsts],
+        angle_variance=table[:, 9].copy(),
+        distance_variance=table[:, 10].copy(),
+    )
+
+
+def _fit_lines_numpy(
+    points: FloatArray,
+    uncertainty: FloatArray,
+    segment: IntArray,
+    cluster: IntArray,
+    bases: RuleBases,
+    cfg: Config,
+) -> Lines:
+    """:func:`fit_lines` in numpy, per-segment sums by ``np.bincount`` (the compiled kernel's
+    reference)."""
     used = segment >= 0
     if not used.any():
         return _empty_lines()
@@ -363,6 +422,22 @@ def join_at_corners(
     none = np.zeros(0, dtype=np.int64)
     if m == 0 or len(lines) < 2:
         return lines, xy, ok, none, none, np.zeros(0)
+    if compiled():
+        from ._kernels.segmentation import join_at_corners as kernel
+
+        have_any, start, end, centre, xy, ok, ia, ib, dv = kernel(
+            np.ascontiguousarray(lines.normal, dtype=np.float64),
+            np.ascontiguousarray(lines.distance, dtype=np.float64),
+            np.ascontiguousarray(lines.start, dtype=np.float64),
+            np.ascontiguousarray(lines.end, dtype=np.float64),
+            np.ascontiguousarray(lines.segment, dtype=np.int64),
+            np.ascontiguousarray(corner_segment_before, dtype=np.int64),
+            np.ascontiguousarray(corner_segment_after, dtype=np.int64),
+            math.sin(cfg.virtual_points.min_intersection_angle),
+        )
+        if not have_any:
+            return lines, xy, ok, none, none, np.zeros(0)
+        return replace(lines, start=start, end=end, centre=centre), xy, ok, ia, ib, dv
     a, b = _lines_around_corners(lines, corner_segment_before, corner_segment_after)
     have = (a >= 0) & (b >= 0)
     if not have.any():
@@ -505,10 +580,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
         is_corner[0] = True  # the seam of a gapless ring sits on its sharpest corner
 
     # 6. lines (§3.5, eq. 5–9)
-    raw_seg = raw_segment_ids(cluster, is_corner) if kp.shape[0] else np.zeros(0, dtype=np.int64)
-    segment = segments(
-        cluster, is_corner, cfg.lines.corner_exclusion, ring=ring_corner, raw=raw_seg
-    )
+    raw_seg, segment = segment_ids(cluster, is_corner, cfg.lines.corner_exclusion, ring_corner)
     lines = fit_lines(kp, ku, segment, cluster, bases, cfg)
     corner_idx = is_corner.nonzero()[0]
     n_kept = kp.shape[0]

@@ -15,7 +15,14 @@
   "Text" means: the first 8 KiB (decompressed, for gzip) hold no NUL byte and decode as UTF-8
   (a multi-byte character cut at the end of the 8 KiB is allowed). An empty file is text (a
   CARMEN log without scans). A path that does not exist raises :class:`FileNotFoundError`.
+  A pipe or FIFO (``<(zcat log.clf.gz)``, ``/dev/stdin``), which can be read only once, is
+  first copied into a temporary file (:class:`~fuzzypos.io._common.Spool`: it is
+  :attr:`OpenLog.path`, shown everywhere by the name given, and removed with the log), so
+  that sniffing, counting, reading and hashing all see the whole of it.
 - :func:`select_records` picks a stretch of a record stream by time and count, streaming.
+- :class:`StampCheck` judges how a log's scan stamps run; :meth:`OpenLog.check_stamps`
+  refuses a log whose stamps cannot give the time between its scans (:class:`StampError`)
+  before anything is positioned.
 - :func:`describe_log` reads a whole log once and summarises it (:class:`LogInfo`).
 - :func:`parse_laser_offset` reads the command line's ``x,y,θdeg``.
 
@@ -29,15 +36,19 @@ import errno
 import gzip
 import math
 import os
+import warnings
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Union
+from typing import Any, TypeVar, Union
+
+import numpy as np
 
 from .config import ScannerConfig
 from .geometry import Pose2D
 from .io import GZIP_MAGIC, BagReader, CarmenReader, LogFormatError, LogRecord
+from .io._common import display_name, spool_if_stream
 from .io.rosbag import ROS1_MAGIC
 from .scan import LaserScan, no_return_counts
 
@@ -47,12 +58,15 @@ __all__ = [
     "NoReturnCount",
     "OpenLog",
     "SelectionError",
+    "StampCheck",
+    "StampError",
     "UnknownLogError",
     "describe_log",
     "log_kind",
     "open_log",
     "parse_laser_offset",
     "select_records",
+    "select_stamps",
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -80,6 +94,11 @@ class UnknownLogError(LogFormatError):
 
 class SelectionError(ValueError):
     """A bad ``start`` / ``end`` / ``max_scans`` (or ``--laser-offset``) argument."""
+
+
+class StampError(LogFormatError):
+    """A log whose scan stamps cannot give the time between its scans (most of them repeat or
+    go back on the stamp before them): ``"<path>: …"``, from :meth:`OpenLog.check_stamps`."""
 
 
 # -- telling the kind ----------------------------------------------------------------------
@@ -150,7 +169,9 @@ def log_kind(path: PathLike) -> str:
 class OpenLog:
     """A log opened by :func:`open_log`.
 
-    ``path`` as given; ``kind``: ``"carmen"``, ``"ros1"`` or ``"ros2"``; ``reader``: the
+    ``path`` as given (for a pipe, its :class:`~fuzzypos.io._common.Spool`, which opens as
+    the copy and reads as the name given); ``kind``: ``"carmen"``, ``"ros1"`` or ``"ros2"``;
+    ``reader``: the
     :class:`~fuzzypos.io.CarmenReader` or :class:`~fuzzypos.io.BagReader` (its counters,
     e.g. ``bad_lines``, are those of the latest :meth:`records` pass); ``notes``: what the
     reader assumed or found odd, and the options that do not apply to this kind of log, as
@@ -163,9 +184,11 @@ class OpenLog:
     notes: list[str] = field(default_factory=list)
     options: dict[str, Any] = field(default_factory=dict)
 
+    _stamps: Any = field(default=None, init=False, repr=False)
+
     @property
     def name(self) -> str:
-        return os.fspath(self.path)
+        return display_name(self.path)
 
     def records(self) -> Iterator[LogRecord]:
         """Stream the log's records in file (bag) order; each call reads the log again."""
@@ -186,24 +209,53 @@ class OpenLog:
 
     def scan_count_hint(self) -> int | None:
         """The number of scans, when known without reading the scans: a bag's index; for a
-        CARMEN log a quick count of its ``FLASER`` / ``ROBOTLASER1`` lines (malformed ones
-        included). None when it cannot be had."""
+        CARMEN log a quick count of its ``FLASER`` / ``ROBOTLASER1`` lines with a stamp
+        (:meth:`scan_stamps`). None when it cannot be had."""
         if isinstance(self.reader, BagReader):
             return int(self.reader.scan_count)
         try:
-            count = 0
-            opener: Callable[..., Any] = gzip.open if self._gzipped() else open
-            with opener(self.path, "rb") as fh:
-                for line in fh:
-                    if line.startswith((b"FLASER ", b"ROBOTLASER1 ")):
-                        count += 1
-            return count
-        except (OSError, EOFError, zlib.error):
+            return int(self.scan_stamps().shape[0])
+        except OSError:
             return None
 
-    def _gzipped(self) -> bool:
-        with open(self.path, "rb") as f:
-            return f.read(2) == GZIP_MAGIC
+    def scan_stamps(self) -> np.ndarray:
+        """Every scan's stamp in file (bag) order, read without parsing the scans (read-only;
+        the first call reads them, :meth:`CarmenReader.scan_stamps` /
+        :meth:`BagReader.scan_stamps`)."""
+        if self._stamps is None:
+            self._stamps = self.reader.scan_stamps()
+        return self._stamps  # type: ignore[no-any-return]
+
+    def check_stamps(
+        self,
+        *,
+        start: float | None = None,
+        end: float | None = None,
+        max_scans: int | None = None,
+    ) -> StampCheck:
+        """Judge the stamps of the scans a run of this stretch (:func:`select_records`'s
+        ``start``, ``end``, ``max_scans``) would position, before positioning any.
+
+        The positioner needs the time between scans (the odometry is judged against what a
+        robot can move in it). Raises :class:`StampError`, naming the log and how many scans
+        are affected, when the stamps are :attr:`StampCheck.unusable` (most scans repeat or
+        go back on the stamp before them: a corrupt log, which would run for ages with every
+        odometry increment rejected); a lesser problem (some repeated stamps, an absurd jump)
+        is a :class:`RuntimeWarning` naming the log. A few bad stamps in a long log lose
+        nothing: the positioner falls back per scan."""
+        chosen = select_stamps(self.scan_stamps(), start=start, end=end, max_scans=max_scans)
+        check = StampCheck.of(chosen)
+        if check.unusable:
+            raise StampError(
+                self.path,
+                0,
+                f"{check.remark()}; fuzzypos needs the time between scans to judge the "
+                f"odometry (see `fuzzypos info {self.name}`)",
+            )
+        remark = check.remark()
+        if remark is not None:
+            warnings.warn(f"{self.name}: {remark}", RuntimeWarning, stacklevel=2)
+        return check
 
 
 def open_log(
@@ -234,6 +286,7 @@ def open_log(
     """
     if laser_offset is not None and not isinstance(laser_offset, Pose2D):
         raise TypeError(f"laser_offset must be a Pose2D or None, got {type(laser_offset).__name__}")
+    path = spool_if_stream(path)  # a pipe can be read once: copy it, read the copy
     kind = log_kind(path)
     notes: list[str] = []
     options: dict[str, Any] = {
@@ -328,6 +381,28 @@ def select_records(
     ``end`` must be finite and ``>= 0`` with ``end >= start``; ``max_scans`` an integer
     ``>= 1``; otherwise :class:`SelectionError` (raised here, not at the first ``next()``).
     """
+    s, e = _selection(start, end, max_scans)
+    return _select(iter(records), s, e, max_scans, _record_stamp)
+
+
+def select_stamps(
+    stamps: Iterable[float],
+    *,
+    start: float | None = None,
+    end: float | None = None,
+    max_scans: int | None = None,
+) -> np.ndarray:
+    """The stamps of the records :func:`select_records` would pick from records stamped
+    ``stamps`` (same arguments, same rules, same errors), as an array."""
+    s, e = _selection(start, end, max_scans)
+    chosen = _select(iter(stamps), s, e, max_scans, float)
+    return np.fromiter(chosen, dtype=np.float64)
+
+
+def _selection(
+    start: float | None, end: float | None, max_scans: int | None
+) -> tuple[float, float | None]:
+    """``start`` (0 for None) and ``end`` checked, and ``max_scans``; SelectionError else."""
     s = _seconds("start", start)
     e = _seconds("end", end)
     if s is not None and e is not None and e < s:
@@ -337,17 +412,28 @@ def select_records(
             raise SelectionError(f"max_scans must be a whole number, got {max_scans!r}")
         if max_scans < 1:
             raise SelectionError(f"max_scans must be at least 1, got {max_scans}")
-    return _select(iter(records), s or 0.0, e, max_scans)
+    return s or 0.0, e
+
+
+def _record_stamp(rec: LogRecord) -> float:
+    return rec.scan.stamp
+
+
+_T = TypeVar("_T")
 
 
 def _select(
-    it: Iterator[LogRecord], start: float, end: float | None, max_scans: int | None
-) -> Iterator[LogRecord]:
+    it: Iterator[_T],
+    start: float,
+    end: float | None,
+    max_scans: int | None,
+    stamp_of: Callable[[_T], float],
+) -> Iterator[_T]:
     t0: float | None = None
     begun = False
     count = 0
     for rec in it:
-        stamp = rec.scan.stamp
+        stamp = stamp_of(rec)
         if t0 is None:
             t0 = stamp
         rel = stamp - t0
@@ -361,6 +447,91 @@ def _select(
         count += 1
         if max_scans is not None and count >= max_scans:
             return
+
+
+# -- judging the stamps ----------------------------------------------------------------------
+#: consecutive scans (in file order) further apart than this (s) are an absurd jump: no robot
+#: log runs a day without a scan; stamps in other units than seconds, or corrupt ones, do
+ABSURD_GAP_S = 86400.0
+
+
+@dataclass
+class StampCheck:
+    """How the stamps of a log's scans run, in file order (:meth:`add` them one at a time, or
+    :meth:`of` a sequence).
+
+    ``scans``; ``repeated``: scans stamped the same as the scan before them; ``backwards``:
+    scans stamped before it (intel: 631 of 13,631, two hosts' clocks; harmless);
+    ``largest_gap_s``: the longest step forward between consecutive scans, ``largest_gap_at``
+    the 0-based index of the scan after it.
+    """
+
+    scans: int = 0
+    repeated: int = 0
+    backwards: int = 0
+    largest_gap_s: float = 0.0
+    largest_gap_at: int = 0
+    _prev: float | None = field(default=None, init=False, repr=False, compare=False)
+
+    @classmethod
+    def of(cls, stamps: Iterable[float]) -> StampCheck:
+        check = cls()
+        for t in stamps:
+            check.add(float(t))
+        return check
+
+    def add(self, t: float) -> None:
+        prev = self._prev
+        if prev is not None:
+            if t == prev:
+                self.repeated += 1
+            elif t < prev:
+                self.backwards += 1
+            elif t - prev > self.largest_gap_s:
+                self.largest_gap_s = t - prev
+                self.largest_gap_at = self.scans
+        self._prev = t
+        self.scans += 1
+
+    @property
+    def unusable(self) -> bool:
+        """Whether most scans after the first (more than half, of at least 3 scans) repeat or
+        go back on the stamp before them: the stamps cannot give the time between scans."""
+        return self.scans >= 3 and 2 * (self.repeated + self.backwards) > self.scans - 1
+
+    @property
+    def absurd_gap(self) -> bool:
+        """Whether two consecutive scans are more than :data:`ABSURD_GAP_S` apart."""
+        return self.largest_gap_s > ABSURD_GAP_S
+
+    @property
+    def corrupt(self) -> bool:
+        """:attr:`unusable` or :attr:`absurd_gap`: the log's duration means nothing."""
+        return self.unusable or self.absurd_gap
+
+    def remark(self) -> str | None:
+        """What is wrong with the stamps, as a sentence (None when nothing is): most scans
+        out of order, an absurd jump, or scans that repeat the stamp before them. Stamps
+        that go backwards now and then are left unsaid (``backwards`` counts them)."""
+        n, rep, back = self.scans, self.repeated, self.backwards
+        if self.unusable:
+            return (
+                f"the scans' stamps are corrupt: {rep + back:,} of {n:,} scans repeat or go back "
+                f"on the stamp of the scan before them ({rep:,} repeat it, {back:,} go back)"
+            )
+        if self.absurd_gap:
+            k = self.largest_gap_at
+            return (
+                f"the scans' stamps jump forward by {self.largest_gap_s:.6g} s between scans "
+                f"{k - 1:,} and {k:,} (counting from 0): stamps that are not seconds, or corrupt"
+                + (f"; {rep:,} of {n:,} scans repeat the stamp before them" if rep else "")
+            )
+        if rep:
+            return (
+                f"{rep:,} of {n:,} scans repeat the stamp of the scan before them: their "
+                "odometry is judged over 0 s"
+            )
+        return None
 
 
 # -- the command line's laser offset ----------------------------------------------------------
@@ -407,8 +578,12 @@ class LogInfo:
     last beam's angle (degrees, over all scans); ``field_of_view_deg``: ``n·|increment|`` (the
     largest over the scans; each beam covers one increment); ``first_stamp`` /
     ``last_stamp``: of the first and last scan in file order, ``duration_s`` their
-    difference; ``min_stamp`` / ``max_stamp``; ``stamps_backwards``: how often a scan's stamp
-    is below the previous one's; ``scans_with_odometry`` / ``scans_with_truth``;
+    difference (None when the stamps are corrupt, :attr:`StampCheck.corrupt`);
+    ``min_stamp`` / ``max_stamp``; ``stamps_backwards``: how often a scan's stamp is below the
+    previous one's; ``stamps_repeated``: how often it equals it; ``stamp_problem``: what is
+    wrong with the stamps (:meth:`StampCheck.remark`, also warned), else None;
+    ``scans_without_ranges``: scans of no beam (not in the beam angles);
+    ``scans_with_odometry`` / ``scans_with_truth``;
     ``range_max``: the distinct finite ``range_max`` of the scans (at most 10 kept);
     ``no_returns``: per "no return" band, the readings it removes (:class:`NoReturnCount`).
     """
@@ -426,6 +601,9 @@ class LogInfo:
     min_stamp: float | None = None
     max_stamp: float | None = None
     stamps_backwards: int = 0
+    stamps_repeated: int = 0
+    stamp_problem: str | None = None
+    scans_without_ranges: int = 0
     scans_with_odometry: int = 0
     scans_with_truth: int = 0
     range_max: list[float] = field(default_factory=list)
@@ -456,32 +634,34 @@ def describe_log(
 ) -> LogInfo:
     """Read ``log`` once (streaming) and summarise it; ``progress(scans_so_far)`` is called
     every 100 scans. ``no_return_bands`` (default ``ScannerConfig()``'s) are counted in
-    :attr:`LogInfo.no_returns`."""
+    :attr:`LogInfo.no_returns`. Corrupt or repeated stamps are reported in
+    :attr:`LogInfo.stamp_problem` and warned (:class:`RuntimeWarning`, naming the log)."""
     bands = ScannerConfig().no_return_bands if no_return_bands is None else no_return_bands
     info = LogInfo(path=log.name, kind=log.kind)
     info.no_returns = [NoReturnCount(float(lo), float(hi)) for lo, hi in bands]
     beams: set[int] = set()
     rmax: set[float] = set()
-    prev: float | None = None
+    stamps = StampCheck()
     amin = amax = fov = None
     for rec in log.records():
         scan = rec.scan
         info.scans += 1
         beams.add(scan.n_beams)
         a = scan.angles
-        lo, hi = float(min(a[0], a[-1])), float(max(a[0], a[-1]))
-        amin = lo if amin is None else min(amin, lo)
-        amax = hi if amax is None else max(amax, hi)
-        fov = scan.field_of_view if fov is None else max(fov, scan.field_of_view)
+        if a.shape[0]:
+            lo, hi = float(min(a[0], a[-1])), float(max(a[0], a[-1]))
+            amin = lo if amin is None else min(amin, lo)
+            amax = hi if amax is None else max(amax, hi)
+            fov = scan.field_of_view if fov is None else max(fov, scan.field_of_view)
+        else:
+            info.scans_without_ranges += 1
         t = scan.stamp
         if info.first_stamp is None:
             info.first_stamp = info.min_stamp = info.max_stamp = t
         else:
             info.min_stamp = min(info.min_stamp, t)  # type: ignore[type-var]
             info.max_stamp = max(info.max_stamp, t)  # type: ignore[type-var]
-        if prev is not None and t < prev:
-            info.stamps_backwards += 1
-        prev = t
+        stamps.add(t)
         info.last_stamp = t
         info.scans_with_odometry += rec.odometry is not None
         info.scans_with_truth += rec.truth is not None
@@ -497,14 +677,25 @@ def describe_log(
         info.angle_min_deg = math.degrees(amin)
         info.angle_max_deg = math.degrees(amax)  # type: ignore[arg-type]
         info.field_of_view_deg = math.degrees(fov)  # type: ignore[arg-type]
-    if info.first_stamp is not None and info.last_stamp is not None:
-        info.duration_s = info.last_stamp - info.first_stamp
+    _describe_stamps(info, stamps, log.name)
     info.bad_lines = log.bad_lines
     info.truncated = log.truncated
     info.notes = list(log.notes)
     if isinstance(log.reader, BagReader):  # the bag reader's notes may grow while reading
         info.notes = list(dict.fromkeys([*log.notes, *log.reader.notes]))
+    if info.scans_without_ranges:
+        info.notes.append(f"{info.scans_without_ranges:,} scans have no ranges at all")
     return info
+
+
+def _describe_stamps(info: LogInfo, stamps: StampCheck, name: str) -> None:
+    info.stamps_backwards = stamps.backwards
+    info.stamps_repeated = stamps.repeated
+    info.stamp_problem = stamps.remark()
+    if info.first_stamp is not None and info.last_stamp is not None and not stamps.corrupt:
+        info.duration_s = info.last_stamp - info.first_stamp
+    if info.stamp_problem is not None:
+        warnings.warn(f"{name}: {info.stamp_problem}", RuntimeWarning, stacklevel=3)
 
 
 def _count_no_returns(

@@ -21,11 +21,13 @@ from matplotlib import colormaps
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
-from matplotlib.colors import Normalize
+from matplotlib.colors import Normalize, to_rgb
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 from numpy.typing import ArrayLike, NDArray
 
-from .features import Features
+from .config import Config
+from .features import Features, rule_bases, virtual_candidates
 from .geometry import transform_points
 
 FloatArray = NDArray[np.float64]
@@ -46,6 +48,7 @@ __all__ = [
     "plot_map",
     "plot_paths",
     "plot_virtual_points",
+    "too_uncertain_virtual_points",
 ]
 
 DPI = 120
@@ -337,21 +340,31 @@ def plot_clusters(
         count = np.bincount(ids, minlength=n_clusters)
         cx = np.bincount(ids, weights=pts[:, 0], minlength=n_clusters) / np.maximum(count, 1)
         cy = np.bincount(ids, weights=pts[:, 1], minlength=n_clusters) / np.maximum(count, 1)
-        for k in np.flatnonzero(count):  # one label per cluster
+        for k in np.flatnonzero(count):  # one label per cluster, on a tag of its colour
+            colour = cmap(k % cmap.N)
             ax.annotate(
                 str(k),
                 (cx[k], cy[k]),
                 fontsize=7,
-                color=cmap(k % cmap.N),
+                color=_ink_on(colour),
+                bbox={"boxstyle": "round,pad=0.2", "fc": colour, "ec": "0.2", "lw": 0.5},
                 ha="center",
                 va="center",
-                xytext=(0, 8),
+                xytext=(0, 9),
                 textcoords="offset points",
                 zorder=6,
+                gid=f"cluster_label:{k}",
             )
     _draw_robot(ax, features.points)
     default = f"{FEATURE_FIGURES[16][1]}: {n_clusters} clusters"
     return _finish(fig, ax, _title(default, title), path)
+
+
+def _ink_on(colour: Any) -> str:
+    """Black or white, whichever reads better on ``colour`` (by its relative luminance)."""
+    rgb = np.asarray(to_rgb(colour))
+    lin = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    return "black" if float(lin @ (0.2126, 0.7152, 0.0722)) > 0.179 else "white"
 
 
 def _qualitative_cmap(n: int) -> Any:
@@ -393,12 +406,34 @@ def plot_lines(
     return _finish(fig, ax, _title(FEATURE_FIGURES[17][1], title), path)
 
 
+def too_uncertain_virtual_points(features: Features, config: Config | None = None) -> FloatArray:
+    """The virtual angular points that §3.6 considered on this scan and removed as more
+    uncertain than ``virtual_points.max_uncertainty`` (``config``: the one the features were
+    extracted with), without those on a real angular point (merged into it): (k, 2)."""
+    cfg = config if config is not None else Config()
+    lines, scale = features.lines, features.distance_scale
+    pts, i, j, dv = virtual_candidates(lines, cfg, None, scale)
+    f = rule_bases(cfg.fuzzy).virtual_points(lines.uncertainty[i], lines.uncertainty[j], dv / scale)
+    ang = features.angular_points.xy
+    if ang.shape[0] and pts.shape[0]:
+        gap = np.hypot(*(pts[:, None, :] - ang[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+        on_corner = gap <= cfg.virtual_points.merge_distance
+    else:
+        on_corner = np.zeros(pts.shape[0], bool)
+    removed: FloatArray = pts[(f > cfg.virtual_points.max_uncertainty) & ~on_corner]
+    return removed
+
+
 def plot_virtual_points(
-    features: Features, path: str | Path | None = None, title: str | None = None
+    features: Features,
+    path: str | Path | None = None,
+    title: str | None = None,
+    config: Config | None = None,
 ) -> Figure:
     """Fig. 18: the line segments, the virtual angular points (§3.6) sized and coloured by
     uncertainty (bigger = more certain), each joined by dotted extensions to the nearer end of
-    its two lines, and the real angular points."""
+    its two lines, those removed as too uncertain as hollow diamonds
+    (:func:`too_uncertain_virtual_points`), and the real angular points."""
     fig, ax = _new_figure()
     _points_background(ax, features.kept_points)
     lines = features.lines
@@ -442,6 +477,19 @@ def plot_virtual_points(
         label=f"virtual angular points ({len(vp)})",
         gid="virtual_points",
     )
+    removed = too_uncertain_virtual_points(features, config)
+    ax.scatter(
+        removed[:, 0],
+        removed[:, 1],
+        s=45,
+        marker="D",
+        facecolors="none",
+        edgecolors="0.3",
+        linewidths=1.0,
+        zorder=4,
+        label=f"too uncertain, removed ({removed.shape[0]})",
+        gid="virtual_removed",
+    )
     ang = features.angular_points
     ax.scatter(
         ang.xy[:, 0],
@@ -471,11 +519,16 @@ _FEATURE_PLOTTERS = {
 
 
 def plot_feature_figures(
-    features: Features, out_dir: str | Path, scan_index: int, prefix: str = "fig"
+    features: Features,
+    out_dir: str | Path,
+    scan_index: int,
+    prefix: str = "fig",
+    config: Config | None = None,
 ) -> dict[int, Path]:
     """Write Figs. 13–18 for one scan as ``{prefix}13_filtering.png`` …
     ``{prefix}18_virtual_angular_points.png`` in ``out_dir`` (created if missing), titled
-    "Fig. 13 — …, scan {scan_index}". Returns ``{13: path, …, 18: path}``."""
+    "Fig. 13 — …, scan {scan_index}"; ``config``: the one the features were extracted with.
+    Returns ``{13: path, …, 18: path}``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written: dict[int, Path] = {}
@@ -484,7 +537,10 @@ def plot_feature_figures(
         title = f"{base_title}, scan {scan_index}"
         if num == 16:
             title = f"{base_title}: {features.n_clusters} clusters, scan {scan_index}"
-        _FEATURE_PLOTTERS[num](features, path=path, title=title)
+        if num == 18:
+            plot_virtual_points(features, path=path, title=title, config=config)
+        else:
+            _FEATURE_PLOTTERS[num](features, path=path, title=title)
         written[num] = path
     return written
 
@@ -492,7 +548,8 @@ def plot_feature_figures(
 # ---------------------------------------------------------------------------------------------
 # Figs. 19–20: paths and errors
 # ---------------------------------------------------------------------------------------------
-def _draw_world(ax: Axes, world: Any) -> None:
+def _draw_world(ax: Axes, world: Any, autolim: bool = True) -> None:
+    """The world's walls, thin grey; with ``autolim`` off they do not widen the view."""
     if world is None:
         return
     segs = np.asarray(world.segments, dtype=float).reshape(-1, 4)
@@ -503,6 +560,114 @@ def _draw_world(ax: Axes, world: Any) -> None:
             linewidths=0.7,
             zorder=1,
             gid="world",
+        ),
+        autolim=autolim,
+    )
+
+
+_ESTIMATE_COLOURS = ("tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:cyan", "tab:olive")
+
+#: a path of Fig. 19: (gid key, legend label, (n, 2) points, line style)
+_Track = tuple[str, str, FloatArray, dict[str, Any]]
+
+
+def _tracks(
+    true_xy: ArrayLike | None, odometry_xy: ArrayLike | None, estimates: Mapping[str, ArrayLike]
+) -> list[_Track]:
+    """The paths of Fig. 19 that have points, the truth first: a wide black line under the
+    others, so that an estimate on top of it still shows it on both sides."""
+    out: list[_Track] = []
+    true = _xy(true_xy, "true_xy")
+    if true is not None:
+        out.append(("true", "true path", true, {"color": "black", "lw": 2.8, "zorder": 3}))
+    odo = _xy(odometry_xy, "odometry_xy")
+    if odo is not None:
+        out.append(("odometry", "odometry", odo, {"color": "tab:red", "ls": "--", "lw": 1.4}))
+    for k, (label, xy) in enumerate(estimates.items()):
+        e = _xy(xy, f"estimates[{label!r}]")
+        assert e is not None
+        colour = _ESTIMATE_COLOURS[k % len(_ESTIMATE_COLOURS)]
+        out.append((str(label), str(label), e, {"color": colour, "lw": 1.2, "zorder": 5}))
+    return [t for t in out if t[2].shape[0]]
+
+
+def _draw_tracks(ax: Axes, tracks: Sequence[_Track], zoom: bool = False) -> None:
+    """Each path with its end (a square in its colour). In the zoom (gids ``zoom:…``) each
+    end is joined to the true end by a dotted line and labelled with its distance."""
+    prefix = "zoom:" if zoom else ""
+    true_end = tracks[0][2][-1] if tracks and tracks[0][0] == "true" else None
+    for key, label, xy, style in tracks:
+        ax.plot(
+            xy[:, 0],
+            xy[:, 1],
+            gid=f"{prefix}path:{key}",
+            **{"zorder": 4, **style},
+            label=None if zoom else label,
+        )
+        end = xy[-1]
+        end_label = None if zoom or key != tracks[0][0] else "end"
+        if zoom:
+            end_label = "true end" if key == "true" else f"{label}'s end"
+        if zoom and true_end is not None and key != "true":
+            gap = float(np.hypot(*(end - true_end)))
+            ax.plot(
+                *np.stack([true_end, end]).T,
+                ":",
+                color=style["color"],
+                lw=1.3,
+                zorder=6,
+                gid=f"zoom:gap:{key}",
+            )
+            end_label = f"{label} ends {gap:.2f} m off"
+        ax.plot(
+            [end[0]],
+            [end[1]],
+            "s",
+            color=style["color"],
+            markeredgecolor="black",
+            markersize=10 if key == "true" else 7,  # the truth's shows behind a close one
+            zorder=7,
+            gid=f"{prefix}end:{key}",
+            label=end_label,
+        )
+
+
+def _draw_start(
+    ax: Axes, start: FloatArray, gid: str = "start", label: str | None = "start"
+) -> None:
+    """The start: a white circle ringed in black."""
+    style: dict[str, Any] = {"color": "black", "markerfacecolor": "white", "markersize": 9}
+    ax.plot([start[0]], [start[1]], "o", mew=1.5, zorder=6, label=label, gid=gid, **style)
+
+
+def _box(points: FloatArray, pad_fraction: float, min_pad: float) -> tuple[FloatArray, float]:
+    """The centre and half side of a square around ``points``, padded."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    half = 0.5 * float((hi - lo).max())
+    return 0.5 * (lo + hi), half + max(pad_fraction * 2 * half, min_pad)
+
+
+def _zoom_on_ends(ax: Axes, zax: Axes, tracks: Sequence[_Track], world: Any) -> None:
+    """The zoom on the paths' ends (and the start, where odometry that believes in a closed
+    path ends): the ends apart, the distance of each from the true end; its square marked on
+    the main axes."""
+    ends = np.array([xy[-1] for _k, _l, xy, _s in tracks] + [tracks[0][2][0]])
+    centre, half = _box(ends, 0.15, 0.25)
+    _draw_world(zax, world, autolim=False)
+    _draw_tracks(zax, tracks, zoom=True)
+    _draw_start(zax, tracks[0][2][0], gid="zoom:start", label=None)
+    zax.set_xlim(centre[0] - half, centre[0] + half)
+    zax.set_ylim(centre[1] - half, centre[1] + half)
+    zax.set_aspect("equal", adjustable="box")
+    zax.set_gid("zoom")
+    zax.set_title("the ends, zoomed")
+    zax.set_xlabel("x [m]")
+    zax.grid(True, linewidth=0.4, alpha=0.5)
+    zax.legend(loc="best", fontsize="small", framealpha=0.85)
+    corner = (centre[0] - half, centre[1] - half)
+    ax.add_patch(
+        Rectangle(
+            corner, 2 * half, 2 * half, fill=False, ec="0.25", lw=0.9, zorder=8, gid="zoom_region"
         )
     )
 
@@ -516,71 +681,27 @@ def plot_paths(
     world: Any = None,
 ) -> Figure:
     """Fig. 19: the true path, the odometry path and one or more estimated paths (one line
-    each, labelled by its key), in the world frame with equal aspect, the start marked.
+    each, labelled by its key), in the world frame with equal aspect, the start and each
+    path's end marked; with two paths or more, a second panel zooms on the ends.
 
     Paths are (n, 2) or (n, 3) arrays (poses: x, y are used); ``true_xy`` or ``odometry_xy``
     may be None (a real log has no ground truth). ``world``, an object with ``.segments``
-    (m, 4), is drawn as thin grey lines.
+    (m, 4), is drawn as thin grey lines; the view is the paths' with a margin around.
     """
-    fig, ax = _new_figure()
-    _draw_world(ax, world)
-    start: FloatArray | None = None
-    true = _xy(true_xy, "true_xy")
-    if true is not None:
-        ax.plot(
-            true[:, 0],
-            true[:, 1],
-            "-",
-            color="black",
-            linewidth=1.8,
-            label="true path",
-            gid="path:true",
-            zorder=3,
-        )
-        start = true[0] if true.shape[0] else None
-    odo = _xy(odometry_xy, "odometry_xy")
-    if odo is not None:
-        ax.plot(
-            odo[:, 0],
-            odo[:, 1],
-            "--",
-            color="tab:red",
-            linewidth=1.4,
-            label="odometry",
-            gid="path:odometry",
-            zorder=3,
-        )
-        if start is None and odo.shape[0]:
-            start = odo[0]
-    colours = ["tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:cyan", "tab:olive"]
-    for k, (label, xy) in enumerate(estimates.items()):
-        e = _xy(xy, f"estimates[{label!r}]")
-        assert e is not None
-        ax.plot(
-            e[:, 0],
-            e[:, 1],
-            "-",
-            color=colours[k % len(colours)],
-            linewidth=1.4,
-            label=str(label),
-            gid=f"path:{label}",
-            zorder=4,
-        )
-        if start is None and e.shape[0]:
-            start = e[0]
-    if start is not None:
-        ax.plot(
-            [start[0]],
-            [start[1]],
-            "o",
-            color="black",
-            markerfacecolor="white",
-            markersize=9,
-            markeredgewidth=1.5,
-            label="start",
-            gid="start",
-            zorder=6,
-        )
+    tracks = _tracks(true_xy, odometry_xy, estimates)
+    if len(tracks) < 2:
+        fig, ax = _new_figure()
+    else:
+        fig = Figure(figsize=(11.5, 6.0), dpi=DPI)
+        FigureCanvasAgg(fig)
+        grid = fig.add_gridspec(1, 2, width_ratios=(1.6, 1.0))
+        ax = fig.add_subplot(grid[0])
+        _zoom_on_ends(ax, fig.add_subplot(grid[1]), tracks, world)
+    _draw_world(ax, world, autolim=not tracks)  # the view is the paths', not the world's
+    _draw_tracks(ax, tracks)
+    if tracks:
+        _draw_start(ax, tracks[0][2][0])
+        ax.margins(0.12)
     return _finish(fig, ax, _title("Fig. 19 — paths", title), path)
 
 
@@ -614,6 +735,31 @@ def error_crossings(distance: ArrayLike, error: ArrayLike, reference: ArrayLike)
     return crossings
 
 
+def _mark_last_crossing(
+    ax: Axes, d: FloatArray, e: FloatArray, ref: FloatArray, label: str, reference: str, colour: Any
+) -> None:
+    """The crossing of ``e`` with ``ref`` after which ``e`` stays below it (none where it ends
+    above), as a circle on the curve, a dotted vertical line and a legend entry."""
+    x = error_crossings(d, e, ref)
+    last = np.flatnonzero(np.isfinite(e) & np.isfinite(ref))
+    x = x[-1:] if x.size and last.size and e[last[-1]] < ref[last[-1]] else np.zeros(0)
+    name = f"{label} below {reference} from {x[0]:.1f} m on" if x.size else None
+    ax.scatter(
+        x,
+        np.interp(x, d, e) if x.size else np.zeros(0),
+        s=60,
+        marker="o",
+        facecolors="none",
+        edgecolors=colour,
+        linewidths=1.6,
+        zorder=5,
+        gid=f"crossing:{label}",
+        label=name,
+    )
+    if x.size:
+        ax.axvline(x[0], color=colour, linestyle=":", linewidth=0.9, gid=f"crossing_line:{label}")
+
+
 def plot_errors_vs_distance(
     distance: ArrayLike,
     errors: Mapping[str, ArrayLike],
@@ -622,8 +768,10 @@ def plot_errors_vs_distance(
     reference: str = "odometry",
 ) -> Figure:
     """Fig. 20: position error against distance travelled, one curve per label (e.g.
-    "odometry", "paper", "default"), with every crossing of an estimate's curve with the
-    ``reference`` curve (odometry's) marked and the first one annotated."""
+    "odometry", "paper", "default"). Where an estimate ends below the ``reference`` curve
+    (odometry's), its last crossing with it, after which it stays below, is marked and named
+    in the legend ("default below odometry from 0.4 m on"); the noise of the first metres,
+    where both are near zero and cross back and forth, is left unmarked."""
     d = np.asarray(distance, dtype=float)
     if d.ndim != 1:
         raise ValueError(f"distance must be 1-D, got shape {d.shape}")
@@ -645,40 +793,9 @@ def plot_errors_vs_distance(
             d, e, style, color=colour_of[label], linewidth=1.5, label=label, gid=f"error:{label}"
         )
     ref = curves.get(reference)
-    if ref is not None:
-        for label, e in curves.items():
-            if label == reference:
-                continue
-            x = error_crossings(d, e, ref)
-            y = np.interp(x, d, e) if x.size else np.zeros(0)
-            ax.scatter(
-                x,
-                y,
-                s=60,
-                marker="o",
-                facecolors="none",
-                edgecolors=colour_of[label],
-                linewidths=1.6,
-                zorder=5,
-                gid=f"crossing:{label}",
-                label=f"{label} crosses {reference}" if x.size else None,
-            )
-            if x.size:
-                ax.axvline(
-                    x[0],
-                    color=colour_of[label],
-                    linestyle=":",
-                    linewidth=0.9,
-                    gid=f"crossing_line:{label}",
-                )
-                ax.annotate(
-                    f"{x[0]:.1f} m",
-                    (x[0], y[0]),
-                    xytext=(6, -14),
-                    textcoords="offset points",
-                    fontsize=8,
-                    color=colour_of[label],
-                )
+    for label, e in curves.items():
+        if ref is not None and label != reference:
+            _mark_last_crossing(ax, d, e, ref, label, reference, colour_of[label])
     ax.set_xlabel("distance travelled [m]")
     ax.set_ylabel("position error [m]")
     ax.set_xlim(left=0.0 if d.size == 0 or np.nanmin(d) >= 0 else None)
@@ -772,16 +889,5 @@ def plot_map(
         zorder=4,
     )
     if P.shape[0]:
-        ax.plot(
-            [P[0, 0]],
-            [P[0, 1]],
-            "o",
-            color="black",
-            markerfacecolor="white",
-            markersize=8,
-            markeredgewidth=1.5,
-            label="start",
-            gid="start",
-            zorder=6,
-        )
+        _draw_start(ax, P[0])
     return _finish(fig, ax, _title("Estimated path and map", title), path)

@@ -1,7 +1,13 @@
 """The run job: running the positioner over a log and keeping the results.
 
 :func:`run_log` streams a log (:func:`fuzzypos.logs.open_log`) through a
-:class:`~fuzzypos.pipeline.Positioner` and writes a results folder:
+:class:`~fuzzypos.pipeline.Positioner` and writes a results folder, which holds one run: by
+default a new ``results/<log>/<date-time>/`` (:func:`default_results_dir`; ``<log>`` is
+:func:`log_label`, the file name without a compression suffix) with ``results/<log>/latest``
+linked to it; a folder given that holds another run's results is refused, or with
+``overwrite=True`` cleared first (:class:`ResultsFolderError`). A run stopped by an error or
+Ctrl-C after some scans keeps them: the files below (but ``path.png``) for the scans done,
+``summary.json`` saying ``"partial": true`` and why (:func:`partial_results`).
 
 ================  ==========================================================================
 ``trajectory.tum``  the estimated pose of every scan, ``t x y z qx qy qz qw``, one line per
@@ -9,7 +15,9 @@
                     precision (``repr``, never rounded: intel has scans < 2 ms apart)
 ``trajectory.clf``  the log again as CARMEN ``FLASER`` lines (:func:`write_estimate_clf`):
                     the ``x y θ`` fields carry the estimate, ``odom_x odom_y odom_θ`` the
-                    log's odometry; ``TRUEPOS`` lines where the log had truth
+                    log's odometry; ``ROBOTLASER1`` lines (the estimate as the robot pose,
+                    the odometry in an ``ODOM`` line) for scans FLASER cannot describe;
+                    ``TRUEPOS`` lines where the log had truth
 ``config.toml``     the configuration used (:meth:`~fuzzypos.config.Config.to_toml`; it
                     loads back with :meth:`~fuzzypos.config.Config.from_toml`)
 ``path.png``        the estimated path and the odometry over a map of every
@@ -36,6 +44,8 @@ and the points of every ``map_every``-th scan are kept, never the scans.
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import math
 import os
 import time
@@ -49,18 +59,30 @@ import numpy as np
 from ._version import __version__
 from .config import Config
 from .evaluation import EvaluationError, relations_errors, trajectory_errors
+from .folders import (
+    RESULT_FILES,
+    ResultsFolder,
+    ResultsFolderError,
+    check_outputs,
+    default_results_dir,
+    log_label,
+)
 from .geometry import Pose2D, covariance_to_parent, propagate
 from .io import CarmenWriter, LogRecord, OdometryBagWriter, Relations, write_tum
-from .logs import OpenLog, open_log, select_records
+from .logs import OpenLog, open_log, select_records, select_stamps
 from .pipeline import Estimate, Positioner
 from .provenance import file_sha256, git_hash, write_json
 from .scan import LaserScan
 
 __all__ = [
+    "RESULT_FILES",
     "Progress",
+    "ResultsFolderError",
     "RunSummary",
     "default_results_dir",
+    "log_label",
     "log_name",
+    "partial_results",
     "run_log",
     "write_estimate_clf",
 ]
@@ -70,6 +92,8 @@ Progress = Callable[[int, "int | None"], None]
 
 #: suffixes :func:`log_name` strips
 _LOG_SUFFIXES = (".gz", ".clf", ".log", ".bag", ".carmen")
+#: where :func:`partial_results` finds what a stopped run kept
+_PARTIAL = "fuzzypos_partial_results"
 
 #: ``covariance.csv``'s columns: the stamp, then the increment covariance's upper triangle
 COVARIANCE_COLUMNS = ("stamp", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
@@ -93,9 +117,28 @@ def log_name(path: str | os.PathLike[str]) -> str:
     return name
 
 
-def default_results_dir(path: str | os.PathLike[str]) -> Path:
-    """``results/<log name>/`` (relative to the working directory)."""
-    return Path("results") / log_name(path)
+def partial_results(exc: BaseException) -> RunSummary | None:
+    """What :func:`run_log` kept of a run that ``exc`` stopped after some scans (its results
+    folder, ``summary.json`` marked partial), or None."""
+    kept = exc.__dict__.get(_PARTIAL)
+    return kept if isinstance(kept, RunSummary) else None
+
+
+def _scans_in_stretch(
+    log: OpenLog, start: float | None, end: float | None, max_scans: int | None
+) -> int | None:
+    """The scans of the stretch, for the progress bar: the whole log's count, or with
+    ``start``/``end`` those its scans' stamps put in the stretch
+    (:meth:`~fuzzypos.logs.OpenLog.scan_stamps`, a quick pass); None when unknown."""
+    total: int | None = None
+    if start is None and end is None:
+        total = log.scan_count_hint()
+    else:
+        with contextlib.suppress(OSError):
+            total = len(select_stamps(log.scan_stamps(), start=start, end=end))
+    if max_scans is not None:
+        total = max_scans if total is None else min(total, max_scans)
+    return total
 
 
 # -- the estimate as a CARMEN log --------------------------------------------------------------
@@ -184,6 +227,9 @@ class _Track:
     degraded: int = 0
     positioner_seconds: float = 0.0
     seconds: float = 0.0
+    #: what stopped the run before the end of the stretch (an error, Ctrl-C), and why
+    stopped: BaseException | None = None
+    partial_reason: str | None = None
 
     def __len__(self) -> int:
         return len(self.stamps)
@@ -246,18 +292,24 @@ class _CovarianceOut:
         assert self.bag is not None
         self.bag.write(est.stamp, est.pose, world_cov, twist, twist_cov)
 
-    def close(self) -> dict[str, Path]:
-        """Finish the files; name → path of those written."""
+    def close(self, *, partial: bool = False) -> dict[str, Path]:
+        """Finish the files; name → path of those written. ``partial``: a bag that cannot be
+        finished (the run stopped inside it) is removed, with a note."""
         files: dict[str, Path] = {}
         if self._csv is not None:
             self._csv.close()
             os.replace(self._tmp, self.path)
             files["covariance.csv"] = self.path
-        else:  # no stale file from an earlier run
-            self.path.unlink(missing_ok=True)
         if self.bag is not None:
-            self.bag.close()
-            files["bag"] = self.bag.path
+            try:
+                self.bag.close()
+            except Exception as exc:
+                if not partial:
+                    raise
+                self.bag.abort()
+                self.notes.append(f"{self.bag.path}: not kept: {' '.join(str(exc).split())}")
+            else:
+                files["bag"] = self.bag.path
         return files
 
     def abort(self) -> None:
@@ -273,15 +325,15 @@ def _position_along(
     records: Iterator[LogRecord],
     positioner: Positioner,
     clf: CarmenWriter,
-    *,
+    outputs: _CovarianceOut,
     plot: bool,
     map_every: int,
     progress: Progress | None,
     total: int | None,
-    outputs: _CovarianceOut,
 ) -> _Track:
     """Run ``positioner`` over ``records``, streaming the estimate into ``clf`` and
-    ``outputs`` (both aborted on any error) and keeping the :class:`_Track`."""
+    ``outputs`` and keeping the :class:`_Track` of the scans done. An error or Ctrl-C stops
+    the run: it is kept in ``track.stopped`` (anything else aborts both and is raised)."""
     track = _Track()
     bands = positioner.config.scanner.no_return_bands  # the map shows what the positioner saw
     t_start = time.perf_counter()
@@ -292,6 +344,8 @@ def _position_along(
             est = positioner.update(scan, odom)
             track.positioner_seconds += time.perf_counter() - t0
             pose = est.pose
+            outputs.write(k, est)
+            clf.write(scan, odom, rec.truth, pose=pose)
             track.stamps.append(scan.stamp)
             track.poses.append((pose.x, pose.y, pose.theta))
             track.odoms.append(_row(odom))
@@ -299,10 +353,14 @@ def _position_along(
             track.degraded += bool(est.degraded)
             if plot:
                 track.map_points.append(scan.points_robot(bands) if k % map_every == 0 else None)
-            clf.write(scan, odom, rec.truth, pose=pose)
-            outputs.write(k, est)
             if progress is not None and (k + 1) % _PROGRESS_EVERY == 0:
                 progress(k + 1, total)
+    except (Exception, KeyboardInterrupt) as exc:
+        track.stopped = exc
+        at = f"scan {len(track) + 1}"
+        what = " ".join(str(exc).split()) or type(exc).__name__
+        interrupted = isinstance(exc, KeyboardInterrupt)
+        track.partial_reason = f"interrupted at {at}" if interrupted else f"failed at {at}: {what}"
     except BaseException:
         clf.abort()
         outputs.abort()
@@ -396,26 +454,40 @@ def _write_results(
     map_every: int,
     notes: list[str],
 ) -> dict[str, Path]:
-    """Write the results folder's files but ``summary.json``; name → path, in writing order."""
+    """Write the results folder's files but ``summary.json``; name → path, in writing order.
+    A partial run (``track.partial_reason``) gets no ``path.png`` and no ``out_tum``."""
+    partial = track.partial_reason is not None
     files: dict[str, Path] = {"trajectory.tum": out / "trajectory.tum"}
+    what = "part of the" if partial else "the"
     write_tum(
         files["trajectory.tum"],
         a.stamps,
         a.poses,
-        header_comment=f"fuzzypos {__version__} estimate of {log.name} (t = the scan's stamp)",
+        header_comment=f"fuzzypos {__version__}: {what} estimate of {log.name} (t = the scan's "
+        "stamp)",
     )
-    files.update(outputs.close())
+    files.update(outputs.close(partial=partial))
     notes.extend(outputs.notes)
-    if out_tum is not None:
+    if out_tum is not None and not partial:
         comment = f"fuzzypos {__version__} estimate of {log.name}"
         write_tum(out_tum, a.stamps, a.poses, header_comment=comment)
         files["out_tum"] = Path(out_tum)
-    if clf.close():
-        files["trajectory.clf"] = out / "trajectory.clf"
+    try:
+        if clf.close():
+            files["trajectory.clf"] = out / "trajectory.clf"
+    except Exception as exc:  # the run stopped inside it
+        if not partial:
+            raise
+        notes.append(f"no trajectory.clf: {' '.join(str(exc).split())}")
     notes.extend(clf.notes)
     files["config.toml"] = out / "config.toml"
     files["config.toml"].write_text(cfg.to_toml(), encoding="utf-8")
-    if plot:
+    if partial:
+        notes.append(
+            "a partial run: no path.png"
+            + ("" if out_tum is None else f", and {out_tum} was not written")
+        )
+    elif plot:
         files["path.png"] = out / "path.png"
         _plot_path(files["path.png"], log, a.poses, a.odometry, track.map_points, map_every)
     return files
@@ -447,6 +519,8 @@ def _summary(
             "options": log.options,
         },
         "selection": selection,
+        "partial": track.partial_reason is not None,
+        "partial_reason": track.partial_reason,
         "scans": n,
         "scans_degraded": track.degraded,
         "odometry_jumps_rejected": jumps,
@@ -538,7 +612,8 @@ def run_log(
     log: OpenLog | str | os.PathLike[str],
     config: Config | None = None,
     *,
-    results_dir: str | os.PathLike[str],
+    results_dir: str | os.PathLike[str] | None = None,
+    overwrite: bool = False,
     out_tum: str | os.PathLike[str] | None = None,
     progress: Progress | None = None,
     start: float | None = None,
@@ -554,19 +629,21 @@ def run_log(
     bag_storage: str | None = None,
 ) -> RunSummary:
     """Position the robot along ``log`` (an :class:`~fuzzypos.logs.OpenLog`, or a path opened
-    with :func:`~fuzzypos.logs.open_log`'s defaults) and write the results folder
-    ``results_dir`` (created; files in it are replaced): ``trajectory.tum``,
-    ``trajectory.clf``, ``config.toml``, ``path.png`` (unless ``plot=False``) and
-    ``summary.json`` and ``covariance.csv`` (module docstring). ``out_tum``: also write the
+    with :func:`~fuzzypos.logs.open_log`'s defaults) and write a results folder:
+    ``trajectory.tum``, ``trajectory.clf``, ``config.toml``, ``path.png`` (unless
+    ``plot=False``) and ``summary.json`` and ``covariance.csv`` (module docstring).
+    ``results_dir``: the folder (one holding another run's results is a
+    :class:`~fuzzypos.folders.ResultsFolderError` unless ``overwrite`` clears it); None: a new
+    ``results/<log>/<date-time>/`` (:mod:`fuzzypos.folders`). ``out_tum``: also write the
     trajectory there. ``bag_out``: also write the estimate into a new bag there (an existing
     path is a :class:`FileExistsError`; ``bag_storage``: ``"ros1"``, ``"sqlite3"``, ``"mcap"``
-    or None, :func:`~fuzzypos.io.rosbag_write.bag_storage_for`).
+    or None, :func:`~fuzzypos.io.rosbag_write.bag_storage_for`). All checked before the run.
 
     ``start``, ``end``, ``max_scans`` choose a stretch (:func:`~fuzzypos.logs.select_records`).
     ``preset`` and ``config_file`` only label the configuration in ``summary.json``.
     ``relations``: also score the trajectory against them (``summary["relations"]``).
     ``progress(done, total)`` is called every 25 scans and at the end (``total``: the scans
-    the stretch can have at most, when known).
+    the stretch can have at most, when known: a bag's stretch by time is not).
 
     ``summary.json`` holds: ``fuzzypos_version``, ``git_hash``
     (:func:`~fuzzypos.provenance.git_hash`), ``input`` (``path``, ``sha256``
@@ -578,10 +655,14 @@ def run_log(
     ``file``), ``bad_lines_skipped``, ``first_stamp``/``last_stamp``, ``has_odometry``,
     ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the estimate and of the
     odometry against the log's ``TRUEPOS``, where every scan has one; else None),
-    ``relations`` (or None), ``notes`` and ``files``.
+    ``relations`` (or None), ``notes``, ``files``, and ``partial`` (False) with
+    ``partial_reason`` (None).
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
-    log) or ``OSError``; the results folder then holds no partial trajectory files.
+    log) or ``OSError``. An error or ``KeyboardInterrupt`` after some scans is raised once
+    their results are written (``"partial": true``, ``"partial_reason"``: ``"interrupted at
+    scan N"`` or ``"failed at scan N: …"``; no ``path.png`` or ``out_tum``; their
+    :class:`RunSummary`: :func:`partial_results`); before the first, nothing is kept.
     """
     if not isinstance(log, OpenLog):
         log = open_log(log)
@@ -589,37 +670,26 @@ def run_log(
     if isinstance(map_every, bool) or not isinstance(map_every, int) or map_every < 1:
         raise ValueError(f"map_every must be a whole number >= 1, got {map_every!r}")
     records = select_records(log.records(), start=start, end=end, max_scans=max_scans)
-    out = Path(results_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    total: int | None = log.scan_count_hint() if progress is not None else None
-    if max_scans is not None:
-        total = max_scans if total is None else min(total, max_scans)
-
+    log.check_stamps(start=start, end=end, max_scans=max_scans)  # corrupt stamps: StampError
+    total = _scans_in_stretch(log, start, end, max_scans) if progress is not None else None
     positioner = Positioner(cfg)
-    outputs = _CovarianceOut(out, log.name, bag_out, bag_storage)
-    clf = CarmenWriter(out / "trajectory.clf", estimate_of=log.name)
-    track = _position_along(
-        records,
-        positioner,
-        clf,
-        plot=plot,
-        map_every=map_every,
-        progress=progress,
-        total=total,
-        outputs=outputs,
-    )
+    given = None if results_dir is None else Path(results_dir)
+    check_outputs(given, out_tum, bag_out)
+    folder = ResultsFolder.make(log.name, given, overwrite)
+    clf, outputs = _open_outputs(folder, log.name, bag_out, bag_storage)
+    track = _position_along(records, positioner, clf, outputs, plot, map_every, progress, total)
     if len(track) == 0:
         clf.abort()
         outputs.abort()
-        raise _no_scans(log, start, end)
-    if progress is not None:
-        progress(len(track), len(track))
+        folder.discard()
+        raise track.stopped if track.stopped is not None else _no_scans(log, start, end)
     labels = {
         "selection": {"start_s": start, "end_s": end, "max_scans": max_scans},
         "config": {"preset": preset, "file": None if config_file is None else str(config_file)},
     }
-    return _finish(
-        out,
+    finish = functools.partial(
+        _finish,
+        folder.path,
         log,
         cfg,
         track,
@@ -633,3 +703,47 @@ def run_log(
         map_every=map_every,
         hash_input=hash_input,
     )
+    return _keep(finish, folder, track, clf, outputs, progress)
+
+
+def _open_outputs(
+    folder: ResultsFolder, source: str, bag_out: str | os.PathLike[str] | None, storage: str | None
+) -> tuple[CarmenWriter, _CovarianceOut]:
+    """The streamed outputs of a run: ``trajectory.clf``, ``covariance.csv`` and the bag (on
+    failure, none, and the folders the run created are removed)."""
+    clf: CarmenWriter | None = None
+    try:
+        clf = CarmenWriter(folder.path / "trajectory.clf", estimate_of=source)
+        return clf, _CovarianceOut(folder.path, source, bag_out, storage)
+    except BaseException:
+        if clf is not None:
+            clf.abort()
+        folder.discard()
+        raise
+
+
+def _keep(
+    finish: Callable[[], RunSummary],
+    folder: ResultsFolder,
+    track: _Track,
+    clf: CarmenWriter,
+    outputs: _CovarianceOut,
+    progress: Progress | None,
+) -> RunSummary:
+    """Write the results (``finish``); raise what stopped the run, if anything did, with the
+    results kept (:func:`partial_results`)."""
+    if progress is not None and track.stopped is None:
+        progress(len(track), len(track))
+    try:
+        summary = finish()
+    except BaseException:
+        clf.abort()
+        outputs.abort()
+        if track.stopped is not None:  # what stopped the run, not what failed after it
+            raise track.stopped from None
+        raise
+    folder.link_latest()
+    if track.stopped is not None:
+        track.stopped.__dict__[_PARTIAL] = summary
+        raise track.stopped
+    return summary

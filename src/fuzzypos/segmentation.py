@@ -5,11 +5,13 @@ extract_features` runs them in turn)."""
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ._kernels import compiled
 from .config import Config, FuzzyConfig
 from .fuzzy import RuleBases
 
@@ -28,7 +30,13 @@ __all__ = [
     "angular_points",
     "segments",
     "raw_segment_ids",
+    "segment_ids",
 ]
+
+
+def _f64(a: NDArray) -> FloatArray:
+    """A contiguous float64 array (the one type the kernels are compiled for)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _running_count(mask: BoolArray) -> IntArray:
@@ -47,6 +55,15 @@ def _strict_upper(n: int) -> BoolArray:
 
 def _steps(points: FloatArray, closed: bool) -> FloatArray:
     """Distance from each point to the next one (the last: to the first if ``closed``, else inf)."""
+    if compiled():
+        from ._kernels import segmentation as kernel
+
+        return kernel.steps(_f64(points), bool(closed))
+    return _steps_numpy(points, closed)
+
+
+def _steps_numpy(points: FloatArray, closed: bool) -> FloatArray:
+    """:func:`_steps` in numpy (the compiled kernel's reference)."""
     n = points.shape[0]
     d = np.empty(n)
     if n == 0:
@@ -90,12 +107,25 @@ def break_points(
     where ``split[j]`` says the sequence is cut between points j and j+1. The two ends of an
     open sequence are break points too (field-of-view edges, eq. 13's ``i = 1, 180``).
     """
+    if compiled():
+        from ._kernels import segmentation as kernel
+
+        return kernel.break_points(
+            _f64(points), _f64(thresholds), float(gap_difference), bool(closed)
+        )
+    return _break_points_numpy(points, thresholds, gap_difference, closed)
+
+
+def _break_points_numpy(
+    points: FloatArray, thresholds: FloatArray, gap_difference: float, closed: bool = False
+) -> tuple[BoolArray, BoolArray]:
+    """:func:`break_points` in numpy (the compiled kernel's reference)."""
     n = points.shape[0]
     if n == 0:
         return np.zeros(0, bool), np.zeros(0, bool)
     # step j joins points j and j+1; it is a gap when longer than T2 and longer (by T1) than a
     # neighbouring step, so a uniformly sparse surface has no gaps (eq. 13)
-    step = _steps(points, closed)
+    step = _steps_numpy(points, closed)
     inner = step if closed else np.where(np.isfinite(step), step, np.nan)  # no step past the end
     before = _shift_prev(inner, closed, np.nan)
     after = _shift_next(inner, closed, np.nan)
@@ -117,6 +147,22 @@ def detection_angles(
     gap (``gap_after[i]``) or does not exist. π/2 = square-on, 0 = grazing. A point with no
     neighbour on its surface (gaps on both sides) gets β = 0, so filtering removes it.
     """
+    if compiled():
+        from ._kernels.segmentation import detection_terms
+
+        cross, dot, isolated = detection_terms(
+            _f64(points_sensor), np.ascontiguousarray(gap_after, dtype=np.bool_), bool(closed)
+        )
+        beta: FloatArray = np.arctan2(cross, dot)  # numpy's, as the reference's
+        beta[isolated] = 0.0
+        return beta
+    return _detection_angles_numpy(points_sensor, gap_after, closed)
+
+
+def _detection_angles_numpy(
+    points_sensor: FloatArray, gap_after: BoolArray, closed: bool = False
+) -> FloatArray:
+    """:func:`detection_angles` in numpy (the compiled kernel's reference)."""
     n = points_sensor.shape[0]
     if n == 0:
         return np.zeros(0)
@@ -140,10 +186,18 @@ def distance_scale(ranges: FloatArray, cfg: FuzzyConfig) -> float:
     stretched by for a scan with these valid ranges: 1 with ``distance_scale = "fixed"``, else
     max(1, the ``distance_scale_quantile`` of the ranges / ``distance_scale_reference``).
     A scan with structure near the robot (a room, a corridor) keeps a scale of 1."""
-    if cfg.distance_scale == "fixed" or ranges.shape[0] == 0:
+    n = ranges.shape[0]
+    if cfg.distance_scale == "fixed" or n == 0:
         return 1.0
-    q = float(np.quantile(ranges, cfg.distance_scale_quantile))
-    return max(1.0, q / cfg.distance_scale_reference)
+    reference, quantile = cfg.distance_scale_reference, cfg.distance_scale_quantile
+    # the quantile interpolates between two order statistics, at most the one past
+    # ⌈q·(n − 1)⌉ (a safe bound on numpy's index): where that one is within the reference, so
+    # is the quantile and the scale is 1 (one comparison instead of np.quantile's sort)
+    k = min(math.ceil(quantile * (n - 1)) + 1, n - 1)
+    if np.count_nonzero(ranges <= reference) >= k + 1:
+        return 1.0
+    q = float(np.quantile(ranges, quantile))
+    return max(1.0, q / reference)
 
 
 def point_uncertainty(
@@ -168,6 +222,15 @@ def filter_points(beta: FloatArray, threshold: float) -> BoolArray:
 
 def clusters(split: BoolArray, min_points: int) -> IntArray:
     """§3.3: cluster labels 0, 1, … from cuts (``split[j]``: cut after point j); −1 = too small."""
+    if compiled():
+        from ._kernels import segmentation as kernel
+
+        return kernel.clusters(np.ascontiguousarray(split, dtype=np.bool_), int(min_points))
+    return _clusters_numpy(split, min_points)
+
+
+def _clusters_numpy(split: BoolArray, min_points: int) -> IntArray:
+    """:func:`clusters` in numpy (the compiled kernel's reference)."""
     n = split.shape[0]
     if n == 0:
         return np.zeros(0, dtype=np.int64)
@@ -195,6 +258,25 @@ def angular_points(
     arm stays at least half that distance long. Points whose angle is at most θ_TH are candidates;
     of a run of consecutive candidates the sharpest wins.
     """
+    if compiled():
+        from ._kernels.segmentation import corner_arms, sharpest_of_runs
+
+        ap = cfg.angular_points
+        labels = np.ascontiguousarray(cluster, dtype=np.int64)
+        cross, dot, inside = corner_arms(
+            _f64(points), labels, _f64(step_spacing), float(ap.neighbour_distance),
+            int(ap.neighbour_step),
+        )  # fmt: skip
+        angle: FloatArray = np.abs(np.arctan2(cross, dot))  # numpy's, as the reference's
+        angle[~inside] = np.pi
+        return sharpest_of_runs(angle, labels, float(ap.interior_angle_threshold)), angle
+    return _angular_points_numpy(points, cluster, step_spacing, cfg)
+
+
+def _angular_points_numpy(
+    points: FloatArray, cluster: IntArray, step_spacing: FloatArray, cfg: Config
+) -> tuple[BoolArray, FloatArray]:
+    """:func:`angular_points` in numpy (the compiled kernel's reference)."""
     n = points.shape[0]
     if n == 0:
         return np.zeros(0, bool), np.zeros(0)
@@ -274,6 +356,34 @@ def segments(
             excluded[:-s] |= is_corner[s:]
     excluded |= cluster < 0
     return np.where(excluded, -1, seg)
+
+
+def segment_ids(
+    cluster: IntArray, is_corner: BoolArray, corner_exclusion: int, ring: bool = False
+) -> tuple[IntArray, IntArray]:
+    """:func:`raw_segment_ids` and :func:`segments` in one: the raw id of every point and the
+    id its line is fitted with (−1: none)."""
+    if compiled():
+        from ._kernels import segmentation as kernel
+
+        return kernel.segments(
+            np.ascontiguousarray(cluster, dtype=np.int64),
+            np.ascontiguousarray(is_corner, dtype=np.bool_),
+            int(corner_exclusion),
+            bool(ring),
+        )
+    return _segment_ids_numpy(cluster, is_corner, corner_exclusion, ring)
+
+
+def _segment_ids_numpy(
+    cluster: IntArray, is_corner: BoolArray, corner_exclusion: int, ring: bool = False
+) -> tuple[IntArray, IntArray]:
+    """:func:`segment_ids` in numpy (the compiled kernel's reference)."""
+    if cluster.shape[0] == 0:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty.copy()
+    raw = raw_segment_ids(cluster, is_corner)
+    return raw, segments(cluster, is_corner, corner_exclusion, ring=ring, raw=raw)
 
 
 def _sharpest_ring_corner(points: FloatArray, cfg: Config) -> tuple[int, bool]:

@@ -1,5 +1,6 @@
 """What the log readers and writers share: the typed format errors, opening plain or gzip
-text by content, and atomic writes."""
+text by content (from a pipe too), spooling a pipe that must be read more than once, and
+atomic writes."""
 
 from __future__ import annotations
 
@@ -8,9 +9,14 @@ import gzip
 import io
 import math
 import os
+import shutil
+import stat
+import tempfile
+import weakref
+import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import IO, NamedTuple, Union
+from typing import IO, Any, NamedTuple, Union, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,12 +24,26 @@ from numpy.typing import NDArray
 from ..geometry import Pose2D
 from ..scan import LaserScan
 
-__all__ = ["GZIP_MAGIC", "LogFormatError", "LogRecord", "open_text"]
+__all__ = [
+    "GZIP_MAGIC",
+    "GZIP_ERRORS",
+    "LogFormatError",
+    "LogRecord",
+    "Spool",
+    "display_name",
+    "is_stream",
+    "open_text",
+    "spool_if_stream",
+]
 
 PathLike = Union[str, "os.PathLike[str]"]
 FloatArray = NDArray[np.float64]
 
 GZIP_MAGIC = b"\x1f\x8b"
+
+#: what reading a damaged gzip stream raises (a stream cut short: EOFError; bad data:
+#: zlib.error; a bad header, CRC or length: gzip.BadGzipFile, an OSError)
+GZIP_ERRORS: tuple[type[BaseException], ...] = (EOFError, zlib.error, gzip.BadGzipFile)
 
 
 class LogRecord(NamedTuple):
@@ -45,7 +65,7 @@ class LogFormatError(ValueError):
     """
 
     def __init__(self, path: PathLike, line: int, reason: str) -> None:
-        self.path = os.fspath(path)
+        self.path = display_name(path)
         self.line = int(line)
         self.reason = reason
         where = f"{self.path}:{self.line}" if self.line > 0 else self.path
@@ -60,9 +80,10 @@ def numeric_rows(
 ) -> Iterator[tuple[int, list[float]]]:
     """``(line number, values)`` for every line of a text file (plain or gzip) holding exactly
     ``len(names)`` finite numbers; ``#`` comments and blank lines are skipped. Anything else
-    raises ``error`` naming the file, the line and the field (by ``names``)."""
+    raises ``error`` naming the file, the line and the field (by ``names``), and so does a
+    damaged gzip stream (cut short, corrupt), naming the line it stopped at."""
     with open_text(path) as fh:
-        for lineno, line in enumerate(fh, start=1):
+        for lineno, line in _lines(fh, path, error):
             s = line.strip()
             if not s or s.startswith("#"):
                 continue
@@ -84,18 +105,146 @@ def numeric_rows(
             yield lineno, vals
 
 
+def _lines(fh: IO[str], path: PathLike, error: type[LogFormatError]) -> Iterator[tuple[int, str]]:
+    """The 1-based numbered lines of ``fh``; a damaged gzip stream raises ``error``."""
+    it = iter(fh)
+    lineno = 0
+    while True:
+        try:
+            line = next(it)
+        except StopIteration:
+            return
+        except GZIP_ERRORS as exc:
+            what = "ends early" if isinstance(exc, EOFError) else "is corrupt"
+            raise error(
+                path, lineno + 1, f"the gzip stream {what} ({exc}): the file is damaged"
+            ) from None
+        lineno += 1
+        yield lineno, line
+
+
 # -- files ---------------------------------------------------------------------------------
 def open_text(path: PathLike) -> IO[str]:
     """Open a text log for reading, decompressing gzip when the file starts with its magic
-    bytes (whatever its name). Undecodable bytes become U+FFFD (and fail to parse as numbers
-    rather than aborting the read)."""
-    with open(path, "rb") as f:
+    bytes (whatever its name). The file is opened once and its first bytes put back, so a
+    pipe or FIFO (``<(zcat log.gz)``, ``/dev/stdin``) reads whole. Undecodable bytes become
+    U+FFFD (and fail to parse as numbers rather than aborting the read)."""
+    f = open(path, "rb")  # noqa: SIM115 - closed with the returned stream
+    try:
         magic = f.read(2)
-    # the caller closes the returned stream, which closes these
-    raw: gzip.GzipFile | io.BufferedReader = (
-        gzip.open(path, "rb") if magic == GZIP_MAGIC else open(path, "rb")  # noqa: SIM115
-    )
-    return io.TextIOWrapper(raw, encoding="utf-8", errors="replace")
+        binary: IO[bytes] = f
+        if f.seekable():
+            f.seek(0)
+        else:  # a pipe: the bytes read cannot be sought back to
+            binary = cast(IO[bytes], io.BufferedReader(_Rewound(magic, f)))
+        if magic != GZIP_MAGIC:
+            return _TextLog(binary)
+        gz = gzip.GzipFile(filename=display_name(path), mode="rb", fileobj=binary)
+        # GzipFile leaves a file object it was given open: the text stream closes it
+        return _TextLog(cast(IO[bytes], gz), also_close=binary)
+    except BaseException:
+        f.close()
+        raise
+
+
+class _TextLog(io.TextIOWrapper):
+    """UTF-8 text (undecodable bytes replaced) over a byte stream, closing ``also_close``
+    (the file under a gzip layer) with itself."""
+
+    def __init__(self, raw: IO[bytes], also_close: IO[bytes] | None = None) -> None:
+        super().__init__(raw, encoding="utf-8", errors="replace")
+        self._also_close = also_close
+
+    def close(self) -> None:
+        try:
+            super().close()
+        finally:
+            if self._also_close is not None:
+                self._also_close.close()
+
+
+class _Rewound(io.RawIOBase):
+    """A stream that cannot seek (a pipe) with its first bytes, already read, put back."""
+
+    def __init__(self, head: bytes, rest: IO[bytes]) -> None:
+        super().__init__()
+        self._head = head
+        self._rest = rest
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        view = memoryview(buffer).cast("B")
+        if self._head:
+            n = min(len(view), len(self._head))
+            view[:n] = self._head[:n]
+            self._head = self._head[n:]
+            return n
+        data = self._rest.read(len(view))
+        view[: len(data)] = data
+        return len(data)
+
+    def close(self) -> None:
+        try:
+            self._rest.close()
+        finally:
+            super().close()
+
+
+# -- pipes -----------------------------------------------------------------------------------
+def is_stream(path: PathLike) -> bool:
+    """Whether ``path`` is something that can be read only once: a pipe, a FIFO, a terminal
+    (``<(zcat log.gz)``, ``/dev/stdin``), i.e. it exists and is neither a regular file nor a
+    directory."""
+    if isinstance(path, Spool):
+        return False
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+class Spool(os.PathLike[str]):
+    """A log read from a pipe, copied once into a temporary file so that it can be read again
+    (sniffed, counted, streamed, hashed). It opens as that file (``os.fspath``) but is named as
+    the input given (``str``, :attr:`name`, and in every error message, see
+    :func:`display_name`). The file is removed when the spool is garbage collected (or the
+    interpreter exits)."""
+
+    def __init__(self, path: PathLike) -> None:
+        self.name = os.fspath(path)
+        fd, tmp = tempfile.mkstemp(prefix="fuzzypos-spool-")
+        self.file = tmp
+        self._remove = weakref.finalize(self, _unlink, tmp)
+        with os.fdopen(fd, "wb") as dst, open(path, "rb") as src:
+            shutil.copyfileobj(src, dst, 1 << 20)
+
+    def __fspath__(self) -> str:
+        return self.file
+
+    def __str__(self) -> str:
+        return self.name
+
+    def __repr__(self) -> str:
+        return f"Spool({self.name!r})"
+
+
+def _unlink(path: str) -> None:
+    with contextlib.suppress(OSError):
+        os.unlink(path)
+
+
+def spool_if_stream(path: PathLike) -> PathLike:
+    """``path`` itself, or a :class:`Spool` of it when it can be read only once
+    (:func:`is_stream`); for readers that read their input more than once."""
+    return Spool(path) if is_stream(path) else path
+
+
+def display_name(path: PathLike) -> str:
+    """The name to show for ``path``: the input given, also for a :class:`Spool` of it."""
+    return path.name if isinstance(path, Spool) else os.fspath(path)
 
 
 def _write_atomically(path: PathLike, write: Callable[[IO[str]], None]) -> None:

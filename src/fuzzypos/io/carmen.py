@@ -100,7 +100,10 @@ error. Records come in file order, even where the timestamps go backwards.
 
 The reader streams: one line in memory at a time, plus the record waiting for its TRUEPOS
 (and, with ``odometry="interpolated"``, the bounded window above). Gzip is recognised by its
-magic bytes, not by the file name. Ranges are parsed by numpy, not beam by beam.
+magic bytes, not by the file name. Ranges are parsed by numpy, not beam by beam. A pipe or
+FIFO (``<(zcat log.clf.gz)``, ``/dev/stdin``) is copied once into a temporary file (a
+:class:`~fuzzypos.io._common.Spool`, removed with the reader), so that every pass reads all
+of it; messages still name it as given.
 
 Writing is :mod:`fuzzypos.io.carmen_write` (:class:`CarmenWriter`, :func:`write_carmen`; both
 re-exported here); the FLASER beam geometry both sides share is in :mod:`fuzzypos.io._flaser`.
@@ -110,7 +113,6 @@ from __future__ import annotations
 
 import gzip
 import math
-import os
 import warnings
 import zlib
 from collections import deque
@@ -121,7 +123,16 @@ import numpy as np
 
 from ..geometry import Pose2D
 from ..scan import LaserScan, ScanError
-from ._common import FloatArray, LogFormatError, LogRecord, PathLike, open_text
+from ._common import (
+    GZIP_ERRORS,
+    FloatArray,
+    LogFormatError,
+    LogRecord,
+    PathLike,
+    display_name,
+    open_text,
+    spool_if_stream,
+)
 from ._flaser import CONVENTIONS, carmen_beam_geometry, check_convention, check_fov
 from .carmen_write import CarmenWriter, write_carmen
 
@@ -252,6 +263,7 @@ class CarmenReader:
     - ``odom_messages``: the well-formed ODOM lines read.
 
     Each call of :meth:`records` reads the file again from the start and resets these.
+    :meth:`scan_stamps` is a quick pass over the scan lines' stamps only.
     """
 
     #: message type -> handler method name; a handler gets the line's tokens and either
@@ -279,8 +291,8 @@ class CarmenReader:
         odometry: str = "scan",
         laser_offset: Pose2D | None = None,
     ) -> None:
-        self.path = path
-        self.name = os.fspath(path)
+        self.path = spool_if_stream(path)  # a pipe is copied once: records() reads it again
+        self.name = display_name(path)
         self.field_of_view_deg = check_fov(field_of_view_deg)
         check_convention(convention)
         self.convention = convention
@@ -295,7 +307,7 @@ class CarmenReader:
             raise ValueError(f"odometry must be one of {ODOMETRY_SOURCES}, got {odometry!r}")
         self.odometry = odometry
         self.laser_offset = _check_offset(laser_offset)
-        with open(path, "rb"):  # fail here, not at the first record, if it cannot be read
+        with open(self.path, "rb"):  # fail here, not at the first record, if it cannot be read
             pass
         self._geometry: dict[int, tuple[float, float]] = {}
         self._reset()
@@ -387,6 +399,35 @@ class CarmenReader:
                     ) from None
                 self.lines += 1
                 yield self.lines, line
+
+    def scan_stamps(self) -> FloatArray:
+        """The ``ipc_timestamp`` of every ``FLASER`` / ``ROBOTLASER1`` line in file order (the
+        third field from the end), read without parsing the scans: a quick look at a log's
+        stamps (one pass over the file; read-only). Lines whose field is not a finite number
+        are left out; a damaged gzip stream ends the pass (:meth:`records` reports it)."""
+        stamps = np.fromiter(self._scan_stamps(), dtype=np.float64)
+        stamps.setflags(write=False)
+        return stamps
+
+    def _scan_stamps(self) -> Iterator[float]:
+        with open_text(self.path) as fh:
+            it = iter(fh)
+            while True:
+                try:
+                    line = next(it)
+                except StopIteration:
+                    return
+                except GZIP_ERRORS:
+                    return
+                if not line.startswith(("FLASER ", "ROBOTLASER1 ")):
+                    continue
+                tail = line.rsplit(None, 3)
+                try:
+                    t = float(tail[1]) if len(tail) == 4 else math.nan
+                except ValueError:
+                    continue
+                if math.isfinite(t):
+                    yield t
 
     def _flush_pending(self) -> None:
         if self._pending is not None:

@@ -6,12 +6,16 @@ uses.
   share one laser (a pure forward mounting offset, one ``range_max``), else ``ValueError``.
 - the run job's ``trajectory.clf`` (``estimate_of=<the log's name>``, see
   :func:`fuzzypos.run.write_estimate_clf`): ``x y θ`` carry the estimate and
-  ``odom_x odom_y odom_θ`` the log's odometry; the beam geometry is taken from the first
-  scan, scans that do not fit it are left out, and what FLASER cannot store is noted.
+  ``odom_x odom_y odom_θ`` the log's odometry; the FLASER beam geometry is taken from the
+  first scan, and a scan FLASER cannot describe (other beam angles, a laser mounted off the
+  robot's x axis, a mount that changes) gets a ``ROBOTLASER1`` line instead, with its own
+  angles and mount, the estimate as ``robot_x robot_y robot_θ`` and the log's odometry in an
+  ``ODOM`` line with the same stamp just before it.
 
-Either way one ``FLASER n r_1 … r_n x y θ odom_x odom_y odom_θ ipc_timestamp hostname
-logger_timestamp`` line per scan (both timestamps the scan's stamp, ``repr``), then
-``TRUEPOS`` where the truth is given; poses at full precision (``repr``), ranges to 0.1 mm.
+One ``FLASER n r_1 … r_n x y θ odom_x odom_y odom_θ ipc_timestamp hostname
+logger_timestamp`` (or ``ROBOTLASER1``) line per scan (both timestamps the scan's stamp,
+``repr``), then ``TRUEPOS`` where the truth is given; poses at full precision (``repr``),
+ranges to 0.1 mm.
 The file is written to a temporary file next to ``path`` that :meth:`CarmenWriter.close`
 renames over it (:meth:`CarmenWriter.abort` removes it), so a failure leaves no partial log;
 one scan is held at a time.
@@ -116,6 +120,16 @@ def _pose_text(p: Pose2D) -> str:
 _FORMATS = "# message formats defined: PARAM FLASER TRUEPOS\n"
 _FLASER_FORMAT = "# FLASER num_readings [range_readings] x y theta odom_x odom_y odom_theta\n"
 _TRUEPOS_FORMAT = "# TRUEPOS true_x true_y true_theta odom_x odom_y odom_theta\n"
+_ESTIMATE_FORMATS = "# message formats defined: PARAM FLASER ROBOTLASER1 ODOM TRUEPOS\n"
+_ROBOTLASER1_FORMAT = (
+    "# ROBOTLASER1 laser_type start_angle field_of_view angular_resolution maximum_range "
+    "accuracy remission_mode num_readings [range_readings] num_remissions [remissions] "
+    "laser_pose_x laser_pose_y laser_pose_theta robot_pose_x robot_pose_y robot_pose_theta "
+    "laser_tv laser_rv forward_safety_dist side_safty_dist turn_axis\n"
+)
+_ODOM_FORMAT = "# ODOM x y theta tv rv accel\n"
+#: ROBOTLASER1's laser_type for a scanner fuzzypos does not know (CARMEN's UMKNOWN_PROXIMITY_SENSOR)
+_UNKNOWN_LASER = 99
 
 
 class CarmenWriter:
@@ -133,10 +147,13 @@ class CarmenWriter:
     invalid readings are written as ``range_max`` (``0`` when it is infinite).
 
     ``estimate_of=<source>`` (the run job): the header names ``source`` and is written with
-    the first scan, whose beam geometry (:func:`flaser_geometry`) and mounting pose the log
-    keeps (a pose FLASER cannot store goes in a comment); scans with another geometry are
-    left out (counted in :attr:`skipped`); ranges are the raw readings; :attr:`notes` says
-    what was lost. ``field_of_view_deg``, ``convention`` and ``header_comment`` are not used.
+    the first scan, whose FLASER beam geometry (:func:`flaser_geometry`) and forward mounting
+    offset the log keeps; a scan they do not describe (another geometry or mount, or a first
+    scan whose laser sits off the robot's x axis) is written as ``ROBOTLASER1`` (its own
+    start angle, resolution, maximum range and mount; counted in :attr:`robotlaser1`), after
+    an ``ODOM`` line carrying the odometry (the estimate where there is none). Ranges are
+    the raw readings; :attr:`notes` says where the two kinds mix. ``field_of_view_deg``,
+    ``convention`` and ``header_comment`` are not used.
 
     ``compress``: gzip the file (None: when the name ends in ``.gz``). :attr:`written`: the
     scans written so far.
@@ -167,11 +184,10 @@ class CarmenWriter:
         self.path = Path(path)
         self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         self.written = 0
-        self.skipped = 0
+        self.robotlaser1 = 0
         self.notes: list[str] = []
         self.first: LaserScan | None = None
         self._fill = "0"
-        self._pose_change_noted = False
         self._raw: IO[bytes] | None = None
         gz = self.path.name.endswith(".gz") if compress is None else compress
         self._fh: IO[str] | None = self._open(gz)
@@ -214,7 +230,9 @@ class CarmenWriter:
         return lines
 
     def _estimate_header(self, first: LaserScan) -> list[str]:
-        self.geometry = flaser_geometry(first)
+        sp = first.sensor_pose
+        forward = sp.y == 0.0 and sp.theta == 0.0  # what FLASER's PARAM can store
+        self.geometry = flaser_geometry(first) if forward else None
         lines = [
             "# CARMEN Logfile\n",
             f"# written by fuzzypos {__version__} (fuzzypos run) from {self.estimate_of}\n",
@@ -222,8 +240,15 @@ class CarmenWriter:
                 "# FLASER x y theta: the fuzzypos estimate; odom_x odom_y odom_theta: the log's "
                 "odometry (the estimate where the log has none)\n"
             ),
-            _FORMATS,
+            (
+                "# ROBOTLASER1 (scans FLASER cannot describe) robot_pose: the fuzzypos estimate; "
+                "the log's odometry: the ODOM line before it (read with --odometry "
+                "interpolated)\n"
+            ),
+            _ESTIMATE_FORMATS,
             _FLASER_FORMAT,
+            _ROBOTLASER1_FORMAT,
+            _ODOM_FORMAT,
             _TRUEPOS_FORMAT,
         ]
         if self.geometry is not None:
@@ -232,19 +257,7 @@ class CarmenWriter:
                 f"# FLASER beams: field of view {fov:g} deg from -{fov / 2:g} deg, convention "
                 f"{conv!r}; read with the same (fuzzypos: --fov {fov:g} --convention {conv})\n"
             )
-        sp = first.sensor_pose
-        if sp.y == 0.0 and sp.theta == 0.0:
             lines.extend(self._params(first, range_max=False))
-        else:
-            lines.append(
-                f"# the laser sits at x={sp.x!r} y={sp.y!r} theta={sp.theta!r} rad on the robot, "
-                "which FLASER cannot store: read with --laser-offset "
-                f"{sp.x:g},{sp.y:g},{math.degrees(sp.theta):g}\n"
-            )
-            self.notes.append(
-                f"{self.path.name}: the laser's mounting pose has a sideways or angular part "
-                "that FLASER cannot store; it is in a comment"
-            )
         return lines
 
     def _params(self, first: LaserScan, *, range_max: bool) -> list[str]:
@@ -298,23 +311,31 @@ class CarmenWriter:
             )
         return []
 
-    def _check_estimate_scan(self, fh: IO[str], scan: LaserScan) -> bool:
-        """Whether the scan fits the estimate log's beam geometry (else it is left out); the
-        header goes out with the first scan."""
+    def _is_flaser(self, fh: IO[str], scan: LaserScan) -> bool:
+        """Whether the estimate log's FLASER geometry and mount describe the scan (else it is
+        written as ROBOTLASER1); the header goes out with the first scan."""
         if self.first is None:
             self.first = scan
-            for line in self._estimate_header(scan):
-                fh.write(line)
-        if self.geometry is None or scan.n_beams < 2 or _misfit(scan, *self.geometry) is not None:
-            self.skipped += 1
-            return False
-        if scan.sensor_pose != self.first.sensor_pose and not self._pose_change_noted:
-            self._pose_change_noted = True
-            self.notes.append(
-                f"{self.path.name}: the scans' sensor_pose changes along the log; FLASER keeps "
-                "the first one's"
-            )
-        return True
+            fh.write("".join(self._estimate_header(scan)))
+        return (
+            self.geometry is not None
+            and scan.n_beams >= 2
+            and scan.sensor_pose == self.first.sensor_pose
+            and _misfit(scan, *self.geometry) is None
+        )
+
+    @staticmethod
+    def _robotlaser1(scan: LaserScan, pose: Pose2D, odometry: Pose2D | None, trailer: str) -> str:
+        """The ``ODOM`` (``odometry``, else ``pose``) and ``ROBOTLASER1`` lines of a scan at
+        ``pose``."""
+        odom = f"ODOM {_pose_text(odometry if odometry is not None else pose)} 0 0 0 {trailer}\n"
+        n, res = scan.n_beams, scan.angle_increment
+        laser = pose.compose(scan.sensor_pose)  # CARMEN's laser pose is in the world
+        head = f"{_UNKNOWN_LASER} {scan.angle_min!r} {abs(res) * (n - 1)!r} {res!r}"
+        return (
+            f"{odom}ROBOTLASER1 {head} {scan.range_max!r} 0 0 {n} {_ranges_raw(scan)} 0 "
+            f"{_pose_text(laser)} {_pose_text(pose)} 0 0 0 0 0 {trailer}\n"
+        )
 
     def write(
         self,
@@ -325,9 +346,10 @@ class CarmenWriter:
         pose: Pose2D | None = None,
     ) -> None:
         """Write one scan: ``FLASER`` with ``pose`` (default: ``odometry``) as ``x y θ`` and
-        ``odometry`` (default: ``pose``) as ``odom_x odom_y odom_θ``, then ``TRUEPOS`` when
-        ``truth`` is given. Does nothing after :meth:`close` or :meth:`abort` in estimate
-        mode."""
+        ``odometry`` (default: ``pose``) as ``odom_x odom_y odom_θ`` (in estimate mode
+        ``ROBOTLASER1`` where FLASER cannot describe the scan, see the class), then
+        ``TRUEPOS`` when ``truth`` is given; the scan's lines go out in one write. Does nothing
+        after :meth:`close` or :meth:`abort` in estimate mode."""
         fh = self._fh
         if fh is None:
             if self.estimate_of is not None:
@@ -335,20 +357,23 @@ class CarmenWriter:
             raise ValueError(f"{self.name}: the CARMEN writer is closed")
         if pose is None and odometry is None:
             raise ValueError(f"{self.name}: record {self.written}: no pose to write")
-        if self.estimate_of is None:
-            for line in self._check_log_scan(scan):
-                fh.write(line)
-            ranges = _ranges_filled(scan, self._fill)
-        else:
-            if not self._check_estimate_scan(fh, scan):
-                return
-            ranges = _ranges_raw(scan)
-        xyt = _pose_text(pose if pose is not None else odometry)  # type: ignore[arg-type]
+        at = pose if pose is not None else odometry
+        assert at is not None
+        xyt = _pose_text(at)
         odo = _pose_text(odometry) if odometry is not None else xyt
         trailer = f"{scan.stamp!r} {self.hostname} {scan.stamp!r}"
-        fh.write(f"FLASER {scan.n_beams} {ranges} {xyt} {odo} {trailer}\n")
+        if self.estimate_of is None:
+            params = "".join(self._check_log_scan(scan))
+            ranges = _ranges_filled(scan, self._fill)
+            text = f"{params}FLASER {scan.n_beams} {ranges} {xyt} {odo} {trailer}\n"
+        elif self._is_flaser(fh, scan):
+            text = f"FLASER {scan.n_beams} {_ranges_raw(scan)} {xyt} {odo} {trailer}\n"
+        else:
+            text = self._robotlaser1(scan, at, odometry, trailer)
+            self.robotlaser1 += 1
         if truth is not None:
-            fh.write(f"TRUEPOS {_pose_text(truth)} {odo} {trailer}\n")
+            text += f"TRUEPOS {_pose_text(truth)} {odo} {trailer}\n"
+        fh.write(text)
         self.written += 1
 
     # -- finishing -------------------------------------------------------------------------
@@ -370,10 +395,11 @@ class CarmenWriter:
         try:
             self._close_files()
             if self.estimate_of is not None:
-                if self.skipped:
+                if 0 < self.robotlaser1 < self.written:
                     self.notes.append(
-                        f"{self.path.name}: {self.skipped} scans have beam angles FLASER cannot "
-                        "describe (no symmetric field of view) and were left out"
+                        f"{self.path.name}: {self.robotlaser1} of {self.written} scans are "
+                        "ROBOTLASER1 lines (beam angles or laser mount that FLASER, as set by "
+                        "the first scan, cannot describe)"
                     )
                 if self.written == 0:
                     os.unlink(self.tmp)

@@ -10,10 +10,13 @@ What it reads
   ``#ROSBAG V2.0`` is a ROS1 bag (:func:`is_ros1_bag`), a directory holding ``metadata.yaml``
   a ROS2 bag (:func:`is_ros2_bag`; sqlite3 or mcap storage). Anything else raises
   :class:`BagFormatError`, and so does a bag ``rosbags`` cannot open or a message it cannot
-  read or decode (the ``rosbags`` exception is chained as ``__cause__``). A path that does
-  not exist raises :class:`FileNotFoundError`. ``rosbags`` skips some damage silently (a
-  corrupt mcap chunk ends early): when fewer scans or odometry messages come out than the
-  bag's index lists, the reader warns (:class:`RuntimeWarning`) and counts them.
+  read or decode, whatever ``rosbags`` raised on its damaged bytes (chained as
+  ``__cause__``), or a message whose fields the bag's own (damaged) definition shaped
+  otherwise. A path that does not exist raises :class:`FileNotFoundError`. A ROS1 bag given
+  as a pipe (``<(cat run.bag)``) is copied once into a temporary file (rosbags seeks).
+  ``rosbags`` skips some damage silently (a corrupt mcap chunk ends early): when fewer scans
+  or odometry messages come out than the bag's index lists, the reader warns
+  (:class:`RuntimeWarning`) and counts them.
 - Message types come from the definitions stored in the bag (every ROS1 bag, recent ROS2
   bags), with the Noetic (ROS1) or Humble (ROS2) definitions where the bag stores none.
 - Topics. The scan topic is the bag's only ``sensor_msgs/msg/LaserScan`` topic and the
@@ -29,12 +32,19 @@ What it reads
   ``range_max`` come from the message, the ranges are copied to float64. As everywhere in
   fuzzypos a reading that is NaN, ±inf, 0, below ``range_min`` or at/above ``range_max`` is
   invalid: a driver reporting "no return" as ``range_max`` (the aces bag: 50.0) needs nothing
-  more. ``angle_max`` is not used; a message whose ``angle_max`` disagrees with
-  ``angle_min + (n-1)*angle_increment`` by more than half an increment is counted in
-  :attr:`BagReader.angle_max_mismatches`.
+  more. Beam ``i`` is at ``angle_min + i*angle_increment``, so ``angle_max`` is not used, but
+  it is checked: a message whose ``angle_max`` disagrees with ``angle_min +
+  (n-1)*angle_increment`` by more than half an increment is counted in
+  :attr:`BagReader.angle_max_mismatches`, and one whose ``angle_max`` lies on the other side
+  of ``angle_min`` than the increment goes (``angle_max < angle_min`` with a positive
+  increment, or ``>`` with a negative one) raises :class:`BagFormatError`: its beams would
+  sweep away from where the message says the scan ends. A scan that turns clockwise (an
+  upside-down mount) has ``angle_max < angle_min`` *and* a negative increment, which is
+  consistent (sensor_msgs/LaserScan) and read as it is.
 - Odometry. Two passes: the constructor reads the odometry topic (and ``/tf_static``) into
-  arrays, which are small (4 doubles a message), sorted by header stamp, and the first
-  scan (for its frame); :meth:`BagReader.records`
+  arrays, which are small (4 doubles a message), sorted by header stamp, the first
+  scan (for its frame) and every scan's header stamp (:meth:`BagReader.scan_stamps`, read
+  from the serialized header without decoding the scan); :meth:`BagReader.records`
   then streams the scans, one message in memory at a time. Each scan gets the odometry pose
   (``pose.pose``: x, y and the yaw of the quaternion) interpolated at its header stamp
   (:func:`interpolate_poses`): linear in x and y, along the shorter arc in θ, between the two
@@ -56,12 +66,11 @@ offending message within its topic (0 when the problem is not one message).
 from __future__ import annotations
 
 import math
-import os
 import struct
 import warnings
 from collections import deque
 from collections.abc import Iterator, Sequence
-from contextlib import ExitStack
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -84,7 +93,14 @@ from rosbags.typesys import (
 
 from ..geometry import Pose2D, _wrap_scalar, compose, inverse, wrap_angle
 from ..scan import LaserScan, ScanError
-from ._common import FloatArray, LogFormatError, LogRecord, PathLike
+from ._common import (
+    FloatArray,
+    LogFormatError,
+    LogRecord,
+    PathLike,
+    display_name,
+    spool_if_stream,
+)
 
 __all__ = [
     "LASERSCAN_TYPE",
@@ -112,18 +128,26 @@ DEFAULT_BASE_FRAME = "base_link"
 #: a mount tilted more than this (radians) from level gets a note (only its yaw is used)
 _TILT_NOTE = math.radians(1.0)
 
-#: what ``rosbags`` (and the decoders under it) raise on a bag it cannot read
+#: what ``rosbags`` (and the storages and decoders under it) raise on a bag it cannot read:
+#: its own errors, and on damaged bytes almost anything (a failed assertion, sqlite's
+#: CorruptError, a size field too large to allocate …). Only the calls into ``rosbags`` are
+#: guarded by this; the chained ``__cause__`` keeps the original.
 _READ_ERRORS: tuple[type[BaseException], ...] = (
     ReaderError1,
     ReaderError2,
     SerdeError,
     TypesysError,
-    struct.error,
-    EOFError,
-    UnicodeDecodeError,
+    Exception,
 )
-#: what decoding one message may raise besides those
-_DECODE_ERRORS: tuple[type[BaseException], ...] = (*_READ_ERRORS, ValueError, IndexError, KeyError)
+#: what reading a field of a decoded message may raise when the bag's own message definition
+#: shapes it otherwise (a damaged definition renames or retypes a field)
+_FIELD_ERRORS: tuple[type[BaseException], ...] = (
+    AttributeError,
+    TypeError,
+    ValueError,
+    OverflowError,
+    IndexError,
+)
 
 
 class BagFormatError(LogFormatError):
@@ -235,6 +259,22 @@ def _frame(name: str) -> str:
     return name.lstrip("/")
 
 
+def _header_stamp(raw: bytes, is2: bool) -> float:
+    """The header stamp (float seconds, as :func:`_stamp` gives it) of a serialized message
+    that starts with a ``std_msgs/Header``, without decoding it: ROS1 ``uint32 seq``, then
+    ``uint32 sec, nsec``; CDR (ROS2): after the 4-byte encapsulation (whose second byte is 1
+    for little endian), ``int32 sec, uint32 nanosec``. NaN where ``raw`` is too short."""
+    try:
+        if is2:
+            fmt = "<iI" if raw[1:2] == b"\x01" else ">iI"
+            sec, nsec = struct.unpack_from(fmt, raw, 4)
+        else:
+            sec, nsec = struct.unpack_from("<II", raw, 4)
+    except struct.error:
+        return math.nan
+    return float(sec) + 1e-9 * float(nsec)
+
+
 # -- the open bag ------------------------------------------------------------------------------
 @dataclass
 class _Bag:
@@ -287,7 +327,7 @@ class BagReader:
     Known after construction:
 
     - ``ros_version`` (1 or 2), ``topics`` (topic -> message type), ``scan_topic``,
-      ``scan_count`` (messages on it, from the bag's index);
+      ``scan_count`` (messages on it, from the bag's index), :meth:`scan_stamps`;
     - ``odom_topic`` (None without odometry), ``has_odometry``, ``odometry_stamps`` ``(m,)``
       and ``odometry_poses`` ``(m, 3)`` (sorted by stamp; read-only);
     - ``base_frame``, ``scan_frame`` (of the first scan), ``sensor_pose`` (the mounting pose
@@ -311,8 +351,8 @@ class BagReader:
         laser_offset: Pose2D | None = None,
         base_frame: str | None = None,
     ) -> None:
-        self.path = path
-        self.name = os.fspath(path)
+        self.path = spool_if_stream(path)  # a ROS1 bag through a pipe: rosbags needs to seek
+        self.name = display_name(path)
         if laser_offset is not None and not isinstance(laser_offset, Pose2D):
             raise TypeError(f"laser_offset must be a Pose2D, got {type(laser_offset).__name__}")
         self.laser_offset = laser_offset
@@ -341,9 +381,8 @@ class BagReader:
             try:
                 self._store = _typestore([*scan_conns, *odom_conns, *tf_conns], bag.is2)
             except _READ_ERRORS as exc:
-                raise self._error(f"bad message definitions in the bag: {exc}") from exc
-            child_frame = self._first_pass(bag, odom_conns, tf_conns)
-            self.scan_frame = self._first_scan_frame(bag, scan_conns)
+                raise self._error(f"bad message definitions in the bag: {exc!r}") from exc
+            child_frame = self._first_pass(bag, odom_conns, tf_conns, scan_conns)
 
         self.has_odometry = self.odometry_stamps.shape[0] > 0
         if not self.has_odometry:
@@ -444,11 +483,12 @@ class BagReader:
             f"{len(candidates)} {msgtype} topics ({listing}): pass {arg}= to pick one",
         )
 
-    def _messages(
+    def _raw_messages(
         self, bag: _Bag, connections: Sequence[Connection]
-    ) -> Iterator[tuple[Connection, int, Any, int]]:
-        """``(connection, record time ns, message, 1-based index in its topic)`` for the
-        messages of ``connections`` in bag order; read errors become :class:`BagFormatError`."""
+    ) -> Iterator[tuple[Connection, int, bytes, int]]:
+        """``(connection, record time ns, serialized message, 1-based index in its topic)`` for
+        the messages of ``connections`` in bag order; read errors become
+        :class:`BagFormatError`."""
         if not connections:  # an empty filter would read every message
             return
         counts: dict[str, int] = {}
@@ -460,54 +500,105 @@ class BagReader:
                 return
             except _READ_ERRORS as exc:
                 topics = ", ".join(sorted({c.topic for c in connections}))
-                raise self._error(f"cannot read the bag: {exc}", 0, topics) from exc
+                raise self._error(f"cannot read the bag: {exc!r}", 0, topics) from exc
             k = counts[conn.topic] = counts.get(conn.topic, 0) + 1
-            try:
-                if bag.is2:
-                    msg = self._store.deserialize_cdr(raw, conn.msgtype)
-                else:
-                    msg = self._store.deserialize_ros1(raw, conn.msgtype)
-            except _DECODE_ERRORS as exc:
-                raise self._error(
-                    f"cannot decode the {conn.msgtype} message: {exc!r}", k, conn.topic
-                ) from exc
-            yield conn, t_ns, msg, k
+            yield conn, t_ns, raw, k
 
-    # -- first pass: odometry and static transforms -------------------------------------------
+    def _decode(self, bag: _Bag, conn: Connection, raw: bytes, k: int) -> Any:
+        """One message decoded; decoding errors become :class:`BagFormatError`."""
+        try:
+            if bag.is2:
+                return self._store.deserialize_cdr(raw, conn.msgtype)
+            return self._store.deserialize_ros1(raw, conn.msgtype)
+        except _READ_ERRORS as exc:
+            raise self._error(
+                f"cannot decode the {conn.msgtype} message: {exc!r}", k, conn.topic
+            ) from exc
+
+    def _messages(
+        self, bag: _Bag, connections: Sequence[Connection]
+    ) -> Iterator[tuple[Connection, int, Any, int]]:
+        """:meth:`_raw_messages`, decoded."""
+        for conn, t_ns, raw, k in self._raw_messages(bag, connections):
+            yield conn, t_ns, self._decode(bag, conn, raw, k), k
+
+    @contextmanager
+    def _fields(self, conn: Connection, k: int) -> Iterator[None]:
+        """Reading a decoded message's fields: a message the bag's own (damaged) definition
+        shaped otherwise raises :class:`BagFormatError`."""
+        try:
+            yield
+        except LogFormatError:
+            raise
+        except _FIELD_ERRORS as exc:
+            raise self._error(
+                f"malformed {conn.msgtype} message (is the bag's message definition damaged?): "
+                f"{exc!r}",
+                k,
+                conn.topic,
+            ) from exc
+
+    # -- first pass: odometry, static transforms, the scans' stamps ----------------------------
     def _first_pass(
-        self, bag: _Bag, odom_conns: list[Connection], tf_conns: list[Connection]
+        self,
+        bag: _Bag,
+        odom_conns: list[Connection],
+        tf_conns: list[Connection],
+        scan_conns: list[Connection],
     ) -> str | None:
-        """Read the odometry into arrays and ``/tf_static`` into ``_static``; return the
-        odometry's ``child_frame_id`` (of its first message; None without one)."""
+        """Read the odometry into arrays, ``/tf_static`` into ``_static``, the scans' header
+        stamps (without decoding the scans) and the first scan's frame; return the odometry's
+        ``child_frame_id`` (of its first message; None without one)."""
         stamps: list[float] = []
         poses: list[tuple[float, float, float]] = []
+        scan_stamps: list[float] = []
         child_frame: str | None = None
         zero = 0
-        for conn, t_ns, msg, k in self._messages(bag, [*odom_conns, *tf_conns]):
-            if conn.msgtype == TFMESSAGE_TYPE:
-                for tr in msg.transforms:
-                    self._add_static(tr, conn.topic, k)
+        self.scan_frame: str | None = None
+        scan_topics = {c.topic for c in scan_conns}
+        for conn, t_ns, raw, k in self._raw_messages(bag, [*odom_conns, *tf_conns, *scan_conns]):
+            if conn.topic in scan_topics:
+                t = _header_stamp(raw, bag.is2)
+                if math.isfinite(t):
+                    scan_stamps.append(t if t != 0.0 else t_ns * 1e-9)
+                if k == 1:
+                    with self._fields(conn, k):
+                        self.scan_frame = _frame(self._decode(bag, conn, raw, k).header.frame_id)
                 continue
-            t = _stamp(msg.header)
-            if t == 0.0:
-                t = t_ns * 1e-9
-                zero += 1
-            pos, q = msg.pose.pose.position, msg.pose.pose.orientation
-            pose = (float(pos.x), float(pos.y), _yaw(q))
-            if not all(math.isfinite(v) for v in (t, *pose)):
-                raise self._error(f"odometry not finite: stamp {t}, pose {pose}", k, conn.topic)
+            msg = self._decode(bag, conn, raw, k)
+            with self._fields(conn, k):
+                if conn.msgtype == TFMESSAGE_TYPE:
+                    for tr in msg.transforms:
+                        self._add_static(tr, conn.topic, k)
+                    continue
+                t = _stamp(msg.header)
+                if t == 0.0:
+                    t = t_ns * 1e-9
+                    zero += 1
+                pos, q = msg.pose.pose.position, msg.pose.pose.orientation
+                pose = (float(pos.x), float(pos.y), _yaw(q))
+                if not all(math.isfinite(v) for v in (t, *pose)):
+                    raise self._error(f"odometry not finite: stamp {t}, pose {pose}", k, conn.topic)
+                if child_frame is None and msg.child_frame_id:
+                    child_frame = str(msg.child_frame_id)
             stamps.append(t)
             poses.append(pose)
-            if child_frame is None and msg.child_frame_id:
-                child_frame = str(msg.child_frame_id)
-        listed = sum(c.msgcount for c in odom_conns)
+        self._scan_stamps = np.asarray(scan_stamps, dtype=np.float64)
+        self._scan_stamps.setflags(write=False)
+        self._keep_odometry(stamps, poses, zero, sum(c.msgcount for c in odom_conns))
+        return child_frame
+
+    def _keep_odometry(
+        self, stamps: list[float], poses: list[tuple[float, float, float]], zero: int, listed: int
+    ) -> None:
+        """The odometry read, sorted by stamp, with notes on what was odd about it."""
         if len(stamps) != listed:
             note = (
                 f"{self.name}: {self.odom_topic}: read {len(stamps)} odometry messages where "
                 f"the bag's index lists {listed}: the bag may be damaged"
             )
             self.notes.append(note)
-            warnings.warn(note, RuntimeWarning, stacklevel=3)
+            warnings.warn(note, RuntimeWarning, stacklevel=4)
         t_arr = np.asarray(stamps, dtype=np.float64)
         p_arr = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         backwards = int(np.count_nonzero(np.diff(t_arr) < 0.0)) if t_arr.size > 1 else 0
@@ -525,7 +616,6 @@ class BagReader:
         self.odometry_poses: FloatArray = p_arr[order]
         self.odometry_stamps.setflags(write=False)
         self.odometry_poses.setflags(write=False)
-        return child_frame
 
     def _add_static(self, tr: Any, topic: str, k: int) -> None:
         parent, child = _frame(tr.header.frame_id), _frame(tr.child_frame_id)
@@ -535,11 +625,11 @@ class BagReader:
             raise self._error(f"static transform {parent} -> {child} not finite: {vals}", k, topic)
         self._static[child] = (parent, Pose2D(*vals), _tilt(q))
 
-    def _first_scan_frame(self, bag: _Bag, scan_conns: list[Connection]) -> str | None:
-        """The ``header.frame_id`` of the first scan (None on an empty topic)."""
-        for _conn, _t, msg, _k in self._messages(bag, scan_conns):
-            return _frame(msg.header.frame_id)
-        return None
+    def scan_stamps(self) -> FloatArray:
+        """Every scan's stamp in bag order, as :meth:`records` gives them (the header stamp, or
+        the record time where it is zero), read by the constructor from the messages' headers
+        without decoding the scans: a quick look at the stamps. Read-only."""
+        return self._scan_stamps
 
     # -- laser mounting ------------------------------------------------------------------------
     def _mounting(self, frame: str) -> Pose2D:
@@ -604,9 +694,10 @@ class BagReader:
         with ExitStack() as stack:
             bag = self._open(stack)
             scan_conns = [c for c in bag.reader.connections if c.topic == self.scan_topic]
-            for _conn, t_ns, msg, k in self._messages(bag, scan_conns):
+            for conn, t_ns, msg, k in self._messages(bag, scan_conns):
                 self.messages += 1
-                scan = self._scan(msg, t_ns, k)
+                with self._fields(conn, k):
+                    scan = self._scan(msg, t_ns, k)
                 odometry: Pose2D | None = None
                 if self.has_odometry:
                     if not t_odom[0] <= scan.stamp <= t_odom[-1]:
@@ -629,9 +720,19 @@ class BagReader:
             self.zero_stamps += 1
         ranges = np.asarray(msg.ranges, dtype=np.float64)
         n = ranges.shape[0]
-        a0, inc = float(msg.angle_min), float(msg.angle_increment)
-        if n > 1 and abs(a0 + (n - 1) * inc - float(msg.angle_max)) > 0.5 * abs(inc):
+        a0, inc, a1 = float(msg.angle_min), float(msg.angle_increment), float(msg.angle_max)
+        if n > 1 and abs(a0 + (n - 1) * inc - a1) > 0.5 * abs(inc):
             self.angle_max_mismatches += 1
+            if abs(a1 - a0) > 0.5 * abs(inc) and (a1 > a0) != (inc > 0.0):
+                raise self._error(
+                    f"angle_max {a1:g} lies {'below' if a1 < a0 else 'above'} angle_min {a0:g} "
+                    f"but angle_increment {inc:g} is {'positive' if inc > 0 else 'negative'}: "
+                    f"the {n} beams would run from {math.degrees(a0):.1f}° to "
+                    f"{math.degrees(a0 + (n - 1) * inc):.1f}°, away from angle_max (a scan "
+                    "that turns clockwise has angle_max < angle_min and a negative increment)",
+                    k,
+                    self.scan_topic,
+                )
         try:
             return LaserScan(
                 ranges,

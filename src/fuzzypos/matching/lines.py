@@ -9,12 +9,18 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .._kernels import compiled
 from ..features import Lines
-from ._robust import FloatArray, IntArray, index_pairs, robust_keep
+from ._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS, FloatArray, IntArray, index_pairs, robust_keep
 
 __all__ = ["LinePairs", "pair_lines", "increment_from_lines"]
 
 _HALF_PI = 0.5 * math.pi
+
+
+def _f64(a: FloatArray) -> FloatArray:
+    """A contiguous float64 array (the one type the kernels are compiled for)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,6 +52,46 @@ def pair_lines(
     if len(prev) == 0 or len(curr) == 0:
         z = np.zeros(0, dtype=np.int64)
         return LinePairs(z, z)
+    if compiled():
+        from .._kernels import lines as kernel
+
+        f = _f64
+        rows, cols = kernel.pair_lines(
+            f(prev.normal_angle), f(prev.distance), f(prev.normal), f(prev.centre),
+            f(prev.length), f(curr.normal_angle), f(curr.distance), f(curr.centre),
+            f(curr.length), f(pose),
+            np.array([angle_gate, distance_gate, overlap_margin], dtype=np.float64),
+        )  # fmt: skip
+        return LinePairs(rows, cols)
+    return _pair_lines_numpy(prev, curr, pose, angle_gate, distance_gate, overlap_margin)
+
+
+def _pair_lines_numpy(
+    prev: Lines,
+    curr: Lines,
+    pose: FloatArray,
+    angle_gate: float,
+    distance_gate: float,
+    overlap_margin: float,
+) -> LinePairs:
+    """:func:`pair_lines` in numpy (the compiled kernel's reference)."""
+    ang, dd, along, reach = _line_geometry(prev, curr, pose, overlap_margin)
+    cost = ang * (1.0 / angle_gate) + dd * (1.0 / distance_gate)
+    cost[(ang >= angle_gate) | (dd >= distance_gate) | (np.abs(along) > reach)] = np.inf
+    j = cost.argmin(axis=1)
+    i = cost.argmin(axis=0)
+    rows = np.arange(len(prev))
+    good = (cost.min(axis=1) < np.inf) & (i[j] == rows)
+    return LinePairs(rows[good], j[good])
+
+
+def _line_geometry(
+    prev: Lines, curr: Lines, pose: FloatArray, overlap_margin: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Every previous line (rows) against every current one moved by ``pose`` (columns): the
+    angle between their normals (either way), between their distances, the offset of the
+    current centre along the previous line, and how far it may be for their segments to
+    overlap."""
     ac = curr.normal_angle + pose[2]  # the current normals' angles in frame k
     raw = prev.normal_angle[:, None] - ac  # (P, C)
     ang = np.abs((raw + _HALF_PI) % math.pi - _HALF_PI)  # normals may point either way
@@ -59,13 +105,7 @@ def pair_lines(
     pn = prev.normal
     along = pn[:, 1:2] * (cx - prev.centre[:, 0:1]) - pn[:, 0:1] * (cy - prev.centre[:, 1:2])
     reach = 0.5 * (prev.length[:, None] + curr.length) + overlap_margin
-    cost = ang * (1.0 / angle_gate) + dd * (1.0 / distance_gate)
-    cost[(ang >= angle_gate) | (dd >= distance_gate) | (np.abs(along) > reach)] = np.inf
-    j = cost.argmin(axis=1)
-    i = cost.argmin(axis=0)
-    rows = np.arange(len(prev))
-    good = (cost.min(axis=1) < np.inf) & (i[j] == rows)
-    return LinePairs(rows[good], j[good])
+    return ang, dd, along, reach
 
 
 def increment_from_lines(
@@ -103,6 +143,21 @@ def increment_from_lines(
         raise ValueError("line matching needs the lines' variances (lines from extract_features)")
     P = pairs.prev_index
     C = pairs.curr_index
+    if compiled():
+        from .._kernels import lines as kernel
+
+        params = np.array(
+            [
+                prior_sigma, trim_floor_angle, inlier_distance, math.sin(consensus_angle),
+                OUTLIER_SIGMAS * MAD_TO_SIGMA,
+            ]
+        )  # fmt: skip
+        f = _f64
+        out: FloatArray = kernel.increment_from_lines(
+            f(prev.normal_angle[P]), f(prev.distance[P]), f(curr.normal_angle[C]),
+            f(curr.distance[C]), f(pa[P] + ca[C]), f(pd[P] + cd[C]), f(start), f(prior), params,
+        )  # fmt: skip
+        return out
     raw = prev.normal_angle[P] - curr.normal_angle[C] - start[2]
     delta = (raw + _HALF_PI) % math.pi - _HALF_PI  # rotation left after ``start``
     sign = np.copysign(1.0, np.cos(raw - delta))  # opposite normals: flip d′

@@ -7,6 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._kernels import compiled
 from ..config import SearchConfig
 from ._robust import FloatArray
 from .surface import SurfacePoints
@@ -37,24 +38,63 @@ def search_start(
     the fraction of (at most ``max_points``, evenly picked) ``points`` that land within ``gate``
     of a reference point, less ``distance_penalty`` per metre of translation from the start's
     (of near-equal scores, e.g. along a corridor's repeating doors, the one nearest the start
-    wins). Returns the best start and its score (the fraction, without the penalty). KD-tree
-    queries over all candidates at once, a chunk of rotations at a time; no Python loop over
-    points. ``settings`` (the search section) gives ``step`` (``angle_step``), ``gate``,
-    ``translation_step``, ``max_points``, ``distance_penalty`` and ``batch_size`` (at most
-    that many transformed points per KD-tree query)."""
-    step, gate, translation_step = settings.angle_step, settings.gate, settings.translation_step
-    max_points, distance_penalty = settings.max_points, settings.distance_penalty
+    wins). Returns the best start and its score (the fraction, without the penalty). One
+    compiled loop over the candidates and a grid look-up per point (``FUZZYPOS_KERNELS=numpy``:
+    KD-tree queries over all candidates, a chunk of rotations at a time). ``settings`` (the
+    search section) gives ``step`` (``angle_step``), ``gate``, ``translation_step``,
+    ``max_points``, ``distance_penalty`` and ``batch_size`` (at most that many transformed points
+    per KD-tree query of the numpy reference)."""
     start = np.asarray(start, dtype=float)
     if len(reference) == 0 or points.shape[0] == 0:
         return SearchHit(start, 0.0)
-    pts = points[:: max(1, points.shape[0] // max_points)]
+    pts, thetas, tx, ty, penalty = _candidates(
+        points, start, settings, half_width, translation_half_width
+    )
+    if compiled():
+        from .._kernels.search import best_candidate
+
+        r, t, fraction = best_candidate(
+            reference.grid, np.ascontiguousarray(pts, dtype=np.float64), thetas, tx, ty,
+            penalty, float(settings.gate),
+        )  # fmt: skip
+        return SearchHit(np.array([tx[t], ty[t], thetas[r]]), float(fraction))
+    return _search_numpy(reference, pts, start, thetas, tx, ty, penalty, settings)
+
+
+def _candidates(
+    points: FloatArray,
+    start: FloatArray,
+    settings: SearchConfig,
+    half_width: float,
+    translation_half_width: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """What :func:`search_start` scores: the evenly picked points, the rotations, the
+    translations (x and y, flattened) and each translation's penalty."""
+    step, translation_step = settings.angle_step, settings.translation_step
+    pts = points[:: max(1, points.shape[0] // settings.max_points)]
     k = round(half_width / step)
     thetas = start[2] + step * np.arange(-k, k + 1)
     m = round(translation_half_width / translation_step)
     offs = translation_step * np.arange(-m, m + 1)
     tx, ty = np.meshgrid(start[0] + offs, start[1] + offs, indexing="ij")
     tx, ty = tx.ravel(), ty.ravel()
-    penalty = distance_penalty * np.hypot(tx - start[0], ty - start[1])
+    penalty = settings.distance_penalty * np.hypot(tx - start[0], ty - start[1])
+    return pts, thetas, tx, ty, penalty
+
+
+def _search_numpy(
+    reference: SurfacePoints,
+    pts: FloatArray,
+    start: FloatArray,
+    thetas: FloatArray,
+    tx: FloatArray,
+    ty: FloatArray,
+    penalty: FloatArray,
+    settings: SearchConfig,
+) -> SearchHit:
+    """The candidates scored by KD-tree queries, a chunk of rotations at a time (the compiled
+    kernel's reference): the best start and its fraction."""
+    gate = settings.gate
     best_score, best_fraction, best = -np.inf, 0.0, start
     chunk = max(1, settings.batch_size // (tx.size * pts.shape[0]))
     for c0 in range(0, thetas.size, chunk):  # bounded memory: a chunk of rotations at a time

@@ -5,14 +5,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property, lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from .._kernels import compiled
 from ..config import RefinementConfig
 from ..geometry import stack_columns
 from ._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS, FloatArray, IntArray
+
+if TYPE_CHECKING:
+    from .._kernels.grid import Grid
 
 __all__ = [
     "SurfacePoints",
@@ -27,15 +33,41 @@ __all__ = [
 class SurfacePoints:
     """A keyframe's filtered points with the normal of the surface through each (unit,
     robot frame), their certainty ``weight`` (1 − the fuzzy uncertainty of eq. 4) and a
-    KD-tree over them. Points with no neighbour on their surface are left out."""
+    KD-tree over them (the numpy references' index; the compiled kernels use ``grid``; both
+    built on first use). Points with no neighbour on their surface are left out."""
 
     xy: FloatArray
     normal: FloatArray
     weight: FloatArray
-    tree: cKDTree
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
+
+    @cached_property
+    def tree(self) -> cKDTree:
+        """A KD-tree over the points, built on first use (by the numpy references)."""
+        return cKDTree(self.xy)
+
+    @cached_property
+    def grid(self) -> Grid:
+        """The points sorted into a grid of GRID_CELL cells, built once (first use)."""
+        from .._kernels.grid import build_grid
+
+        return build_grid(self.xy, GRID_CELL)
+
+    @cached_property
+    def arrays(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``xy``, ``normal`` and ``weight`` as contiguous float64 arrays (for the kernels)."""
+        return (
+            np.ascontiguousarray(self.xy, dtype=np.float64),
+            np.ascontiguousarray(self.normal, dtype=np.float64),
+            np.ascontiguousarray(self.weight, dtype=np.float64),
+        )
+
+
+#: the side (m) of the surface grid's cells: about the refinement's pairing distance
+GRID_CELL = 0.15
+_NO_SPACING = np.zeros(0)  # (writeable: numba types read-only arrays apart)
 
 
 def surface_lengths(
@@ -75,14 +107,26 @@ def surface_points(
     ``neighbour_distance`` or ``neighbour_ratio`` × their range, whichever is larger, so that
     far walls, sampled sparsely, stay one surface; at a run's end the chord stops at its last
     point). Only points on a straight stretch keep a normal: the chords to either side must
-    agree in direction within ``max_bend``. No Python loop runs over points."""
+    agree in direction within ``max_bend``. One compiled loop over the points
+    (``FUZZYPOS_KERNELS=numpy``: numpy, no Python loop over points)."""
     neighbour_distance, neighbour_step = settings.neighbour_distance, settings.neighbour_step
     neighbour_ratio, max_bend = settings.neighbour_ratio, settings.max_bend_angle
     xy = np.asarray(points, dtype=float).reshape(-1, 2)
     n = xy.shape[0]
     if n < 3:
         empty = np.zeros((0, 2))
-        return SurfacePoints(empty, empty, np.zeros(0), cKDTree(empty))
+        return SurfacePoints(empty, empty, np.zeros(0))
+    if compiled():
+        from .._kernels.refine import surface_normals
+
+        tan_bend = math.tan(max_bend) if max_bend < math.pi / 2 else math.inf
+        params = np.array([neighbour_distance, neighbour_ratio, tan_bend, settings.weight_floor])
+        return SurfacePoints(
+            *surface_normals(
+                np.ascontiguousarray(xy), np.ascontiguousarray(ranges, dtype=np.float64),
+                np.ascontiguousarray(uncertainty, dtype=np.float64), params, int(neighbour_step),
+            )
+        )  # fmt: skip
     step = np.diff(xy, axis=0)
     step_len = np.hypot(step[:, 0], step[:, 1])
     rng = np.asarray(ranges, dtype=float)
@@ -121,7 +165,7 @@ def surface_points(
     normal = stack_columns(-chord[ok, 1], chord[ok, 0]) / length[ok, None]
     w = np.clip(1.0 - np.asarray(uncertainty, dtype=float)[ok], settings.weight_floor, 1.0)
     xy_ok = xy[ok]
-    return SurfacePoints(xy_ok, normal, w, cKDTree(xy_ok))
+    return SurfacePoints(xy_ok, normal, w)
 
 
 @dataclass(frozen=True)
@@ -182,7 +226,102 @@ def refine_point_to_line(
     ``min_distance`` over ``gate_steps`` iterations. None when no point pairs."""
     if len(reference) < 3 or points.shape[0] == 0:
         return None
-    cfg = settings
+    refine = _refine_compiled if compiled() else _refine_numpy
+    return refine(
+        reference, points, weights, start, prior, hold, settings, max_distance, prior_scale,
+        prior_information, spacing,
+    )  # fmt: skip
+
+
+def _refine_compiled(
+    reference: SurfacePoints,
+    points: FloatArray,
+    weights: FloatArray,
+    start: FloatArray,
+    prior: FloatArray,
+    hold: FloatArray,
+    cfg: RefinementConfig,
+    max_distance: float,
+    prior_scale: float,
+    prior_information: FloatArray | None,
+    spacing: FloatArray | None,
+) -> Refinement | None:
+    """:func:`refine_point_to_line` as one compiled loop (``fuzzypos._kernels.refine``)."""
+    from .._kernels import refine as kernel
+
+    start = np.array(start, dtype=np.float64)
+    prior = np.array(prior, dtype=np.float64)
+    gates, params, info_prior, diagonal = _kernel_settings(cfg, max_distance, prior_scale)
+    prior_info = (
+        diagonal if prior_information is None else np.asarray(prior_information) / prior_scale**2
+    )
+    xy, normal, weight = reference.arrays
+    status, pose, paired, close, info, hold_info, on_start, gradient, variance = kernel.refine(
+        reference.grid, xy, normal, weight,
+        np.ascontiguousarray(points, dtype=np.float64),
+        np.ascontiguousarray(weights, dtype=np.float64),
+        start, prior, np.array(hold[:2], dtype=np.float64),
+        gates, _NO_SPACING if spacing is None else np.ascontiguousarray(spacing, dtype=np.float64),
+        params, int(cfg.iterations), info_prior,
+        np.ascontiguousarray(prior_info, dtype=np.float64), prior_information is not None,
+    )  # fmt: skip
+    if status != kernel.OK:
+        return None
+    n = points.shape[0]
+    return Refinement(
+        pose,
+        int(paired),
+        paired / n,
+        close / n,
+        information=info,
+        prior_information=prior_info.copy() if prior_information is None else prior_info,
+        hold_information=hold_info,
+        hold_on_start=bool(on_start),
+        start=start,
+        prior=prior,
+        gradient_covariance=variance * gradient,
+    )
+
+
+@lru_cache(maxsize=64)
+def _kernel_settings(
+    cfg: RefinementConfig, max_distance: float, prior_scale: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The kernel's settings that depend on the section alone (cached: not to be written to;
+    not flagged read-only, which numba would compile a second time for): the pairing
+    distances per iteration, its ``params`` and the prior's diagonal information (as a vector
+    and as the 3×3)."""
+    from .._kernels import refine as kernel
+
+    values = {
+        **{name: getattr(cfg, name) for name in kernel.PARAMS if name != "trim_sigmas"},
+        "trim_sigmas": OUTLIER_SIGMAS * MAD_TO_SIGMA,
+    }
+    info_prior, diagonal = _prior_terms(cfg, prior_scale, None)
+    out = (
+        np.geomspace(max_distance, cfg.min_distance, cfg.gate_steps),
+        np.array([float(values[name]) for name in kernel.PARAMS]),
+        info_prior,
+        diagonal,
+    )
+    return out
+
+
+def _refine_numpy(
+    reference: SurfacePoints,
+    points: FloatArray,
+    weights: FloatArray,
+    start: FloatArray,
+    prior: FloatArray,
+    hold: FloatArray,
+    cfg: RefinementConfig,
+    max_distance: float,
+    prior_scale: float,
+    prior_information: FloatArray | None,
+    spacing: FloatArray | None,
+) -> Refinement | None:
+    """:func:`refine_point_to_line` in numpy, a KD-tree query per iteration (the compiled
+    kernel's reference)."""
     min_distance, iterations, residual_scale = cfg.min_distance, cfg.iterations, cfg.residual_scale
     point_sigma, degenerate_ratio = cfg.point_sigma, cfg.degenerate_ratio
     hold_tolerance = cfg.hold_tolerance

@@ -3,14 +3,17 @@ feature points (§3.7, §4) refined by line matching."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._kernels import compiled
 from ..config import FusionConfig, MatchingConfig
 from ..features import FeaturePoints, Features, Lines
 from ..matching import estimate_increment, increment_from_lines, pair_features, pair_lines
+from ..matching._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS
 from .estimate import Reason
 
 __all__ = ["FeatureMatch", "FeatureMatcher"]
@@ -78,6 +81,8 @@ class FeatureMatcher:
             pose, gates = prior, (m.line_angle_gate_prior, m.line_distance_gate_prior)
         else:
             pose, gates = start, (m.line_angle_gate, m.line_distance_gate)
+        if compiled() and _has_variances(prev) and _has_variances(curr):
+            return self._match_lines_compiled(prev, curr, pose, gates, prior)
         est, n_pairs = None, 0
         for _ in range(m.line_passes):
             pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
@@ -105,3 +110,54 @@ class FeatureMatcher:
                 break
             gates = (m.line_angle_gate, m.line_distance_gate)
         return est, n_pairs
+
+    def _match_lines_compiled(
+        self,
+        prev: Lines,
+        curr: Lines,
+        pose: FloatArray,
+        gates: tuple[float, float],
+        prior: FloatArray,
+    ) -> tuple[FloatArray | None, int]:
+        """:meth:`match_lines`' passes as one compiled loop (``_kernels.lines.match_lines``)."""
+        from .._kernels.lines import match_lines
+
+        m = self.matching
+        if len(prev) == 0 or len(curr) == 0:
+            return None, 0
+        settings = np.array(
+            [
+                gates[0], gates[1], m.line_angle_gate, m.line_distance_gate,
+                m.line_overlap_margin, m.line_repair_fraction,
+            ]
+        )  # fmt: skip
+        params = np.array(
+            [
+                m.line_prior_sigma, m.line_trim_angle, m.line_inlier_distance,
+                math.sin(m.line_consensus_angle), OUTLIER_SIGMAS * MAD_TO_SIGMA,
+            ]
+        )  # fmt: skip
+        found, est, n_pairs = match_lines(
+            _line_arrays(prev), _line_arrays(curr), np.array(pose, dtype=np.float64),
+            np.array(prior, dtype=np.float64), settings, params, int(m.line_passes),
+            int(m.line_min_pairs),
+        )  # fmt: skip
+        return (est if found else None), int(n_pairs)
+
+
+def _has_variances(lines: Lines) -> bool:
+    return lines.angle_variance is not None and lines.distance_variance is not None
+
+
+def _f64(a: FloatArray | None) -> FloatArray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _line_arrays(
+    lines: Lines,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """What the line-matching kernel reads of a scan's lines."""
+    return (
+        _f64(lines.normal_angle), _f64(lines.distance), _f64(lines.normal), _f64(lines.centre),
+        _f64(lines.length), _f64(lines.angle_variance), _f64(lines.distance_variance),
+    )  # fmt: skip

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from ..config import MatchingConfig, RefinementConfig
 from ..features import Features
@@ -87,7 +86,7 @@ class LocalMap:
 
     def surface(self) -> SurfacePoints:
         """The recent keyframes' surface points in the keyframe's frame (built once per
-        keyframe, one KD-tree)."""
+        keyframe, with one grid or KD-tree)."""
         if self._surface is None:
             parts = self._recent
             self._surface = parts[0][0] if len(parts) == 1 else self._map_of(parts)
@@ -107,7 +106,8 @@ class LocalMap:
         )
 
     def _map_of(self, parts: list[tuple[SurfacePoints, FloatArray]]) -> SurfacePoints:
-        """Surface points seen from the given poses, in the keyframe's frame, one KD-tree."""
+        """Surface points seen from the given poses, in the keyframe's frame (one grid or
+        KD-tree over them all, built on first use)."""
         xy, normal, weight = [], [], []
         for surf, pose in parts:
             rel = relative(self._pose, pose)
@@ -118,7 +118,4 @@ class LocalMap:
                 np.stack((c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]), axis=1)
             )
             weight.append(surf.weight)
-        all_xy = np.concatenate(xy)
-        return SurfacePoints(
-            all_xy, np.concatenate(normal), np.concatenate(weight), cKDTree(all_xy)
-        )
+        return SurfacePoints(np.concatenate(xy), np.concatenate(normal), np.concatenate(weight))

@@ -25,6 +25,14 @@ _MEDIAN_CHI2_1 = 0.454936423119572
 _MIN_TRAVEL = 1e-3
 
 
+def _median(values: deque[float]) -> float:
+    """The median of a running window (as ``np.median``; a sort of a flat array is cheaper
+    than ``np.median`` on a deque)."""
+    a = np.sort(np.fromiter(values, dtype=float, count=len(values)))
+    n = len(a)
+    return float(a[n // 2]) if n % 2 else float(0.5 * (a[n // 2 - 1] + a[n // 2]))
+
+
 class OdometryNoise:
     """The covariance of an odometry increment (``[odometry_noise]``), learned online.
 
@@ -52,6 +60,7 @@ class OdometryNoise:
         # least squares of the matched against the odometry's motion: Σ m·o and Σ o²
         self._scale_sums = np.zeros(2)
         self._turn_sums = np.zeros(2)
+        self._better: bool | None = None  # better_than_matching, until the next sample
 
     @property
     def warm(self) -> bool:
@@ -69,9 +78,16 @@ class OdometryNoise:
         """The odometry's rotation factor (the matched rotation over the odometry's)."""
         return self._factor(self._turn_sums)
 
+    @property
+    def trusted(self) -> bool:
+        """Whether the odometry is trusted as the refinement's prior and its calibration
+        applied: everywhere with ``in_refinement``/``calibrate``, else with
+        ``trust_where_better`` where the learned odometry is the more precise."""
+        return self.settings.trust_where_better and self.warm and self.better_than_matching
+
     def _factor(self, sums: FloatArray) -> float:
         s = self.settings
-        if not s.calibrate or sums[1] <= 0.0:
+        if not (s.calibrate or self.trusted) or sums[1] <= 0.0:
             return 1.0
         bound = s.max_calibration
         return float(min(max(sums[0] / sums[1], 1.0 - bound), 1.0 + bound))
@@ -111,7 +127,7 @@ class OdometryNoise:
         travel = d + s.turning_distance * abs(float(odometry[2]))
         if travel < _MIN_TRAVEL:
             return
-        if s.calibrate:
+        if s.calibrate or s.trust_where_better:
             dm = math.hypot(float(matched[0]), float(matched[1]))
             self._scale_sums += (dm * d, d * d)
             self._turn_sums += (float(matched[2]) * float(odometry[2]), float(odometry[2]) ** 2)
@@ -136,22 +152,28 @@ class OdometryNoise:
     def better_than_matching(self) -> bool:
         """Whether the learned odometry is more precise than the matches, per unit of travel,
         in translation and in rotation (False until both are known)."""
+        if self._better is None:
+            self._better = self._compare()
+        return self._better
+
+    def _compare(self) -> bool:
         s = self.settings
         if min(len(self._translation_own), len(self._rotation_own)) < s.min_samples:
             return False
-        own_t = float(np.median(self._translation_own))
-        own_r = float(np.median(self._rotation_own))
+        own_t = _median(self._translation_own)
+        own_r = _median(self._rotation_own)
         return self.alpha_translation**2 < own_t and self.alpha_rotation**2 < own_r
 
     def _update(self) -> None:
+        self._better = None
         s = self.settings
         if len(self._translation) >= s.min_samples:
-            own = float(np.median(self._translation_own)) if self._translation_own else 0.0
-            a = math.sqrt(max(float(np.median(self._translation)) - own, 0.0))
+            own = _median(self._translation_own) if self._translation_own else 0.0
+            a = math.sqrt(max(_median(self._translation) - own, 0.0))
             lo, hi = s.min_translation_per_sqrt_m, s.max_translation_per_sqrt_m
             self.alpha_translation = min(max(a, lo), hi)
         if len(self._rotation) >= s.min_samples:
-            own = float(np.median(self._rotation_own)) if self._rotation_own else 0.0
-            a = math.sqrt(max(float(np.median(self._rotation)) - own, 0.0))
+            own = _median(self._rotation_own) if self._rotation_own else 0.0
+            a = math.sqrt(max(_median(self._rotation) - own, 0.0))
             lo, hi = s.min_rotation_per_sqrt_m, s.max_rotation_per_sqrt_m
             self.alpha_rotation = min(max(a, lo), hi)

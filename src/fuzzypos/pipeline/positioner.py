@@ -126,7 +126,7 @@ class Positioner:
         else:
             pose = self.local_map.pose_of(from_key)
             increment = relative(self._pose, pose)
-            self._learn(prior, increment, fit, judged.covariance)
+        self._learn(prior, t_prev, fit if from_key is not None else None)
         if self.local_map.add(features, pose, from_key):
             self.uncertainty.renewed()
         self._pose = pose
@@ -160,8 +160,10 @@ class Positioner:
         self, t_prev: FloatArray, prior: Prior, prior_cov: FloatArray
     ) -> tuple[FloatArray, FloatArray] | None:
         """The information of the features' and of the odometry's motion from the keyframe
-        for the refinement's prior, from the learned noise (None: the fixed sigmas)."""
-        if not (self.config.odometry_noise.in_refinement and self.odometry_noise.warm):
+        for the refinement's prior, from the learned noise where it is trusted (None: the
+        fixed sigmas)."""
+        noise = self.odometry_noise
+        if not ((self.config.odometry_noise.in_refinement and noise.warm) or noise.trusted):
             return None
         if not prior.from_odometry:
             return None
@@ -179,17 +181,15 @@ class Positioner:
             return False
         return noise.better_than_matching or not gate.only_where_odometry_is_better
 
-    def _learn(
-        self, prior: Prior, increment: FloatArray, fit: Refinement | None, covariance: FloatArray
-    ) -> None:
-        """A refined match on time teaches the odometry's noise and calibration."""
-        if (
-            fit is not None
-            and prior.from_odometry
-            and prior.stale == 0.0
-            and prior.odometry is not None
-        ):
-            self.odometry_noise.learn(prior.odometry, increment, covariance)
+    def _learn(self, prior: Prior, t_prev: FloatArray, fit: Refinement | None) -> None:
+        """A refined match on time teaches the odometry's noise and calibration: the scan's
+        own motion (the fit without its prior), never the fused one, which would teach the
+        odometry its own weight back."""
+        if fit is None or not prior.from_odometry or prior.stale != 0.0 or prior.odometry is None:
+            return
+        scan = self.uncertainty.scan_only(fit, t_prev)
+        if scan is not None:
+            self.odometry_noise.learn(prior.odometry, *scan)
 
     def _first(self, scan: LaserScan, odom: Pose2D | None) -> Estimate:
         """The first scan: the trajectory starts at its odometry pose, or the origin."""

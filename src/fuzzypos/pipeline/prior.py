@@ -95,7 +95,7 @@ class OdometryPrior:
         self._prev_odom = odom
         stale = 0.0
         if self._steps:
-            usual = float(np.median(self._steps))
+            usual = float(np.median(np.fromiter(self._steps, dtype=float)))
             stale = max(0.0, dt - self.stale_periods * usual)
         if dt > 0.0:
             self._steps.append(dt)

@@ -10,9 +10,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .._kernels import compiled
 from ..config import RefinementConfig, SearchConfig
 from ..features import Features
 from ..matching import Refinement, SurfacePoints, refine_point_to_line, surface_lengths
+from ..matching._robust import median as _median
 
 __all__ = ["Refiner", "ScanPoints", "Starts"]
 
@@ -59,18 +61,36 @@ class Refiner:
         pts = features.points
         if pts.shape[0] < r.min_points:
             return None
-        weights = np.clip(1.0 - features.uncertainty, r.weight_floor, 1.0)
+        spacing = features.ranges * abs(float(angle_increment))
+        if compiled():
+            from .._kernels.refine import scan_weights
+
+            weights = scan_weights(
+                np.ascontiguousarray(pts, dtype=np.float64),
+                np.ascontiguousarray(features.ranges, dtype=np.float64),
+                np.ascontiguousarray(features.uncertainty, dtype=np.float64),
+                float(angle_increment), float(r.weight_floor), float(r.length_weight_max),
+                float(r.length_cap),
+            )  # fmt: skip
+            return ScanPoints(pts, weights, spacing)
+        return ScanPoints(pts, self._weights_numpy(features, angle_increment), spacing)
+
+    def _weights_numpy(self, features: Features, angle_increment: float) -> FloatArray:
+        """The points' weights in numpy (the compiled kernel's reference)."""
+        r = self.refinement
+        pts = features.points
+        weights: FloatArray = np.clip(1.0 - features.uncertainty, r.weight_floor, 1.0)
         if r.length_weight_max > 1.0:
             # each point weighs the stretch of surface it stands for (over the scan's median):
             # the fit is one over the surfaces' length, not over the beams, and dense clutter
             # next to the robot (people, a desk) no longer outvotes the walls
             length = surface_lengths(pts, features.ranges, angle_increment, r.length_cap)
-            median = float(np.median(length))
+            median = _median(length)
             if median > 0.0:
                 weights = weights * np.clip(
                     length / median, 1.0 / r.length_weight_max, r.length_weight_max
                 )
-        return ScanPoints(pts, weights, features.ranges * abs(float(angle_increment)))
+        return weights
 
     def refine(
         self, surface: SurfacePoints, points: ScanPoints, starts: Starts, wide: bool

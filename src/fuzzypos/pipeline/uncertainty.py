@@ -26,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
 from ..config import CovarianceConfig, GateConfig
 from ..geometry import compose, compose_jacobians, relative
@@ -35,6 +34,9 @@ from ..matching import Refinement
 __all__ = ["Assessment", "Uncertainty", "local"]
 
 FloatArray = NDArray[np.float64]
+
+#: the points' information is too ill-conditioned to give the motion alone beyond this
+_MAX_CONDITION = 1e8
 
 
 def local(cov: FloatArray, theta: float) -> FloatArray:
@@ -68,6 +70,8 @@ class Uncertainty:
     def __init__(self, covariance: CovarianceConfig, gate: GateConfig) -> None:
         self.settings = covariance
         self.gate_settings = gate
+        from scipy.stats import chi2  # here: scipy.stats takes 0.45 s to import
+
         self.threshold = float(chi2.ppf(gate.probability, 3))
         f = covariance
         self.floor = np.diag([f.floor_translation**2, f.floor_translation**2, f.floor_rotation**2])
@@ -179,7 +183,7 @@ class Uncertainty:
             (fit.prior_information, fit.prior),
             (fit.hold_information, fit.start if fit.hold_on_start else key_prior),
         ):
-            if not np.allclose(target, key_prior, rtol=0.0, atol=1e-12):
+            if max(abs(float(target[i]) - float(key_prior[i])) for i in range(3)) > 1e-12:
                 other = other + term
         points = self.settings.point_correlation * fit.gradient_covariance
         own = points + other @ feature @ other
@@ -187,6 +191,34 @@ class Uncertainty:
         rest = m - odometric  # what pulls toward the scan's own evidence
         scan_part = m_inv @ (own + rest @ prev @ rest) @ m_inv
         return kf, scan_part, m_inv @ odometric
+
+    def scan_only(
+        self, fit: Refinement, t_prev: FloatArray
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """The increment the scan alone gives, and its covariance (right perturbation in the
+        previous scan's frame): the fit without its prior's and hold's pull. At the fit's
+        solution x, M x = A x_s + P p + H h (M = A + P + H, the points' information A, the
+        prior's P toward p, the hold's H toward h), so x_s = A⁻¹ (M x − P p − H h), with
+        covariance A⁻¹ G A⁻¹ carried on from the previous scan. What the odometry's noise is
+        learned from: the fused increment would teach it its own weight back. None where the
+        points alone do not fix the motion (a corridor held, or too little information)."""
+        if np.any(fit.hold_information != 0.0):
+            return None
+        a = fit.information
+        if not np.all(np.isfinite(a)) or np.linalg.cond(a) > _MAX_CONDITION:
+            return None
+        m = a + fit.prior_information
+        x_f = np.asarray(fit.increment, dtype=float)
+        # the prior's error is an additive one in the keyframe's frame: wrap its heading near x
+        p = np.asarray(fit.prior, dtype=float).copy()
+        p[2] = x_f[2] + math.remainder(p[2] - x_f[2], math.tau)
+        x_s = np.linalg.solve(a, m @ x_f - fit.prior_information @ p)
+        a_inv = np.linalg.inv(a)
+        points = self.settings.point_correlation * fit.gradient_covariance
+        inc = relative(t_prev, x_s)
+        ja, jb = compose_jacobians(t_prev, inc)
+        cov = jb.T @ (a_inv @ points @ a_inv + ja @ self._previous @ ja.T) @ jb
+        return inc, local(cov, float(inc[2])) + self.floor
 
     def _fallback(
         self,

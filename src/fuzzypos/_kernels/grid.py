@@ -1,0 +1,255 @@
+"""A uniform grid over a point set, built once per surface, for nearest-neighbour queries from
+compiled loops (the stand-in for a KD-tree query per iteration).
+
+Cells are squares of side ``cell``; the points are sorted by cell and ``start[c]:start[c + 1]``
+are cell ``c``'s (``c = ix · ny + iy``) in ``order``/``xy``: the cells of one column of the
+grid are contiguous, so a query scans one stretch of points per column of the square around
+it. It looks within one cell side first and, only where nothing lies that near, within its
+whole radius (or, from a guess, within twice the guess's distance).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._jit import kernel
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+#: at most this many cells per point (and this many more): a far-flung point set gets larger
+#: cells rather than a grid larger than the points
+CELLS_PER_POINT = 64
+MIN_CELLS = 4096
+
+
+class Grid(NamedTuple):
+    """A point set sorted into grid cells: ``geometry`` = (x0, y0, 1/cell, cell), ``shape`` =
+    (nx, ny), ``start`` (nx·ny + 1) the first entry of each cell, ``order`` the points'
+    indices sorted by cell and ``xy`` their coordinates in that order."""
+
+    geometry: FloatArray
+    shape: IntArray
+    start: IntArray
+    order: IntArray
+    xy: FloatArray
+
+
+def build_grid(xy: FloatArray, cell: float) -> Grid:
+    """The grid of ``xy`` (n, 2) with cells of side ``cell`` (larger where the points spread so
+    far that there would be more than CELLS_PER_POINT · n + MIN_CELLS cells)."""
+    pts = np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2)
+    n = pts.shape[0]
+    if n == 0:
+        return Grid(
+            np.array([0.0, 0.0, 1.0 / cell, cell]),
+            np.array([1, 1], dtype=np.int64),
+            np.zeros(2, dtype=np.int64),
+            np.zeros(0, dtype=np.int64),
+            np.zeros((0, 2)),
+        )
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    w, h = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+    budget = CELLS_PER_POINT * n + MIN_CELLS
+    # the least side s with (w/s + 1)(h/s + 1) ≤ budget: budget·s² − (w + h)·s − w·h = 0
+    least = ((w + h) + math.sqrt((w + h) ** 2 + 4.0 * budget * w * h)) / (2.0 * budget)
+    side = max(cell, least)
+    nx, ny = int(w / side) + 1, int(h / side) + 1
+    geometry = np.array([float(lo[0]), float(lo[1]), 1.0 / side, side])
+    start, order = _sort_into_cells(pts, geometry, nx, ny)
+    return Grid(geometry, np.array([nx, ny], dtype=np.int64), start, order, pts[order])
+
+
+@kernel
+def _sort_into_cells(
+    xy: FloatArray, geometry: FloatArray, nx: int, ny: int
+) -> tuple[IntArray, IntArray]:
+    """The cells' first entries and the points' order by cell (a counting sort)."""
+    n = xy.shape[0]
+    x0, y0, inv = geometry[0], geometry[1], geometry[2]
+    cell_of = np.empty(n, dtype=np.int64)
+    start = np.zeros(nx * ny + 1, dtype=np.int64)
+    for i in range(n):
+        ix = min(max(int((xy[i, 0] - x0) * inv), 0), nx - 1)
+        iy = min(max(int((xy[i, 1] - y0) * inv), 0), ny - 1)
+        c = ix * ny + iy
+        cell_of[i] = c
+        start[c + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        c = cell_of[i]
+        order[fill[c]] = i
+        fill[c] += 1
+    return start, order
+
+
+@kernel
+def _cell_range(q: float, radius: float, origin: float, inv: float, n: int) -> tuple[int, int]:
+    """The cells along one axis (of ``n``) that the interval ``q ± radius`` touches, clipped to
+    the grid; an empty range (lo > hi) where it misses the grid (or ``q`` is not finite)."""
+    a = (q - radius - origin) * inv
+    b = (q + radius - origin) * inv
+    if not (b >= 0.0 and a < n):
+        return 1, 0
+    lo = 0 if a <= 0.0 else int(a)
+    hi = n - 1 if b >= n - 1 else int(b)
+    return lo, hi
+
+
+@kernel
+def _scan_box(
+    qx: float,
+    qy: float,
+    radius: float,
+    best_d2: float,
+    best: int,
+    geometry: FloatArray,
+    shape: IntArray,
+    start: IntArray,
+    xy: FloatArray,
+) -> tuple[int, float]:
+    """The nearest point closer than ``sqrt(best_d2)`` in the cells within ``radius`` of the
+    query (else ``best``), and its squared distance."""
+    x0, y0, inv = geometry[0], geometry[1], geometry[2]
+    nx, ny = shape[0], shape[1]
+    ix0, ix1 = _cell_range(qx, radius, x0, inv, nx)
+    iy0, iy1 = _cell_range(qy, radius, y0, inv, ny)
+    if iy0 > iy1:
+        return best, best_d2
+    for ix in range(ix0, ix1 + 1):
+        row = ix * ny
+        for k in range(start[row + iy0], start[row + iy1 + 1]):
+            dx = xy[k, 0] - qx
+            dy = xy[k, 1] - qy
+            d2 = dx * dx + dy * dy
+            if d2 < best_d2:
+                best_d2 = d2
+                best = k
+    return best, best_d2
+
+
+@kernel
+def nearest(
+    qx: float,
+    qy: float,
+    radius: float,
+    geometry: FloatArray,
+    shape: IntArray,
+    start: IntArray,
+    xy: FloatArray,
+) -> tuple[int, float]:
+    """The grid entry nearest to ``(qx, qy)`` closer than ``radius`` (−1 where none) and its
+    squared distance. An index into the grid's sorted ``xy`` (``order`` maps it back)."""
+    side = geometry[3]
+    r2 = radius * radius
+    first = min(radius, side)
+    best, d2 = _scan_box(qx, qy, first, r2, -1, geometry, shape, start, xy)
+    # anything outside the first square lies further than ``first`` from the query
+    if radius <= side or (best >= 0 and d2 <= first * first):
+        return best, d2
+    return _scan_box(qx, qy, radius, r2, -1, geometry, shape, start, xy)
+
+
+@kernel
+def _scan_box_two(
+    qx: float,
+    qy: float,
+    radius: float,
+    geometry: FloatArray,
+    shape: IntArray,
+    start: IntArray,
+    xy: FloatArray,
+) -> tuple[int, float, float]:
+    """The nearest point closer than ``radius`` in the cells within it (−1 where none), its
+    squared distance, and the second nearest's (at most ``radius``²)."""
+    x0, y0, inv = geometry[0], geometry[1], geometry[2]
+    nx, ny = shape[0], shape[1]
+    best, best_d2 = -1, radius * radius
+    second_d2 = best_d2
+    ix0, ix1 = _cell_range(qx, radius, x0, inv, nx)
+    iy0, iy1 = _cell_range(qy, radius, y0, inv, ny)
+    if iy0 > iy1:
+        return best, best_d2, second_d2
+    for ix in range(ix0, ix1 + 1):
+        row = ix * ny
+        for k in range(start[row + iy0], start[row + iy1 + 1]):
+            dx = xy[k, 0] - qx
+            dy = xy[k, 1] - qy
+            d2 = dx * dx + dy * dy
+            if d2 < best_d2:
+                second_d2 = best_d2
+                best_d2 = d2
+                best = k
+            elif d2 < second_d2:
+                second_d2 = d2
+    return best, best_d2, second_d2
+
+
+@kernel
+def nearest_two(
+    qx: float,
+    qy: float,
+    radius: float,
+    guess: int,
+    geometry: FloatArray,
+    shape: IntArray,
+    start: IntArray,
+    xy: FloatArray,
+) -> tuple[int, float, float]:
+    """:func:`nearest`, and how much further than it the second nearest point lies at least
+    (a lower bound: 0 where none paired): a query that moves by less than half that keeps
+    its nearest point. ``guess`` (−1: none), an entry near the query (e.g. its last match),
+    bounds the search where it lies within ``radius``: the square around the query of twice
+    its distance (at least half a cell)."""
+    side = geometry[3]
+    if guess >= 0:
+        dx, dy = xy[guess, 0] - qx, xy[guess, 1] - qy
+        d = math.sqrt(dx * dx + dy * dy)
+        if d < radius:
+            box = min(radius, max(2.0 * d, 0.5 * side))
+            best, d2, second = _scan_box_two(qx, qy, box, geometry, shape, start, xy)
+            # anything outside the square lies further than ``box``
+            return best, d2, math.sqrt(second) - math.sqrt(d2)
+    first = min(radius, side)
+    best, d2, second = _scan_box_two(qx, qy, first, geometry, shape, start, xy)
+    if best < 0 and radius > side:
+        best, d2, second = _scan_box_two(qx, qy, radius, geometry, shape, start, xy)
+    if best < 0:
+        return best, d2, 0.0
+    return best, d2, math.sqrt(second) - math.sqrt(d2)
+
+
+@kernel
+def any_within(
+    qx: float,
+    qy: float,
+    radius: float,
+    geometry: FloatArray,
+    shape: IntArray,
+    start: IntArray,
+    xy: FloatArray,
+) -> bool:
+    """Whether some grid point lies closer than ``radius`` to ``(qx, qy)`` (stops at the
+    first)."""
+    x0, y0, inv = geometry[0], geometry[1], geometry[2]
+    nx, ny = shape[0], shape[1]
+    r2 = radius * radius
+    ix0, ix1 = _cell_range(qx, radius, x0, inv, nx)
+    iy0, iy1 = _cell_range(qy, radius, y0, inv, ny)
+    if iy0 > iy1:
+        return False
+    for ix in range(ix0, ix1 + 1):
+        row = ix * ny
+        for k in range(start[row + iy0], start[row + iy1 + 1]):
+            dx = xy[k, 0] - qx
+            dy = xy[k, 1] - qy
+            if dx * dx + dy * dy < r2:
+                return True
+    return False

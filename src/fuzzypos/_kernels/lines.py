@@ -1,0 +1,236 @@
+"""Line-to-line matching as compiled loops: the pairing of two scans' lines and the increment
+from the pairs (the references: ``fuzzypos.matching.lines.pair_lines`` and
+``increment_from_lines`` with ``FUZZYPOS_KERNELS=numpy``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._jit import kernel
+from ._select import median
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+_HALF_PI = 0.5 * math.pi
+
+
+@kernel
+def pair_lines(
+    prev_angle: FloatArray,
+    prev_distance: FloatArray,
+    prev_normal: FloatArray,
+    prev_centre: FloatArray,
+    prev_length: FloatArray,
+    curr_angle: FloatArray,
+    curr_distance: FloatArray,
+    curr_centre: FloatArray,
+    curr_length: FloatArray,
+    pose: FloatArray,
+    gates: FloatArray,
+) -> tuple[IntArray, IntArray]:
+    """The mutual best pairs of previous and current lines (the current moved by ``pose``):
+    ``gates`` = (angle gate, distance gate, overlap margin). Indices (previous, current)."""
+    n_prev, n_curr = prev_angle.shape[0], curr_angle.shape[0]
+    angle_gate, distance_gate, margin = gates[0], gates[1], gates[2]
+    inv_a, inv_d = 1.0 / angle_gate, 1.0 / distance_gate
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    cost = np.empty((n_prev, n_curr))
+    for q in range(n_curr):
+        ac = curr_angle[q] + pose[2]  # the current normal's angle in frame k
+        d = curr_distance[q] + math.cos(ac) * pose[0] + math.sin(ac) * pose[1]
+        cx = pose[0] + c * curr_centre[q, 0] - s * curr_centre[q, 1]
+        cy = pose[1] + s * curr_centre[q, 0] + c * curr_centre[q, 1]
+        for p in range(n_prev):
+            raw = prev_angle[p] - ac
+            ang = abs((raw + _HALF_PI) % math.pi - _HALF_PI)  # normals may point either way
+            dd = abs(prev_distance[p] - math.copysign(1.0, math.cos(raw)) * d)
+            along = prev_normal[p, 1] * (cx - prev_centre[p, 0]) - prev_normal[p, 0] * (
+                cy - prev_centre[p, 1]
+            )
+            reach = 0.5 * (prev_length[p] + curr_length[q]) + margin
+            if ang >= angle_gate or dd >= distance_gate or abs(along) > reach:
+                cost[p, q] = np.inf
+            else:
+                cost[p, q] = ang * inv_a + dd * inv_d
+    best_prev = np.zeros(n_curr, dtype=np.int64)  # the first of the least cost, per column
+    for q in range(n_curr):
+        for p in range(1, n_prev):
+            if cost[p, q] < cost[best_prev[q], q]:
+                best_prev[q] = p
+    rows, cols = np.empty(n_prev, dtype=np.int64), np.empty(n_prev, dtype=np.int64)
+    m = 0
+    for p in range(n_prev):
+        j = 0
+        for q in range(1, n_curr):
+            if cost[p, q] < cost[p, j]:
+                j = q
+        if cost[p, j] < np.inf and best_prev[j] == p:
+            rows[m], cols[m] = p, j
+            m += 1
+    return rows[:m].copy(), cols[:m].copy()
+
+
+@kernel
+def robust_keep(values: FloatArray, floor: float, sigmas: float) -> BoolArray:
+    """Values within ``sigmas`` × their median absolute deviation (at least ``floor``) of
+    their median (``fuzzypos.matching._robust.robust_keep``)."""
+    center = median(values)
+    dev = np.empty(values.shape[0])
+    for i in range(values.shape[0]):
+        dev[i] = abs(values[i] - center)
+    cut = max(sigmas * median(dev), floor)
+    keep = np.empty(values.shape[0], dtype=np.bool_)
+    for i in range(values.shape[0]):
+        keep[i] = dev[i] <= cut
+    return keep
+
+
+@kernel
+def translation_consensus(
+    nx: FloatArray, ny: FloatArray, rhs: FloatArray, candidates: BoolArray, tau: float, sine: float
+) -> BoolArray:
+    """The candidate pairs within ``tau`` of the translation two non-parallel ones (sine of
+    their angle above ``sine``) fix with the least truncated squared residual (MSAC);
+    every candidate where no two are so."""
+    idx = np.nonzero(candidates)[0]
+    k = idx.shape[0]
+    if k < 3:
+        return candidates
+    best_score, best_tx, best_ty = np.inf, 0.0, 0.0
+    found = False
+    tau2 = tau * tau
+    for a in range(k):
+        i = idx[a]
+        for b in range(a + 1, k):
+            j = idx[b]
+            det = nx[i] * ny[j] - ny[i] * nx[j]
+            if not abs(det) > sine:
+                continue
+            tx = (rhs[i] * ny[j] - ny[i] * rhs[j]) / det
+            ty = (nx[i] * rhs[j] - rhs[i] * nx[j]) / det
+            score = 0.0
+            for e in range(k):
+                r = abs(tx * nx[idx[e]] + ty * ny[idx[e]] - rhs[idx[e]])
+                score += min(r * r, tau2)
+            if not found or score < best_score:
+                best_score, best_tx, best_ty, found = score, tx, ty, True
+    if not found:
+        return candidates
+    out = np.zeros_like(candidates)
+    for e in range(k):
+        i = idx[e]
+        out[i] = abs(best_tx * nx[i] + best_ty * ny[i] - rhs[i]) < tau
+    return out
+
+
+@kernel
+def increment_from_lines(
+    prev_angle: FloatArray,
+    prev_distance: FloatArray,
+    curr_angle: FloatArray,
+    curr_distance: FloatArray,
+    angle_variance: FloatArray,
+    distance_variance: FloatArray,
+    start: FloatArray,
+    prior: FloatArray,
+    params: FloatArray,
+) -> FloatArray:
+    """The increment from paired lines (``prev_*[i]`` ↔ ``curr_*[i]``; the pairs' summed
+    angle and distance variances): ``params`` = (prior sigma, trim floor angle, inlier
+    distance, sine of the consensus angle, the outlier rule's sigmas)."""
+    prior_sigma, trim_floor, tau, sine, sigmas = (
+        params[0],
+        params[1],
+        params[2],
+        params[3],
+        params[4],
+    )
+    n = prev_angle.shape[0]
+    raw, delta = np.empty(n), np.empty(n)
+    for k in range(n):
+        raw[k] = prev_angle[k] - curr_angle[k] - start[2]
+        delta[k] = (raw[k] + _HALF_PI) % math.pi - _HALF_PI  # rotation left after ``start``
+    keep = robust_keep(delta, trim_floor, sigmas)
+    num, den = 0.0, 0.0
+    for k in range(n):
+        if keep[k]:
+            w_a = 1.0 / angle_variance[k]
+            num += w_a * delta[k]
+            den += w_a
+    theta = start[2] + num / den
+    nx, ny, rhs = np.empty(n), np.empty(n), np.empty(n)
+    for k in range(n):
+        # n: the mean of the previous normal and the current one rotated by θ
+        turn = raw[k] - delta[k]
+        half = 0.5 * (prev_angle[k] + curr_angle[k] + theta + turn)
+        nx[k], ny[k] = math.cos(half), math.sin(half)
+        rhs[k] = prev_distance[k] - math.copysign(1.0, math.cos(turn)) * curr_distance[k]
+    consensus = translation_consensus(nx, ny, rhs, keep, tau, sine)
+    lam = 1.0 / (prior_sigma * prior_sigma)
+    a11, a12, a22, b1, b2 = lam, 0.0, lam, lam * prior[0], lam * prior[1]
+    for k in range(n):
+        if keep[k] and consensus[k]:
+            w = 1.0 / distance_variance[k]
+            a11 += w * nx[k] * nx[k]
+            a12 += w * nx[k] * ny[k]
+            a22 += w * ny[k] * ny[k]
+            b1 += w * nx[k] * rhs[k]
+            b2 += w * ny[k] * rhs[k]
+    det = a11 * a22 - a12 * a12
+    out = np.empty(3)
+    out[0] = (a22 * b1 - a12 * b2) / det
+    out[1] = (a11 * b2 - a12 * b1) / det
+    out[2] = math.atan2(math.sin(theta), math.cos(theta))
+    return out
+
+
+@kernel
+def match_lines(
+    prev: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    curr: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    start: FloatArray,
+    prior: FloatArray,
+    gates: FloatArray,
+    params: FloatArray,
+    passes: int,
+    min_pairs: int,
+) -> tuple[bool, FloatArray, int]:
+    """``fuzzypos.pipeline.feature_match.FeatureMatcher.match_lines`` in one loop: pair the
+    lines from ``start``, the increment from the pairs, and again from it while it moves
+    enough to change the pairs. ``prev``/``curr``: each scan's lines' (normal angle,
+    distance, normal, centre, length, angle variance, distance variance); ``gates`` = (the
+    first pass's angle and distance gates, the later passes', the overlap margin, the repair
+    fraction); ``params`` as :func:`increment_from_lines`. Returns whether the lines gave an
+    increment, the increment and how many pairs it rests on."""
+    pa, pd, pn, pc, pl, pav, pdv = prev
+    ca, cd, cc, cl, cav, cdv = curr[0], curr[1], curr[3], curr[4], curr[5], curr[6]
+    pose = start.copy()
+    pair_gates = np.empty(3)
+    pair_gates[0], pair_gates[1], pair_gates[2] = gates[0], gates[1], gates[4]
+    found, n_pairs = False, 0
+    for _ in range(passes):
+        rows, cols = pair_lines(pa, pd, pn, pc, pl, ca, cd, cc, cl, pose, pair_gates)
+        m = rows.shape[0]
+        if m < min_pairs or m < 2:
+            break
+        av, dv = np.empty(m), np.empty(m)
+        for k in range(m):
+            av[k] = pav[rows[k]] + cav[cols[k]]
+            dv[k] = pdv[rows[k]] + cdv[cols[k]]
+        new = increment_from_lines(
+            pa[rows], pd[rows], ca[cols], cd[cols], av, dv, pose, prior, params
+        )
+        moved_t = abs(new[0] - pose[0]) + abs(new[1] - pose[1])
+        moved_r = abs(new[2] - pose[2])
+        pose = new
+        found, n_pairs = True, m
+        # pair again with the refined motion, unless it moved too little to change pairs
+        if moved_t < gates[5] * gates[3] and moved_r < gates[5] * gates[2]:
+            break
+        pair_gates[0], pair_gates[1] = gates[2], gates[3]
+    return found, pose, n_pairs

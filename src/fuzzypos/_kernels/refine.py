@@ -1,0 +1,475 @@
+"""The point-to-line refinement as one compiled loop: pairing every point with the nearest
+surface point (through the surface's grid, built once per local map; a point that moved
+less than half the gap to its second nearest keeps its nearest without a search), the robust
+weights, the normal equations, the corridor's hold and the prior, the 3×3 solve, per
+Gauss-Newton iteration. The reference is ``fuzzypos.matching.surface.refine_point_to_line``
+with ``FUZZYPOS_KERNELS=numpy`` (``_refine_numpy``), the same steps in numpy with a KD-tree
+query per iteration. Also the inputs it is given: the scan points' weights
+(``Refiner.points``) and a keyframe's surface normals (``surface_points``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._jit import kernel
+from ._select import kth_smallest, median
+from .grid import nearest_two
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+#: ``params`` of :func:`refine`, in order
+PARAMS = (
+    "residual_scale",
+    "point_sigma",
+    "degenerate_ratio",
+    "hold_tolerance",
+    "trim_floor",
+    "converged_translation",
+    "converged_rotation",
+    "trim_sigmas",
+    "pairing_spacing",
+    "min_distance",
+)
+#: the status :func:`refine` returns
+OK, TOO_FEW_PAIRS, SINGULAR = 0, 1, 2
+#: a point's movement bound is widened by this (m), past the rounding of its position
+_SLACK = 1e-9
+
+
+@kernel
+def _pair(
+    points: FloatArray,
+    pose: FloatArray,
+    gate: float,
+    reach: FloatArray,
+    grid: tuple[FloatArray, IntArray, IntArray, IntArray, FloatArray],
+    ref_xy: FloatArray,
+    ref_normal: FloatArray,
+    out: FloatArray,
+    state: FloatArray,
+    last: IntArray,
+    moved: FloatArray,
+) -> int:
+    """The points moved by ``pose``, each paired with the nearest reference point within
+    ``gate`` (or its own ``reach``, where larger; ``reach`` empty: the gate alone). Rows of
+    ``out`` for the paired points, in order: the Jacobian (n_x, n_y, dr/dθ) of the residual
+    n·(T·p − q), the residual, the point's index and the reference's. Returns how many paired.
+
+    What the last iteration's search left spares this one's: ``last[i]``, the grid entry
+    nearest to point i (−1: none within its bound), ``state[i, 0]`` how much further the
+    second nearest lay at least (the nearest stays while the point moves less than half
+    that) or, unpaired, how far around it nothing lay; ``state[i, 1]`` the point's distance
+    from the origin, with ``moved`` (the pose's |Δx| + |Δy| and |Δθ| since) a bound on how
+    far it moved."""
+    geometry, shape, start, order, gxy = grid
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    m = 0
+    for i in range(points.shape[0]):
+        rx = c * points[i, 0] - s * points[i, 1]
+        ry = s * points[i, 0] + c * points[i, 1]
+        qx, qy = rx + pose[0], ry + pose[1]
+        bound = gate
+        if reach.shape[0] > 0 and reach[i] > gate:
+            bound = reach[i]
+        step = moved[0] + moved[1] * state[i, 1] + _SLACK
+        k = last[i]
+        if k >= 0 and state[i, 0] > 2.0 * step:  # the same nearest point as last time
+            state[i, 0] -= 2.0 * step
+            dx, dy = gxy[k, 0] - qx, gxy[k, 1] - qy
+            if not dx * dx + dy * dy < bound * bound:
+                continue
+        elif k < 0 and state[i, 0] - step >= bound:  # still nothing within the bound
+            state[i, 0] -= step
+            continue
+        else:
+            k, _d2, gap = nearest_two(qx, qy, bound, k, geometry, shape, start, gxy)
+            last[i] = k
+            if k < 0:
+                state[i, 0] = bound  # nothing lies within the bound
+                continue
+            state[i, 0] = gap
+        j = order[k]
+        nx, ny = ref_normal[j, 0], ref_normal[j, 1]
+        out[m, 0] = nx
+        out[m, 1] = ny
+        out[m, 2] = nx * (-ry) + ny * rx  # d r / d θ
+        out[m, 3] = nx * (qx - ref_xy[j, 0]) + ny * (qy - ref_xy[j, 1])
+        out[m, 4] = i
+        out[m, 5] = j
+        m += 1
+    return m
+
+
+@kernel
+def _normal_equations(
+    rows: FloatArray, w: FloatArray, m: int, H: FloatArray, g: FloatArray, square: bool
+) -> None:
+    """``H = Σ w J Jᵀ`` and ``g = Σ w J r`` over the first ``m`` rows (``square``: w² in ``H``)."""
+    for a in range(3):
+        g[a] = 0.0
+        for b in range(3):
+            H[a, b] = 0.0
+    for k in range(m):
+        wk = w[k] * w[k] if square else w[k]
+        r = rows[k, 3]
+        for a in range(3):
+            ja = wk * rows[k, a]
+            g[a] += ja * r
+            for b in range(3):
+                H[a, b] += ja * rows[k, b]
+
+
+@kernel
+def _trim(w: FloatArray, absr: FloatArray, m: int, sigmas: float, floor: float) -> None:
+    """Weight 0 for residuals beyond ``sigmas`` × the upper median of |r| (at least ``floor``)."""
+    med = kth_smallest(absr[:m], m // 2)
+    cut = max(sigmas * med, floor)
+    for k in range(m):
+        if absr[k] > cut:
+            w[k] = 0.0
+
+
+@kernel
+def _hold(
+    a: float,
+    b: float,
+    c: float,
+    H: FloatArray,
+    g: FloatArray,
+    pose: FloatArray,
+    start_xy: FloatArray,
+    hold_xy: FloatArray,
+    ratio: float,
+    tolerance: float,
+    term: FloatArray,
+) -> bool:
+    """The corridor's hold (``_hold_degenerate`` of the reference): where the translation block
+    ``(a, b, c)`` fixes one direction less than ``ratio`` times the other, a term along it on
+    ``H`` and ``g`` toward the start's value (within ``tolerance`` of the hold's) or the hold's.
+    ``term`` gets the term added to ``H``; returns whether it holds the start's value."""
+    for i in range(3):
+        for j in range(3):
+            term[i, j] = 0.0
+    half = math.hypot(0.5 * (a - c), b)
+    lo, hi = 0.5 * (a + c) - half, 0.5 * (a + c) + half
+    if not lo < ratio * hi:
+        return False
+    if abs(b) > 1e-12 * hi:
+        vx, vy = b, lo - a
+    elif a <= c:
+        vx, vy = 1.0, 0.0
+    else:
+        vx, vy = 0.0, 1.0
+    norm = math.hypot(vx, vy)
+    vx, vy = vx / norm, vy / norm
+    along_start = vx * (start_xy[0] - hold_xy[0]) + vy * (start_xy[1] - hold_xy[1])
+    on_start = bool(abs(along_start) <= tolerance)
+    tx, ty = (start_xy[0], start_xy[1]) if on_start else (hold_xy[0], hold_xy[1])
+    term[0, 0], term[0, 1] = hi * vx * vx, hi * vx * vy
+    term[1, 0], term[1, 1] = hi * vy * vx, hi * vy * vy
+    for i in range(2):
+        for j in range(2):
+            H[i, j] += term[i, j]
+    along = vx * (pose[0] - tx) + vy * (pose[1] - ty)
+    g[0] += hi * vx * along
+    g[1] += hi * vy * along
+    return on_start
+
+
+@kernel
+def solve3(A: FloatArray, b: FloatArray, x: FloatArray) -> bool:
+    """``x = A⁻¹ b`` for a 3×3 ``A`` by Gaussian elimination with partial pivoting (as LAPACK's
+    dgesv); False where a pivot is exactly zero (numpy's LinAlgError)."""
+    M = A.copy()
+    v = b.copy()
+    for col in range(3):
+        p = col
+        for r in range(col + 1, 3):
+            if abs(M[r, col]) > abs(M[p, col]):
+                p = r
+        if M[p, col] == 0.0:
+            return False
+        if p != col:
+            for k in range(3):
+                M[col, k], M[p, k] = M[p, k], M[col, k]
+            v[col], v[p] = v[p], v[col]
+        for r in range(col + 1, 3):
+            f = M[r, col] / M[col, col]
+            for k in range(col, 3):
+                M[r, k] -= f * M[col, k]
+            v[r] -= f * v[col]
+    for r in range(2, -1, -1):
+        acc = v[r]
+        for k in range(r + 1, 3):
+            acc -= M[r, k] * x[k]
+        x[r] = acc / M[r, r]
+    return True
+
+
+@kernel
+def _wrap(a: float) -> float:
+    """An angle wrapped into [−π, π) (Python's floored modulo, as the reference)."""
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+@kernel
+def _add_prior(
+    H: FloatArray,
+    g: FloatArray,
+    pose: FloatArray,
+    prior: FloatArray,
+    prior_diag: FloatArray,
+    prior_info: FloatArray,
+    full_prior: bool,
+) -> None:
+    """The prior as one more measurement: its diagonal information, or the full 3×3."""
+    dp = np.empty(3)
+    for i in range(3):
+        dp[i] = pose[i] - prior[i]
+    dp[2] = _wrap(dp[2])
+    for i in range(3):
+        if full_prior:
+            for j in range(3):
+                H[i, j] += prior_info[i, j]
+                g[i] += prior_info[i, j] * dp[j]
+        else:
+            H[i, i] += prior_diag[i]
+            g[i] += prior_diag[i] * dp[i]
+
+
+@kernel
+def _weights(
+    rows: FloatArray,
+    m: int,
+    weights: FloatArray,
+    ref_weight: FloatArray,
+    scale: float,
+    sigma2: float,
+    w: FloatArray,
+    absr: FloatArray,
+) -> None:
+    """Each pair's weight: both points' certainty times Huber's at ``scale``, over σ²."""
+    for k in range(m):
+        r = abs(rows[k, 3])
+        absr[k] = r
+        huber = 1.0 if r <= scale else scale / max(r, 1e-12)
+        i, j = int(rows[k, 4]), int(rows[k, 5])
+        w[k] = weights[i] * ref_weight[j] * huber / sigma2
+
+
+@kernel
+def _reach(spacing: FloatArray, pairing_spacing: float, min_distance: float) -> FloatArray:
+    """How far each point may pair by its own beam ``spacing`` (``pairing_spacing`` of them);
+    empty where none reaches beyond ``min_distance`` (the fixed distances decide) or no
+    spacing is given."""
+    n = spacing.shape[0]
+    reach = np.empty(n)
+    beyond = False
+    if pairing_spacing > 0.0:
+        for i in range(n):
+            reach[i] = pairing_spacing * spacing[i]
+            beyond = beyond or reach[i] > min_distance
+    return reach if beyond else reach[:0]
+
+
+@kernel
+def refine(
+    grid: tuple[FloatArray, IntArray, IntArray, IntArray, FloatArray],
+    ref_xy: FloatArray,
+    ref_normal: FloatArray,
+    ref_weight: FloatArray,
+    points: FloatArray,
+    weights: FloatArray,
+    start: FloatArray,
+    prior: FloatArray,
+    hold_xy: FloatArray,
+    gates: FloatArray,
+    spacing: FloatArray,
+    params: FloatArray,
+    iterations: int,
+    prior_diag: FloatArray,
+    prior_info: FloatArray,
+    full_prior: bool,
+) -> tuple[int, FloatArray, int, int, FloatArray, FloatArray, bool, FloatArray, float]:
+    """The whole refinement (``refine_point_to_line``): status (OK, TOO_FEW_PAIRS, SINGULAR),
+    the pose, how many paired at the last iteration, how many of those within half the Huber
+    scale, the points' information, the hold's term, whether it holds the start, Σ w² J Jᵀ and
+    the residuals' variance. ``params`` as :data:`PARAMS`; ``spacing``, each point's beam
+    spacing at its range (empty: none)."""
+    scale, sigma, ratio, tolerance = params[0], params[1], params[2], params[3]
+    trim_floor, conv_t, conv_r, trim_sigmas = params[4], params[5], params[6], params[7]
+    reach = _reach(spacing, params[8], params[9])
+    sigma2 = sigma**2
+    n = points.shape[0]
+    rows = np.empty((n, 6))
+    w, absr = np.empty(n), np.empty(n)
+    H, g = np.empty((3, 3)), np.empty(3)
+    info, term, delta = np.empty((3, 3)), np.zeros((3, 3)), np.empty(3)
+    last = np.full(n, -1, dtype=np.int64)  # each point's nearest at the last iteration
+    state, moved = np.zeros((n, 2)), np.zeros(2)
+    for i in range(n):
+        state[i, 1] = math.hypot(points[i, 0], points[i, 1])
+    pose = start.copy()
+    start_xy = start[:2].copy()
+    trimming, on_start, m = False, False, 0
+    for it in range(iterations):
+        gate = gates[min(it, gates.shape[0] - 1)]
+        m = _pair(points, pose, gate, reach, grid, ref_xy, ref_normal, rows, state, last, moved)
+        if m < 3:
+            return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info, 0.0
+        _weights(rows, m, weights, ref_weight, scale, sigma2, w, absr)
+        a, b, c = 0.0, 0.0, 0.0
+        for k in range(m):  # the translation block before trimming
+            a += w[k] * rows[k, 0] * rows[k, 0]
+            b += w[k] * rows[k, 0] * rows[k, 1]
+            c += w[k] * rows[k, 1] * rows[k, 1]
+        if trimming:
+            _trim(w, absr, m, trim_sigmas, trim_floor)
+        _normal_equations(rows, w, m, H, g, False)
+        for i in range(3):
+            for j in range(3):
+                info[i, j] = H[i, j]
+        on_start = _hold(a, b, c, H, g, pose, start_xy, hold_xy, ratio, tolerance, term)
+        _add_prior(H, g, pose, prior, prior_diag, prior_info, full_prior)
+        if not solve3(H, g, delta):
+            return SINGULAR, pose, m, 0, info, term, False, info, 0.0
+        for i in range(3):
+            pose[i] -= delta[i]
+        moved[0], moved[1] = abs(delta[0]) + abs(delta[1]), abs(delta[2])
+        if (
+            it >= gates.shape[0] - 1
+            and abs(delta[0]) + abs(delta[1]) < conv_t
+            and abs(delta[2]) < conv_r
+        ):
+            if trimming:
+                break
+            trimming = True  # converged: trim the false pairs and converge again
+    pose[2] = _wrap(pose[2])
+    close = 0
+    used, clipped = 0, 0.0
+    for k in range(m):
+        if absr[k] < 0.5 * scale:
+            close += 1
+        if w[k] > 0.0:
+            used += 1
+            r = min(absr[k], scale)
+            clipped += r * r
+    variance = scale * scale if used <= 3 else clipped / (used - 3)
+    gradient = np.empty((3, 3))
+    _normal_equations(rows, w, m, gradient, np.empty(3), True)
+    return OK, pose, m, close, info, term, on_start, gradient, variance
+
+
+@kernel
+def scan_weights(
+    points: FloatArray,
+    ranges: FloatArray,
+    uncertainty: FloatArray,
+    angle_increment: float,
+    weight_floor: float,
+    length_weight_max: float,
+    length_cap: float,
+) -> FloatArray:
+    """Each scan point's weight in the refinement (``fuzzypos.pipeline.refine.Refiner.points``):
+    its certainty 1 − u (at least ``weight_floor``) times the stretch of surface it stands for
+    over the scan's median (within [1/max, max]; ``length_weight_max`` 1: not at all)."""
+    n = points.shape[0]
+    w = np.empty(n)
+    for i in range(n):
+        w[i] = min(max(1.0 - uncertainty[i], weight_floor), 1.0)
+    if not length_weight_max > 1.0:
+        return w
+    spacing = abs(angle_increment)
+    length = np.empty(n)
+    if n < 2:
+        for i in range(n):
+            length[i] = ranges[i] * spacing
+    else:
+        d_prev = 0.0
+        for i in range(n):  # the distance to the nearer neighbour along the scan, capped
+            d_next = 0.0
+            if i < n - 1:
+                d_next = math.hypot(
+                    points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]
+                )
+            if i == 0:
+                near = d_next
+            elif i == n - 1:
+                near = d_prev
+            else:
+                near = min(d_prev, d_next)
+            length[i] = min(near, length_cap * (ranges[i] * spacing))
+            d_prev = d_next
+    mid = median(length)
+    if mid > 0.0:
+        lo = 1.0 / length_weight_max
+        for i in range(n):
+            w[i] = w[i] * min(max(length[i] / mid, lo), length_weight_max)
+    return w
+
+
+@kernel
+def _agree(ax: float, ay: float, bx: float, by: float, tan_bend: float) -> bool:
+    """Two chords agree in direction within the bend whose tangent is ``tan_bend``."""
+    cross = ax * by - ay * bx
+    dot = ax * bx + ay * by
+    return dot > 0 and abs(cross) <= tan_bend * dot
+
+
+@kernel
+def surface_normals(
+    xy: FloatArray,
+    ranges: FloatArray,
+    uncertainty: FloatArray,
+    params: FloatArray,
+    step: int,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``fuzzypos.matching.surface.surface_points``: the points on a straight stretch of
+    their run (consecutive points within ``neighbour_distance`` or ``neighbour_ratio`` × their
+    range), their normals from the chord between their ``step``-th neighbours (next to a
+    corner the side that runs straight on) and their weights; ``params`` = (neighbour
+    distance, neighbour ratio, tan of the bend, weight floor)."""
+    n = xy.shape[0]
+    distance, ratio, tan_bend, floor = params[0], params[1], params[2], params[3]
+    first, last = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    start = 0
+    for i in range(n):  # the runs of linked points
+        if i > 0:
+            gap = math.hypot(xy[i, 0] - xy[i - 1, 0], xy[i, 1] - xy[i - 1, 1])
+            if not gap <= max(distance, ratio * min(ranges[i], ranges[i - 1])):
+                start = i
+        first[i] = start
+    end = n - 1
+    for i in range(n - 1, -1, -1):
+        if i < n - 1 and first[i + 1] == i + 1:
+            end = i
+        last[i] = end
+    out_xy, out_n, out_w = np.empty((n, 2)), np.empty((n, 2)), np.empty(n)
+    m = 0
+    for i in range(n):
+        p, q = max(i - step, first[i]), min(i + step, last[i])
+        if not (q > i and p < i):
+            continue
+        p2, q2 = max(p - step, first[i]), min(q + step, last[i])
+        lx, ly = xy[i, 0] - xy[p, 0], xy[i, 1] - xy[p, 1]
+        rx, ry = xy[q, 0] - xy[i, 0], xy[q, 1] - xy[i, 1]
+        if _agree(lx, ly, rx, ry, tan_bend):  # straight: the chord across the point
+            cx, cy = xy[q, 0] - xy[p, 0], xy[q, 1] - xy[p, 1]
+        elif p2 < p and _agree(xy[p, 0] - xy[p2, 0], xy[p, 1] - xy[p2, 1], lx, ly, tan_bend):
+            cx, cy = lx, ly
+        elif q2 > q and _agree(rx, ry, xy[q2, 0] - xy[q, 0], xy[q2, 1] - xy[q, 1], tan_bend):
+            cx, cy = rx, ry
+        else:
+            continue
+        length = math.hypot(cx, cy)
+        if not length > 1e-9:
+            continue
+        out_xy[m, 0], out_xy[m, 1] = xy[i, 0], xy[i, 1]
+        out_n[m, 0], out_n[m, 1] = -cy / length, cx / length
+        out_w[m] = min(max(1.0 - uncertainty[i], floor), 1.0)
+        m += 1
+    return out_xy[:m].copy(), out_n[:m].copy(), out_w[:m].copy()

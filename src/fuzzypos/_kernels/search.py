@@ -1,0 +1,50 @@
+"""The wide search's scoring as one compiled loop: every rotation, every translation, every
+scored point, a grid look-up each (the reference: ``fuzzypos.matching.search.search_start``
+with ``FUZZYPOS_KERNELS=numpy``, KD-tree queries over all candidates a chunk at a time)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._jit import kernel
+from .grid import any_within
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@kernel
+def best_candidate(
+    grid: tuple[FloatArray, IntArray, IntArray, IntArray, FloatArray],
+    points: FloatArray,
+    thetas: FloatArray,
+    tx: FloatArray,
+    ty: FloatArray,
+    penalty: FloatArray,
+    gate: float,
+) -> tuple[int, int, float]:
+    """Of every rotation ``thetas[r]`` and translation ``(tx[t], ty[t])``, the one whose
+    fraction of ``points`` within ``gate`` of a grid point, less ``penalty[t]``, is highest
+    (the first of equal ones, rotation-major): ``(r, t, its fraction)``."""
+    geometry, shape, start, _order, gxy = grid
+    n = points.shape[0]
+    rx, ry = np.empty(n), np.empty(n)
+    best_score, best_r, best_t, best_fraction = -np.inf, 0, 0, 0.0
+    for r in range(thetas.shape[0]):
+        c, s = math.cos(thetas[r]), math.sin(thetas[r])
+        for i in range(n):
+            rx[i] = c * points[i, 0] - s * points[i, 1]
+            ry[i] = s * points[i, 0] + c * points[i, 1]
+        for t in range(tx.shape[0]):
+            hits = 0
+            for i in range(n):
+                if any_within(rx[i] + tx[t], ry[i] + ty[t], gate, geometry, shape, start, gxy):
+                    hits += 1
+            fraction = hits / n
+            score = fraction - penalty[t]
+            if score > best_score:
+                best_score, best_r, best_t, best_fraction = score, r, t, fraction
+    return best_r, best_t, best_fraction

@@ -1,0 +1,230 @@
+"""Results folders: their names (:func:`log_label`, :func:`default_results_dir`), the rule
+that one holds one run (:class:`ResultsFolder`, :class:`ResultsFolderError`), and the check
+of a run's output paths before it starts (:func:`check_outputs`).
+
+A run's folder is new (by default ``results/<log>/<date-time>/``, with ``results/<log>/latest``
+linked to the newest), empty, or one holding another run's results, which is refused unless
+``overwrite``: then it is cleared first, but only where it is fuzzypos's (its
+``summary.json`` or ``config.toml`` is) and holds nothing else.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import json
+import os
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from .config import Config
+
+__all__ = [
+    "RESULT_FILES",
+    "ResultsFolder",
+    "ResultsFolderError",
+    "check_outputs",
+    "default_results_dir",
+    "log_label",
+]
+
+#: compression suffixes :func:`log_label` strips
+_COMPRESSION_SUFFIXES = (".gz", ".bz2", ".xz", ".zst", ".lz4")
+
+#: the files of a results folder (:func:`~fuzzypos.run.run_log`)
+RESULT_FILES = (
+    "trajectory.tum",
+    "trajectory.clf",
+    "config.toml",
+    "path.png",
+    "covariance.csv",
+    "summary.json",
+)
+#: the default results folder's name: the run's local date and time
+_DATE_TIME = "%Y-%m-%d_%H-%M-%S"
+
+
+def log_label(path: str | os.PathLike[str]) -> str:
+    """A log's file name without a compression suffix, naming its folders of results and
+    plots: ``data/aces.clf.gz`` → ``aces.clf``, ``aces.bag`` → ``aces.bag``, ``my_bag/`` →
+    ``my_bag``."""
+    name = Path(path).name or Path(os.path.abspath(path)).name
+    for suffix in _COMPRESSION_SUFFIXES:
+        if name.lower().endswith(suffix) and len(name) > len(suffix):
+            return name[: -len(suffix)]
+    return name
+
+
+def default_results_dir(path: str | os.PathLike[str], when: float | None = None) -> Path:
+    """``results/<log>/<date-time>/``, relative to the working directory (``<log>``:
+    :func:`log_label`; the local time ``when``, default now, as ``2024-05-01_13-45-07``).
+    :meth:`ResultsFolder.make` creates it (adding ``-2``, ``-3`` … where it exists)."""
+    stamp = time.strftime(_DATE_TIME, time.localtime(when))
+    return Path("results") / log_label(path) / stamp
+
+
+class ResultsFolderError(FileExistsError):
+    """A results folder that a run will not write into (or clear): ``"<folder>: <why>"``."""
+
+    def __init__(self, folder: str | os.PathLike[str], reason: str) -> None:
+        super().__init__(errno.EEXIST, reason, os.fspath(folder))
+
+    def __str__(self) -> str:
+        return f"{self.filename}: {self.strerror}"
+
+
+def _visible(folder: Path) -> list[str]:
+    """The names in ``folder`` but hidden ones (``.x``: ours are temporary files)."""
+    return sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
+
+
+def _listed(folder: Path) -> tuple[bool, set[str]]:
+    """Whether ``folder``'s ``summary.json`` is fuzzypos's, and the names of the files it
+    lists in the folder (e.g. an ``out_tum`` written there)."""
+    try:
+        data = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False, set()
+    if not isinstance(data, dict) or "fuzzypos_version" not in data:
+        return False, set()
+    files = data.get("files")
+    if not isinstance(files, dict) or not isinstance(files.get("summary.json"), str):
+        return True, set()
+    home = Path(files["summary.json"]).parent  # the folder as that run named it
+    paths = [Path(v) for v in files.values() if isinstance(v, str)]
+    return True, {p.name for p in paths if p.parent == home}
+
+
+def _is_our_config(path: Path) -> bool:
+    try:
+        Config.from_toml(path)
+    except (OSError, ValueError):
+        return False
+    return True
+
+
+def _clear_for_a_run(folder: Path, overwrite: bool) -> None:
+    """Check that ``folder`` (an existing directory) may get a run's results: it is empty,
+    or, with ``overwrite``, a fuzzypos results folder, which is then cleared."""
+    names = _visible(folder)
+    ours = [n for n in RESULT_FILES if n in names]
+    if names and not ours:
+        shown = ", ".join(names[:3]) + (" …" if len(names) > 3 else "")
+        raise ResultsFolderError(
+            folder, f"is not empty ({shown}) and not a results folder; give a new or empty one"
+        )
+    if not ours:
+        return
+    if not overwrite:
+        raise ResultsFolderError(
+            folder,
+            f"holds the results of another run ({', '.join(ours)}); give a new folder, or "
+            "overwrite them (fuzzypos run --overwrite)",
+        )
+    summary_ok, listed = _listed(folder)
+    if not summary_ok and not ("config.toml" in ours and _is_our_config(folder / "config.toml")):
+        raise ResultsFolderError(
+            folder, "has no fuzzypos summary.json or config.toml: not clearing it"
+        )
+    others = [n for n in names if n not in RESULT_FILES and n not in listed]
+    if others:
+        raise ResultsFolderError(
+            folder, f"holds files fuzzypos did not write ({', '.join(others)}): not clearing it"
+        )
+    for name in [*ours, *(n for n in names if n in listed and n not in RESULT_FILES)]:
+        target = folder / name
+        if target.is_dir() and not target.is_symlink():
+            shutil.rmtree(target)
+        else:
+            target.unlink()
+    for pattern in (".*.tmp", ".*.part"):  # what a killed run may have left
+        for stale in folder.glob(pattern):
+            stale.unlink(missing_ok=True)
+
+
+def _mkdirs(folder: Path) -> list[Path]:
+    """Create ``folder`` (``FileExistsError`` where it exists) and its missing parents; the
+    folders created, innermost first."""
+    missing = [p for p in (folder, *folder.parents) if not p.exists()]
+    folder.mkdir(parents=True)
+    return missing
+
+
+@dataclass(eq=False)
+class ResultsFolder:
+    """The results folder of a run: where, which folders the run created (removed again when
+    it keeps nothing) and whether it is the default (then ``latest`` links to it)."""
+
+    path: Path
+    created: list[Path]
+    default: bool
+
+    @classmethod
+    def make(
+        cls, log: str | os.PathLike[str], results_dir: Path | None, overwrite: bool
+    ) -> ResultsFolder:
+        """The folder for a run of ``log``: ``results_dir`` (checked, cleared with
+        ``overwrite``, created where missing), or a new default one."""
+        if results_dir is None:
+            first = default_results_dir(log)
+            for k in range(1, 1000):
+                cand = first if k == 1 else first.with_name(f"{first.name}-{k}")
+                with contextlib.suppress(FileExistsError):
+                    return cls(cand, _mkdirs(cand), True)
+            raise ResultsFolderError(first, "exists, and so do 998 more of its names")
+        if results_dir.is_dir():
+            _clear_for_a_run(results_dir, overwrite)
+            return cls(results_dir, [], False)
+        if results_dir.exists() or results_dir.is_symlink():
+            raise NotADirectoryError(errno.ENOTDIR, "is not a folder", os.fspath(results_dir))
+        return cls(results_dir, _mkdirs(results_dir), False)
+
+    def discard(self) -> None:
+        """Remove the folders the run created, where they are empty."""
+        for d in self.created:
+            with contextlib.suppress(OSError):
+                d.rmdir()
+
+    def link_latest(self) -> None:
+        """``<log>/latest`` → this folder (a relative link), for a default folder; quietly
+        nothing where the file system has no links."""
+        if not self.default:
+            return
+        tmp = self.path.parent / f".latest.{os.getpid()}.tmp"
+        try:
+            tmp.unlink(missing_ok=True)
+            os.symlink(self.path.name, tmp, target_is_directory=True)
+            os.replace(tmp, self.path.parent / "latest")
+        except OSError:
+            with contextlib.suppress(OSError):
+                tmp.unlink(missing_ok=True)
+
+
+def check_outputs(
+    folder: Path | None,
+    out_tum: str | os.PathLike[str] | None,
+    bag_out: str | os.PathLike[str] | None,
+) -> None:
+    """Fail before the run, not after it, on an output path that cannot be written."""
+    if folder is not None and (folder.exists() or folder.is_symlink()) and not folder.is_dir():
+        raise NotADirectoryError(errno.ENOTDIR, "is not a folder", os.fspath(folder))
+    if out_tum is not None:
+        tum = Path(out_tum)
+        parent = tum.parent
+        if tum.is_dir():
+            raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", os.fspath(tum))
+        in_results = folder is not None and parent.absolute() == folder.absolute()
+        if not in_results and not parent.is_dir():
+            raise FileNotFoundError(
+                errno.ENOENT, f"cannot be written: no folder {os.fspath(parent)}", os.fspath(tum)
+            )
+        if not in_results and not os.access(parent, os.W_OK):
+            raise PermissionError(
+                errno.EACCES, f"cannot be written: {os.fspath(parent)} is read-only", os.fspath(tum)
+            )
+    if bag_out is not None and (Path(bag_out).exists() or Path(bag_out).is_symlink()):
+        raise FileExistsError(
+            errno.EEXIST, "exists already; a bag is never overwritten", os.fspath(bag_out)
+        )

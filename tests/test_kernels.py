@@ -1,0 +1,655 @@
+"""The compiled kernels (``fuzzypos._kernels``) against their pure-numpy references, to 1e-9 on
+inputs where nothing lies within 1e-6 of a threshold (a gate, Huber's scale, the trimming cut,
+a corner's angle): the margins are measured on the reference's own intermediate values, and an
+example too close to one is left out (``assume``). Neither the import of fuzzypos nor these
+tests time anything."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
+
+import fuzzypos._kernels as kernels
+from fuzzypos import features as features_module
+from fuzzypos import segmentation as seg
+from fuzzypos import sim
+from fuzzypos.config import Config
+from fuzzypos.features import _fit_lines_compiled, _fit_lines_numpy, extract_features, rule_bases
+from fuzzypos.geometry import Pose2D
+from fuzzypos.matching import lines as line_matching
+from fuzzypos.matching import search as search_module
+from fuzzypos.matching import surface as surface_module
+from fuzzypos.matching import surface_points
+from fuzzypos.pipeline import Positioner
+
+CFG = Config()
+R = CFG.refinement
+MARGIN = 1e-6
+TOL = 1e-9
+BUDGET = settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.filter_too_much]
+)
+
+
+@contextmanager
+def numpy_kernels() -> Iterator[None]:
+    """The numpy references in place of the compiled kernels, for the duration."""
+    saved = kernels._ENABLED
+    kernels._ENABLED = False
+    try:
+        yield
+    finally:
+        kernels._ENABLED = saved
+
+
+def both(call: Callable[[], Any]) -> tuple[Any, Any]:
+    """``call()`` with the compiled kernels, then with the numpy references."""
+    kernels._ENABLED = True
+    compiled = call()
+    with numpy_kernels():
+        reference = call()
+    return compiled, reference
+
+
+def scanner(beams: int = 360, noise: float = 0.01) -> sim.ScannerModel:
+    return sim.ScannerModel(
+        n_beams=beams,
+        field_of_view_deg=360.0 if beams == 360 else 180.0,
+        angle_min_deg=-180.0 if beams == 360 else -90.0,
+        range_max=8.0,
+        range_noise_std=noise,
+    )
+
+
+WORLD = sim.office()
+poses = st.tuples(st.floats(-9.0, 9.0), st.floats(-1.0, 1.0), st.floats(-math.pi, math.pi))
+
+
+def scan_at(pose: tuple[float, float, float], seed: int, beams: int = 360) -> Any:
+    return sim.simulate_scan(WORLD, Pose2D(*pose), scanner(beams), rng=np.random.default_rng(seed))
+
+
+# -- the grid ----------------------------------------------------------------------------------
+@BUDGET
+@given(
+    n=st.integers(1, 400),
+    spread=st.floats(0.5, 200.0),
+    cell=st.floats(0.05, 1.0),
+    radius=st.floats(0.01, 3.0),
+    seed=st.integers(0, 2**31),
+)
+def test_the_grid_finds_the_kd_trees_nearest_point(n, spread, cell, radius, seed) -> None:
+    """Nearest within a radius, and whether any lies within it, as a KD-tree says (from a
+    guess too, with a lower bound on the second nearest's distance); far-flung points (a grid
+    over the budget) get larger cells, queries off the grid find nothing."""
+    from fuzzypos._kernels.grid import any_within, build_grid, nearest, nearest_two
+
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-spread, spread, (n, 2)) * np.array([1.0, rng.uniform(0.0, 1.0)])
+    near = xy[: min(n, 50)] + rng.normal(0, radius, (min(n, 50), 2))
+    queries = np.concatenate([near, rng.uniform(-1.5 * spread, 1.5 * spread, (50, 2))])
+    tree = cKDTree(xy)
+    d, j = tree.query(queries, k=min(2, n))
+    d, j = d.reshape(len(queries), -1), j.reshape(len(queries), -1)
+    assume(np.all(np.abs(d[:, 0] - radius) > MARGIN))
+    if n > 1:
+        assume(np.all(d[:, 1] - d[:, 0] > MARGIN))
+    grid = build_grid(xy, cell)
+    assert grid.start[-1] == n and sorted(grid.order) == list(range(n))
+    assert grid.start.size - 1 == grid.shape[0] * grid.shape[1] <= 64 * n + 4096
+    geometry, shape, start, order, gxy = grid
+    for row, (q, dq, jq) in enumerate(zip(queries, d[:, 0], j[:, 0])):
+        k, d2 = nearest(q[0], q[1], radius, geometry, shape, start, gxy)
+        if dq < radius:
+            assert order[k] == jq and math.sqrt(d2) == pytest.approx(dq, abs=TOL)
+        else:
+            assert k == -1
+        assert any_within(q[0], q[1], radius, geometry, shape, start, gxy) == (dq < radius)
+        # from no guess and from a guess: the same point, and a lower bound on how much
+        # further the second nearest lies
+        second = d[row, 1] if n > 1 else math.inf
+        for guess in (-1, int(rng.integers(0, n))):
+            k2, d2b, gap = nearest_two(q[0], q[1], radius, guess, geometry, shape, start, gxy)
+            assert k2 == k and (k < 0 or d2b == d2)
+            assert gap == 0.0 if k < 0 else 0.0 <= gap <= second - dq + TOL
+
+
+def test_an_empty_grid_finds_nothing() -> None:
+    from fuzzypos._kernels.grid import any_within, build_grid, nearest
+
+    geometry, shape, start, _order, gxy = build_grid(np.zeros((0, 2)), 0.2)
+    assert nearest(0.0, 0.0, 1.0, geometry, shape, start, gxy)[0] == -1
+    assert not any_within(0.0, 0.0, 1.0, geometry, shape, start, gxy)
+    assert nearest(np.nan, 0.0, 1.0, *build_grid(np.ones((3, 2)), 0.2)[:3], gxy)[0] == -1
+
+
+@BUDGET
+@given(
+    values=st.lists(st.floats(-1e6, 1e6, allow_nan=False), min_size=1, max_size=300),
+    k=st.integers(0, 299),
+)
+def test_the_order_statistics_are_numpys(values, k) -> None:
+    """The k-th smallest value and the median without a sort, as numpy's sort gives them."""
+    from fuzzypos._kernels._select import kth_smallest, median
+
+    v = np.array(values)
+    k = min(k, v.size - 1)
+    assert kth_smallest(v, k) == np.sort(v)[k]
+    assert median(v) == np.median(v)
+    np.testing.assert_array_equal(v, np.array(values))  # the input is left as it was
+
+
+# -- the refinement ----------------------------------------------------------------------------
+def _surface_margin(xy: np.ndarray, ranges: np.ndarray, r) -> float:
+    """The smallest distance of a scan's steps to the link limit, and of its chords' bends to
+    the largest (as tan · dot against |cross|), over every pair of chords the surface's
+    normals are chosen from."""
+    n, k = xy.shape[0], r.neighbour_step
+    step = np.hypot(*np.diff(xy, axis=0).T)
+    limit = np.maximum(
+        r.neighbour_distance, r.neighbour_ratio * np.minimum(ranges[1:], ranges[:-1])
+    )
+    margins = [np.abs(step - limit)]
+    run = np.concatenate(([0], np.cumsum(~(step <= limit))))
+    first = np.searchsorted(run, run, side="left")
+    last = np.searchsorted(run, run, side="right") - 1
+    idx = np.arange(n)
+    p, q = np.maximum(idx - k, first), np.minimum(idx + k, last)
+    p2, q2 = np.maximum(p - k, first), np.minimum(q + k, last)
+    tan_bend = math.tan(r.max_bend_angle)
+    for a, b in (
+        (xy - xy[p], xy[q] - xy),
+        (xy[p] - xy[p2], xy - xy[p]),
+        (xy[q] - xy, xy[q2] - xy[q]),
+    ):
+        cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
+        margins += [np.abs(np.abs(cross) - tan_bend * dot), np.abs(dot)]
+    used = [m[np.isfinite(m) & (m > 0)] for m in margins]  # 0: a chord of a point to itself
+    return float(min((m.min() for m in used if m.size), default=math.inf))
+
+
+@BUDGET
+@given(
+    pose=poses,
+    seed=st.integers(0, 1000),
+    step=st.integers(1, 3),
+    bend=st.floats(5.0, 60.0),
+    beams=st.sampled_from([180, 360]),
+)
+def test_the_compiled_surfaces_are_the_numpy_ones(pose, seed, step, bend, beams) -> None:
+    """A keyframe's surface points, their normals and weights, either way."""
+    f = extract_features(scan_at(pose, seed, beams), CFG)
+    r = replace(R, neighbour_step=step, max_bend_angle=math.radians(bend))
+    assume(_surface_margin(f.points, f.ranges, r) > MARGIN)
+    a, b = both(lambda: surface_points(f.points, f.ranges, f.uncertainty, r))
+    assert len(a) == len(b)
+    for name in ("xy", "normal", "weight"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0, atol=TOL)
+
+
+@BUDGET
+@given(pose=poses, seed=st.integers(0, 1000), weight=st.sampled_from([1.0, 2.0, 5.0]))
+def test_the_scan_points_weights_are_the_numpy_ones(pose, seed, weight) -> None:
+    """Each point's certainty times the stretch of surface it stands for (capped, over the
+    median), as the refinement weighs it."""
+    from fuzzypos.pipeline.refine import Refiner
+
+    scan = scan_at(pose, seed)
+    f = extract_features(scan, CFG)
+    refiner = Refiner(replace(R, length_weight_max=weight), CFG.search)
+    kernels._ENABLED = True
+    points = refiner.points(f, scan.angle_increment)
+    assert points is not None
+    reference = refiner._weights_numpy(f, scan.angle_increment)
+    np.testing.assert_allclose(points.weights, reference, rtol=TOL, atol=0)
+    with numpy_kernels():
+        again = refiner.points(f, scan.angle_increment)
+    assert again is not None
+    np.testing.assert_array_equal(again.weights, reference)
+    np.testing.assert_array_equal(points.spacing, again.spacing)
+
+
+class Margins:
+    """The smallest distance of the reference's own values to the thresholds they are tested
+    against, recorded by wrapping the reference's helpers."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.value = math.inf
+        pair, trimmed = surface_module._pair, surface_module._trimmed
+        hold, linearise = surface_module._hold_degenerate, surface_module._linearise
+
+        def _pair(reference, qx, qy, gate, reach):
+            d, _ = reference.tree.query(np.stack((qx, qy), axis=1), k=2)
+            bound = np.full(qx.shape, gate) if reach is None else np.maximum(reach, gate)
+            self.note(d[:, 0] - bound)
+            return pair(reference, qx, qy, gate, reach)
+
+        def _linearise(reference, points, pose, gate, reach):
+            out = linearise(reference, points, pose, gate, reach)
+            if out is not None:
+                absr = np.abs(out[3])
+                self.note(absr - R.residual_scale, absr - 0.5 * R.residual_scale)
+            return out
+
+        def _trimmed(w, absr, trim_floor):
+            m = absr.size // 2
+            cut = max(3.0 * 1.4826 * float(np.partition(absr, m)[m]), trim_floor)
+            self.note(absr - cut)
+            return trimmed(w, absr, trim_floor)
+
+        def _hold(H, g, block, pose, start_xy, hold_xy, ratio, tolerance):
+            a, b, c = block
+            half = math.hypot(0.5 * (a - c), b)
+            lo, hi = 0.5 * (a + c) - half, 0.5 * (a + c) + half
+            self.note(np.array([(lo - ratio * hi) / max(hi, 1e-300)]))
+            term, on_start = hold(H, g, block, pose, start_xy, hold_xy, ratio, tolerance)
+            if term.any():
+                v = np.linalg.eigh(term[:2, :2])[1][:, 1]
+                self.note(np.array([abs(float(v @ (start_xy - hold_xy))) - tolerance]))
+            return term, on_start
+
+        monkeypatch.setattr(surface_module, "_pair", _pair)
+        monkeypatch.setattr(surface_module, "_linearise", _linearise)
+        monkeypatch.setattr(surface_module, "_trimmed", _trimmed)
+        monkeypatch.setattr(surface_module, "_hold_degenerate", _hold)
+
+    def note(self, *values: np.ndarray) -> None:
+        for v in values:
+            if v.size:
+                self.value = min(self.value, float(np.min(np.abs(v))))
+
+
+def assert_refinements_agree(a, b) -> None:
+    assert (a is None) == (b is None)
+    if a is None:
+        return
+    np.testing.assert_allclose(a.increment, b.increment, rtol=0, atol=TOL)
+    assert a.n_paired == b.n_paired and a.hold_on_start == b.hold_on_start
+    assert a.inlier_fraction == b.inlier_fraction and a.close_fraction == b.close_fraction
+    for name in ("information", "prior_information", "hold_information", "gradient_covariance"):
+        x, y = getattr(a, name), getattr(b, name)
+        np.testing.assert_allclose(x, y, rtol=TOL, atol=TOL * (1.0 + np.abs(y).max()))
+    np.testing.assert_array_equal(a.start, b.start)
+    np.testing.assert_array_equal(a.prior, b.prior)
+
+
+@BUDGET
+@given(
+    pose=poses,
+    motion=st.tuples(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3), st.floats(-0.2, 0.2)),
+    error=st.tuples(st.floats(-0.1, 0.1), st.floats(-0.1, 0.1), st.floats(-0.05, 0.05)),
+    seed=st.integers(0, 1000),
+    spacing=st.booleans(),
+    learned=st.booleans(),
+    weak=st.booleans(),
+    corridor=st.booleans(),
+)
+def test_the_compiled_refinement_is_the_numpy_one(
+    pose, motion, error, seed, spacing, learned, weak, corridor
+) -> None:
+    """Simulated scans of the office (its corridor where ``corridor``: the hold along it),
+    every option of the refinement: the pairing by beam spacing, a learned prior's full
+    information, the weak prior of a search."""
+    if corridor:
+        pose = (pose[0], 0.0, 0.1 * pose[2])
+    a = scan_at(pose, seed)
+    moved = Pose2D(*pose).compose(Pose2D(*motion))
+    b = scan_at((moved.x, moved.y, moved.theta), seed + 1)
+    fa, fb = extract_features(a, CFG), extract_features(b, CFG)
+    surface = surface_points(fa.points, fa.ranges, fa.uncertainty, R)
+    start = np.array(motion) + np.array(error)
+    hold = np.array(motion) + 0.5 * np.array(error)
+    information = np.array([[400.0, 30.0, 5.0], [30.0, 900.0, -8.0], [5.0, -8.0, 2000.0]])
+    weights = np.clip(1.0 - fb.uncertainty, 0.05, 1.0)
+
+    def run():
+        return surface_module.refine_point_to_line(
+            surface, fb.points, weights, start, np.array(motion), hold, R,
+            max_distance=1.0 if weak else R.max_distance,
+            prior_scale=100.0 if weak else 1.0,
+            prior_information=information if learned else None,
+            spacing=fb.ranges * abs(b.angle_increment) if spacing else None,
+        )  # fmt: skip
+
+    with pytest.MonkeyPatch.context() as patch:
+        margins = Margins(patch)
+        compiled, reference = both(run)
+    assume(margins.value > MARGIN)
+    assert_refinements_agree(compiled, reference)
+
+
+def test_a_refinement_with_too_few_pairs_or_a_singular_system_is_none() -> None:
+    """Both return None where fewer than 3 points pair (far from every surface) and where the
+    normal equations are singular (points all at the origin, no prior)."""
+    fa = extract_features(scan_at((0.0, 0.0, 0.0), 1), CFG)
+    surface = surface_points(fa.points, fa.ranges, fa.uncertainty, R)
+    far = fa.points + 100.0
+
+    def refine(points: np.ndarray) -> Any:
+        zero = np.zeros(3)
+        return surface_module.refine_point_to_line(
+            surface, points, np.ones(len(points)), zero, zero, zero, R,
+            max_distance=0.3, prior_scale=1.0,
+        )  # fmt: skip
+
+    for points in (far, far[:0]):
+        assert both(lambda p=points: refine(p)) == (None, None)
+    # every point on one spot of one flat surface, no prior: θ is not fixed
+    pts = np.zeros((5, 2))
+    flat = surface_module.SurfacePoints(np.zeros((5, 2)), np.tile([1.0, 0.0], (5, 1)), np.ones(5))
+    args = (flat, pts, np.ones(5), np.zeros(3), np.zeros(3), np.zeros(3), R, 0.3, 1.0)
+    for fn in (surface_module._refine_compiled, surface_module._refine_numpy):
+        assert fn(*args, np.zeros((3, 3)), None) is None
+
+
+# -- the search --------------------------------------------------------------------------------
+@BUDGET
+@given(
+    pose=poses,
+    motion=st.tuples(st.floats(-0.5, 0.5), st.floats(-0.5, 0.5), st.floats(-0.6, 0.6)),
+    penalty=st.floats(0.0, 0.5),
+    seed=st.integers(0, 1000),
+)
+def test_the_compiled_search_is_the_numpy_one(pose, motion, penalty, seed) -> None:
+    """The same best start and fraction, where no scored point lands within 1e-6 of the
+    gate (checked with a KD-tree over every candidate)."""
+    fa = extract_features(scan_at(pose, seed, 180), CFG)
+    moved = Pose2D(*pose).compose(Pose2D(*motion))
+    fb = extract_features(scan_at((moved.x, moved.y, moved.theta), seed + 1, 180), CFG)
+    surface = surface_points(fa.points, fa.ranges, fa.uncertainty, R)
+    search = replace(CFG.search, angle_step=math.radians(4.0), distance_penalty=penalty)
+    start = np.zeros(3)
+    pts, thetas, tx, ty, _ = search_module._candidates(fb.points, start, search, 0.8, 0.4)
+    c, s = np.cos(thetas)[:, None], np.sin(thetas)[:, None]
+    qx = (c * pts[:, 0] - s * pts[:, 1])[:, None, :] + tx[None, :, None]
+    qy = (s * pts[:, 0] + c * pts[:, 1])[:, None, :] + ty[None, :, None]
+    d, _ = surface.tree.query(np.stack((qx.ravel(), qy.ravel()), axis=1))
+    assume(np.all(np.abs(d - search.gate) > MARGIN))
+    compiled, reference = both(
+        lambda: search_module.search_start(
+            surface, fb.points, start, search, half_width=0.8, translation_half_width=0.4
+        )
+    )
+    np.testing.assert_allclose(compiled.start, reference.start, rtol=0, atol=TOL)
+    assert compiled.score == reference.score
+
+
+# -- line matching -----------------------------------------------------------------------------
+def _line_scans(pose, motion, seed):
+    fa = extract_features(scan_at(pose, seed, 180), CFG)
+    moved = Pose2D(*pose).compose(Pose2D(*motion))
+    fb = extract_features(scan_at((moved.x, moved.y, moved.theta), seed + 1, 180), CFG)
+    return fa.lines, fb.lines
+
+
+def _second_gap(cost: np.ndarray, axis: int) -> float:
+    """The smallest gap between the least and the next finite cost along ``axis``."""
+    c = np.sort(np.where(np.isfinite(cost), cost, np.inf), axis=axis)
+    if c.shape[axis] < 2:
+        return math.inf
+    least = np.take(c, 0, axis=axis)
+    gap = np.take(c, 1, axis=axis)[np.isfinite(least)] - least[np.isfinite(least)]
+    return float(np.nanmin(gap)) if gap.size else math.inf
+
+
+class LineMargins:
+    """The smallest distance of the line matching's own values (numpy reference) to their
+    thresholds: the gates and the overlap, the robust cut, the consensus's sine and inlier
+    distance, and the gaps between the least costs and scores that pick a pair."""
+
+    def __init__(self, patch: pytest.MonkeyPatch) -> None:
+        self.values: list[float] = [math.inf]
+        pair, keep = line_matching._pair_lines_numpy, line_matching.robust_keep
+        consensus = line_matching._translation_consensus
+
+        def _pair_lines_numpy(prev, curr, pose, angle_gate, distance_gate, overlap_margin):
+            ang, dd, along, reach = line_matching._line_geometry(prev, curr, pose, overlap_margin)
+            out = (ang >= angle_gate) | (dd >= distance_gate) | (np.abs(along) > reach)
+            cost = np.where(out, np.inf, ang / angle_gate + dd / distance_gate)
+            self.values += [
+                np.abs(ang - angle_gate).min(), np.abs(dd - distance_gate).min(),
+                np.abs(np.abs(along) - reach).min(), _second_gap(cost, 0), _second_gap(cost, 1),
+            ]  # fmt: skip
+            return pair(prev, curr, pose, angle_gate, distance_gate, overlap_margin)
+
+        def robust_keep(values, floor, center=None):
+            dev = np.abs(values - np.median(values))
+            cut = max(3.0 * 1.4826 * float(np.median(dev)), floor)
+            self.values.append(float(np.abs(dev - cut).min()))
+            return keep(values, floor, center)
+
+        def translation_consensus(nx, ny, rhs, candidates, tau, min_sine):
+            idx = candidates.nonzero()[0]
+            i, j = np.triu_indices(idx.size, 1)
+            det = nx[idx[i]] * ny[idx[j]] - ny[idx[i]] * nx[idx[j]]
+            if det.size and idx.size >= 3:
+                self.values.append(float(np.abs(np.abs(det) - min_sine).min()))
+                ok = np.abs(det) > min_sine
+                ii, jj, dt = idx[i][ok], idx[j][ok], det[ok]
+                tx = (rhs[ii] * ny[jj] - ny[ii] * rhs[jj]) / dt
+                ty = (nx[ii] * rhs[jj] - rhs[ii] * nx[jj]) / dt
+                r = np.abs(tx[:, None] * nx[idx] + ty[:, None] * ny[idx] - rhs[idx])
+                if r.size:
+                    self.values.append(float(np.abs(r - tau).min()))
+                    score = np.sort(np.minimum(r * r, tau * tau).sum(axis=1))
+                    self.values.append(float(score[1] - score[0]) if score.size > 1 else math.inf)
+            return consensus(nx, ny, rhs, candidates, tau, min_sine)
+
+        patch.setattr(line_matching, "_pair_lines_numpy", _pair_lines_numpy)
+        patch.setattr(line_matching, "robust_keep", robust_keep)
+        patch.setattr(line_matching, "_translation_consensus", translation_consensus)
+
+    @property
+    def value(self) -> float:
+        return float(min(self.values))
+
+
+@BUDGET
+@given(
+    pose=poses,
+    motion=st.tuples(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3), st.floats(-0.2, 0.2)),
+    error=st.tuples(st.floats(-0.1, 0.1), st.floats(-0.1, 0.1), st.floats(-0.05, 0.05)),
+    seed=st.integers(0, 1000),
+    from_points=st.booleans(),
+)
+def test_the_compiled_line_matching_is_the_numpy_one(pose, motion, error, seed, from_points):
+    """The same line pairs, the same increment from them, and the same motion from the
+    stage's passes (from the prior with its wider gates, or from a point features' motion)."""
+    from fuzzypos.pipeline import FeatureMatcher
+
+    prev, curr = _line_scans(pose, motion, seed)
+    assume(len(prev) >= 2 and len(curr) >= 2)
+    m = CFG.matching
+    start = np.array(motion) + np.array(error)
+    prior = np.array(motion)
+    gates = (m.line_angle_gate_prior, m.line_distance_gate_prior, m.line_overlap_margin)
+    args = (m.line_prior_sigma, m.line_trim_angle, m.line_inlier_distance)
+    args = (*args, m.line_consensus_angle)
+    matcher = FeatureMatcher(m, CFG.fusion)
+    with pytest.MonkeyPatch.context() as patch:
+        margins = LineMargins(patch)
+        pairs, ref_pairs = both(lambda: line_matching.pair_lines(prev, curr, start, *gates))
+        increments = both(
+            lambda: line_matching.increment_from_lines(prev, curr, ref_pairs, start, prior, *args)
+        )
+        staged = both(
+            lambda: matcher.match_lines(prev, curr, start if from_points else None, prior)
+        )
+    assume(margins.value > MARGIN)
+    np.testing.assert_array_equal(pairs.prev_index, ref_pairs.prev_index)
+    np.testing.assert_array_equal(pairs.curr_index, ref_pairs.curr_index)
+    if len(ref_pairs) < 2:
+        assert increments == (None, None)
+    else:
+        np.testing.assert_allclose(increments[0], increments[1], rtol=0, atol=TOL)
+    (est, n), (ref_est, ref_n) = staged
+    assert n == ref_n and (est is None) == (ref_est is None)
+    if est is not None:
+        np.testing.assert_allclose(est, ref_est, rtol=0, atol=TOL)
+
+
+# -- the segmentation stages -------------------------------------------------------------------
+def _sequence(rng: np.random.Generator, n: int) -> np.ndarray:
+    """A scan-like sequence: a random polygon's walls seen from inside (corners), some
+    stretches pushed back (gaps), range noise."""
+    angles = np.linspace(-math.pi, math.pi, n, endpoint=False)
+    k = int(rng.integers(3, 9))
+    corner_angles = np.sort(rng.uniform(-math.pi, math.pi, k))
+    corners = rng.uniform(1.0, 8.0, k)[:, None] * np.stack(
+        (np.cos(corner_angles), np.sin(corner_angles)), axis=1
+    )
+    ranges = np.empty(n)
+    for i, a in enumerate(angles):  # the ray against the polygon's edge that spans it
+        e = int(np.searchsorted(corner_angles, a)) % k
+        p, q = corners[e - 1], corners[e]
+        d = np.array([math.cos(a), math.sin(a)])
+        edge = q - p
+        den = d[0] * edge[1] - d[1] * edge[0]
+        t = (p[0] * edge[1] - p[1] * edge[0]) / den if abs(den) > 1e-12 else 5.0
+        ranges[i] = min(max(t, 0.3), 20.0)
+    pushed = np.repeat(rng.uniform(0.0, 1.0, 8) < 0.3, -(-n // 8))[:n]
+    ranges = np.where(pushed, ranges * 1.5, ranges) + rng.normal(0, 0.01, n)
+    return np.stack((ranges * np.cos(angles), ranges * np.sin(angles)), axis=1)
+
+
+@BUDGET
+@given(n=st.integers(0, 200), seed=st.integers(0, 2**31), closed=st.booleans())
+def test_the_compiled_segmentation_stages_are_the_numpy_ones(n, seed, closed) -> None:
+    """Break points (eq. 13), detection angles (eq. 3), clusters, angular points (eq. 14),
+    segment ids and the lines' fits on random sequences, where no step, angle or arm lies
+    within 1e-6 of its threshold."""
+    rng = np.random.default_rng(seed)
+    p = _sequence(rng, n)
+    thresholds = rng.uniform(0.05, 0.5, n)
+    gap_difference = float(rng.uniform(0.0, 0.3))
+    steps = seg._steps_numpy(p, closed)
+    prev, nxt = np.roll(steps, 1), np.roll(steps, -1)
+    finite = np.isfinite(steps)
+    near = [np.abs(steps[finite] - thresholds[finite])]
+    for other in (prev, nxt):
+        with np.errstate(invalid="ignore"):  # inf − inf past an open end
+            diff = steps - other
+        near.append(np.abs(diff[np.isfinite(diff)] - gap_difference))
+    assume(all(np.all(v > MARGIN) for v in near))
+    is_break, split = seg.break_points(p, thresholds, gap_difference, closed)
+    ref_break, ref_split = seg._break_points_numpy(p, thresholds, gap_difference, closed)
+    np.testing.assert_array_equal(is_break, ref_break)
+    np.testing.assert_array_equal(split, ref_split)
+    np.testing.assert_allclose(seg._steps(p, closed), steps, rtol=TOL, atol=0)
+
+    beta = seg.detection_angles(p, split, closed)
+    np.testing.assert_allclose(
+        beta, seg._detection_angles_numpy(p, split, closed), rtol=0, atol=TOL, equal_nan=True
+    )
+    min_points = int(rng.integers(1, 8))
+    cluster = seg.clusters(split, min_points)
+    np.testing.assert_array_equal(cluster, seg._clusters_numpy(split, min_points))
+
+    cfg = CFG.with_overrides({"angular_points": {"neighbour_step": int(rng.integers(1, 4))}})
+    ap = cfg.angular_points
+    spacing = seg._steps_numpy(p, False)
+    corner, angle = seg.angular_points(p, cluster, spacing, cfg)
+    ref_corner, ref_angle = seg._angular_points_numpy(p, cluster, spacing, cfg)
+    assume(np.all(np.abs(ref_angle - ap.interior_angle_threshold) > MARGIN))
+    np.testing.assert_allclose(angle, ref_angle, rtol=0, atol=TOL)
+    np.testing.assert_array_equal(corner, ref_corner)
+
+    exclusion = int(rng.integers(0, 3))
+    raw, segment = seg.segment_ids(cluster, corner, exclusion, closed)
+    ref_raw, ref_segment = seg._segment_ids_numpy(cluster, corner, exclusion, closed)
+    np.testing.assert_array_equal(raw, ref_raw)
+    np.testing.assert_array_equal(segment, ref_segment)
+
+    u = rng.uniform(0.0, 1.0, n)
+    bases = rule_bases(cfg.fuzzy)
+    lines, ref = (
+        f(p, u, segment, cluster, bases, cfg) for f in (_fit_lines_compiled, _fit_lines_numpy)
+    )
+    assert len(lines) == len(ref)
+    for name in ("normal", "distance", "start", "end", "centre", "sigma", "delta",
+                 "uncertainty", "angle_variance", "distance_variance"):  # fmt: skip
+        x, y = getattr(lines, name), getattr(ref, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            np.testing.assert_allclose(x, y, rtol=TOL, atol=TOL, err_msg=name)
+    for name in ("n_points", "segment", "cluster"):
+        np.testing.assert_array_equal(getattr(lines, name), getattr(ref, name), err_msg=name)
+
+    # the lines joined at the angular points (§3.5 b)), where they meet steeply enough
+    corners = corner.nonzero()[0]
+    before, after = ref_raw[(corners - 1) % max(n, 1)], ref_raw[(corners + 1) % max(n, 1)]
+    if len(ref) >= 2 and corners.size:
+        a, b = features_module._lines_around_corners(ref, before, after)
+        both_sides = (a >= 0) & (b >= 0)
+        det = ref.normal[a[both_sides], 0] * ref.normal[b[both_sides], 1]
+        det = det - ref.normal[a[both_sides], 1] * ref.normal[b[both_sides], 0]
+        min_sine = math.sin(cfg.virtual_points.min_intersection_angle)
+        assume(np.all(np.abs(np.abs(det) - min_sine) > MARGIN))
+    joined, ref_joined = both(lambda: features_module.join_at_corners(ref, before, after, cfg))
+    for x, y in zip(joined[1:], ref_joined[1:]):
+        np.testing.assert_allclose(x, y, rtol=0, atol=TOL)
+        assert x.dtype == y.dtype
+    for name in ("start", "end", "centre"):
+        x, y = getattr(joined[0], name), getattr(ref_joined[0], name)
+        np.testing.assert_allclose(x, y, rtol=0, atol=TOL, err_msg=name)
+
+
+# -- whole scans and runs ----------------------------------------------------------------------
+@settings(max_examples=50, deadline=None)
+@given(pose=poses, seed=st.integers(0, 1000), beams=st.sampled_from([180, 360]))
+def test_the_features_of_a_scan_are_the_same_either_way(pose, seed, beams) -> None:
+    """extract_features with the kernels and with the numpy references: the same points,
+    clusters, corners, segments and lines (noisy simulated scans: no value sits on a
+    threshold)."""
+    scan = scan_at(pose, seed, beams)
+    f, g = both(lambda: extract_features(scan, CFG))
+    for name in ("kept", "is_break_point", "cluster", "is_angular_point", "segment"):
+        np.testing.assert_array_equal(getattr(f, name), getattr(g, name), err_msg=name)
+    np.testing.assert_allclose(f.detection_angle, g.detection_angle, rtol=0, atol=TOL)
+    for name in ("normal", "distance", "start", "end", "uncertainty"):
+        np.testing.assert_allclose(getattr(f.lines, name), getattr(g.lines, name), atol=TOL)
+
+
+def test_a_simulated_run_is_the_same_either_way() -> None:
+    """A drive through the office with drifting odometry: the same trajectory, step by step."""
+    truth = sim.arc_path(Pose2D(-8.0, 0.0, 0.0), 60, step=0.08, turn_deg=1.0)
+    odom = sim.drifting_odometry(truth, scale=1.02, rotation_bias_deg=0.1)
+    scans = sim.simulate_scans(WORLD, truth, scanner(180), rng=np.random.default_rng(3))
+
+    def run() -> np.ndarray:
+        return np.array([e.pose.as_array() for e in Positioner(CFG).run(scans, odom)])
+
+    compiled, reference = both(run)
+    np.testing.assert_allclose(compiled, reference, rtol=0, atol=TOL)
+
+
+# -- laziness ----------------------------------------------------------------------------------
+def test_importing_fuzzypos_loads_no_compiler() -> None:
+    """``import fuzzypos`` neither imports numba nor compiles anything (first use does)."""
+    code = (
+        "import sys, fuzzypos\n"
+        "print('numba' in sys.modules, 'fuzzypos._kernels.grid' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False"]
+
+
+def test_the_environment_selects_the_numpy_references(monkeypatch) -> None:
+    monkeypatch.setattr(kernels, "_ENABLED", None)
+    monkeypatch.setenv("FUZZYPOS_KERNELS", "numpy")
+    assert not kernels.compiled()
+    monkeypatch.setattr(kernels, "_ENABLED", None)
+    monkeypatch.setenv("FUZZYPOS_KERNELS", "numba")
+    assert kernels.compiled()
