@@ -9,12 +9,15 @@ shows, Fig. 20 one crossing per estimate and no text over another."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from fuzzypos import Config, Positioner
 from fuzzypos import plot as plotting
 from fuzzypos.demo import (
+    FEATURE_SCAN_INDEX,
     PRESETS,
     DemoSettings,
     errors_figure,
@@ -23,6 +26,7 @@ from fuzzypos.demo import (
     simulate_gym_circle,
 )
 from fuzzypos.evaluation import trajectory_errors
+from fuzzypos.features import extract_features
 from test_plot import _ends, _overlapping_texts, n_offsets
 
 
@@ -60,10 +64,25 @@ def test_paper_preset_beats_odometry(demo_run, demo_estimates) -> None:
 
 
 # -- the figures -------------------------------------------------------------------------------
+def test_the_default_keeps_virtual_angular_points_on_the_25th_scan(demo_run) -> None:
+    """The paper's Fig. 18 shows virtual angular points on that scan. Its walls are 8–19 m
+    away, but two small boxes 4.5 m from the robot put the 5th percentile of its ranges at
+    4.6 m, so the points' sets are hardly stretched (1.02); graded on the points' scale the
+    lines are all uncertain and Table 3 removes every intersection. The lines are graded on
+    the scale of their own surface (``fuzzy.line_distance_scale = "structure"``), where the
+    boxes' short sides weigh little."""
+    features = feature_scan(demo_run)
+    assert features.distance_scale < 1.05
+    assert features.line_distance_scale > 1.5
+    assert len(features.virtual_points) > 0
+    on_points = replace(Config().fuzzy, line_distance_scale="points")
+    scan = demo_run.scans[FEATURE_SCAN_INDEX]
+    assert len(extract_features(scan, Config(fuzzy=on_points)).virtual_points) == 0
+
+
 def test_fig18_draws_virtual_angular_points_on_the_25th_scan(demo_run) -> None:
-    """The default keeps none there (the walls are 10–15 m away, every intersection 3–7 m
-    from its lines' centres: Table 3 grades them all uncertain); the figure shows where they
-    are and that they were removed, not an empty scan."""
+    """The figure draws the kept virtual angular points and where the removed ones are, not
+    an empty scan."""
     features = feature_scan(demo_run)
     fig = plotting.plot_virtual_points(features, config=Config())
     kept = n_offsets(fig, "virtual_points")

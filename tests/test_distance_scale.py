@@ -31,7 +31,7 @@ from fuzzypos.features import (
 )
 from fuzzypos.fuzzy import point_rule_base, virtual_point_rule_base
 from fuzzypos.geometry import Pose2D
-from fuzzypos.segmentation import distance_scale, point_uncertainty
+from fuzzypos.segmentation import distance_scale, line_distance_scale, point_uncertainty
 
 FIXED = Config(fuzzy=replace(Config().fuzzy, distance_scale="fixed"))
 
@@ -96,6 +96,31 @@ def test_quantile_and_reference_are_used() -> None:
     assert distance_scale(r, cfg) == pytest.approx((1.0 + 99.0 * 0.9) / 4.0, rel=1e-12)
     cfg = _fuzzy(distance_scale_quantile=1.0)
     assert distance_scale(r, cfg) == pytest.approx(100.0 / 4.5, rel=1e-12)
+
+
+# -- the lines' scale: their own surface, not the nearest clutter --------------------------------
+def test_line_scale_is_the_lines_length_by_distance() -> None:
+    cfg = FuzzyConfig()
+    assert cfg.line_distance_scale == "structure"
+    # 12 beams on a small box 4.5 m away, 120 on walls 10 m away: the points' 5th percentile
+    # is the box (scale 1), but the box is 54 of the lines' 1,254 beam-metres (4 %)
+    r = np.r_[np.full(12, 4.5), np.full(120, 10.0)]
+    assert distance_scale(r, cfg) == 1.0
+    assert line_distance_scale(r, 1.0, cfg) == pytest.approx(10.0 / 4.5, rel=1e-12)
+    # never below the points' scale; indoors (every line within the reference) it stays 1
+    assert line_distance_scale(np.full(50, 18.0), 5.0, cfg) == 5.0
+    assert line_distance_scale(np.full(50, 3.0), 1.0, cfg) == 1.0
+    assert line_distance_scale(np.zeros(0), 1.5, cfg) == 1.5
+    # "points" and "fixed" keep the points' scale
+    assert line_distance_scale(r, 1.0, _fuzzy(line_distance_scale="points")) == 1.0
+    assert line_distance_scale(r, 1.0, _fuzzy(distance_scale="fixed")) == 1.0
+
+
+def test_line_scale_loads_and_rejects_unknown_values() -> None:
+    cfg = _load('[fuzzy]\nline_distance_scale = "points"\n')
+    assert cfg.fuzzy.line_distance_scale == "points"
+    with pytest.raises(ConfigError, match="line_distance_scale"):
+        _load('[fuzzy]\nline_distance_scale = "walls"\n')
 
 
 # -- far structure: the default grades it, "fixed" calls every point all-uncertain ------------

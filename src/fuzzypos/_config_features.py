@@ -102,6 +102,17 @@ class FuzzyConfig:
         unit=M,
         gt=0.0,
     )
+    line_distance_scale: str = _field(
+        "structure",
+        "the scale the lines (their δ, eq. 6), d_v and virtual_points.max_distance are graded "
+        "on: 'structure' takes the distance_scale_quantile of the lines' own points weighted "
+        "by their ranges (each beam's share of the surface it samples, so the lines' length "
+        "by distance), never below the points' scale: a line is graded by the surface it lies "
+        "on, and a few beams on small clutter near the robot (a box, a chair, whose short "
+        "sides take many beams for little length) no longer grade far walls' lines and their "
+        "intersections all uncertain; 'points' keeps the points' scale for them",
+        choices=("structure", "points"),
+    )
     output_centres: tuple[float, float, float] = _field(
         (0.0, 0.5, 1.0),
         "consequent centres of S, M, B (SPEC); the outputs are uncertainties in [0, 1]",

@@ -38,6 +38,7 @@ from .segmentation import (
     distance_scale,
     filter_points,
     gap_thresholds,
+    line_distance_scale,
     point_uncertainty,
     segment_ids,
 )
@@ -227,6 +228,12 @@ class Features:
         """The factor this scan's distance sets (ρ, d_v) and virtual-point distance limit were
         stretched by (``fuzzy.distance_scale``; 1 for an indoor scan)."""
         return self._corners.distance_scale
+
+    @property
+    def line_distance_scale(self) -> float:
+        """The factor this scan's lines (δ), d_v and virtual-point distance limit were graded
+        on (``fuzzy.line_distance_scale``; at least :attr:`distance_scale`)."""
+        return self._corners.line_distance_scale
 
     @property
     def n_valid(self) -> int:
@@ -581,7 +588,8 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
 
     # 6. lines (§3.5, eq. 5–9)
     raw_seg, segment = segment_ids(cluster, is_corner, cfg.lines.corner_exclusion, ring_corner)
-    lines = fit_lines(kp, ku, segment, cluster, bases, cfg)
+    lu, line_scale = _graded_for_lines(kr, beta[kept_index], ku, segment, scale, bases, cfg)
+    lines = fit_lines(kp, lu, segment, cluster, bases, cfg)
     corner_idx = is_corner.nonzero()[0]
     n_kept = kp.shape[0]
     # the lines on either side of each angular point (circularly, for the ring's seam)
@@ -605,6 +613,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
         corner_b=corner_b,
         corner_dv=corner_dv,
         distance_scale=scale,
+        line_distance_scale=line_scale,
         seg_before=seg_before,
         seg_after=seg_after,
         break_mask=is_break & ~fov_edge & (cluster >= 0),
@@ -635,6 +644,25 @@ def _graded_points(
     (:func:`~fuzzypos.segmentation.distance_scale`); returns the uncertainties and the scale."""
     scale = distance_scale(ranges, cfg.fuzzy)
     return point_uncertainty(ranges, beta, bases, scale), scale
+
+
+def _graded_for_lines(
+    ranges: FloatArray,
+    beta: FloatArray,
+    u: FloatArray,
+    segment: IntArray,
+    scale: float,
+    bases: RuleBases,
+    cfg: Config,
+) -> tuple[FloatArray, float]:
+    """The kept points' uncertainties the lines' δ (eq. 6) is taken from, and the scale the
+    lines, d_v and the virtual points' distance limit are graded on: the scale of the lines'
+    own surface (:func:`~fuzzypos.segmentation.line_distance_scale`), the points re-graded on
+    it where it differs from the points' ``scale`` (else ``u`` itself)."""
+    line_scale = line_distance_scale(ranges[segment >= 0], scale, cfg.fuzzy)
+    if line_scale == scale:
+        return u, scale
+    return point_uncertainty(ranges, beta, bases, line_scale), line_scale
 
 
 def _valid_points(
@@ -675,6 +703,7 @@ class _CornerContext:
     corner_b: IntArray
     corner_dv: FloatArray
     distance_scale: float
+    line_distance_scale: float
     seg_before: IntArray
     seg_after: IntArray
     break_mask: BoolArray
@@ -689,12 +718,12 @@ def _point_features(
     # 7. virtual angular points (§3.6), without the ones that are real angular points; one
     # fuzzy evaluation (eq. 10–12) grades them and the joined real corners together
     exclude = _corner_line_pairs(lines, c.seg_before, c.seg_after)
-    v_pts, v_i, v_j, v_dv = virtual_candidates(lines, cfg, exclude, c.distance_scale)
+    v_pts, v_i, v_j, v_dv = virtual_candidates(lines, cfg, exclude, c.line_distance_scale)
     n_corners = c.corner_a.shape[0]
     graded = c.bases.virtual_points(
         lines.uncertainty[np.concatenate([c.corner_a, v_i])],
         lines.uncertainty[np.concatenate([c.corner_b, v_j])],
-        np.concatenate([c.corner_dv, v_dv]) / c.distance_scale,  # d_v's sets stretched
+        np.concatenate([c.corner_dv, v_dv]) / c.line_distance_scale,  # d_v's sets stretched
     )
     virtual, virtual_lines, _dv = _keep_certain(v_pts, v_i, v_j, v_dv, graded[n_corners:], cfg)
 

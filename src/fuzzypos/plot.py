@@ -411,7 +411,7 @@ def too_uncertain_virtual_points(features: Features, config: Config | None = Non
     uncertain than ``virtual_points.max_uncertainty`` (``config``: the one the features were
     extracted with), without those on a real angular point (merged into it): (k, 2)."""
     cfg = config if config is not None else Config()
-    lines, scale = features.lines, features.distance_scale
+    lines, scale = features.lines, features.line_distance_scale
     pts, i, j, dv = virtual_candidates(lines, cfg, None, scale)
     f = rule_bases(cfg.fuzzy).virtual_points(lines.uncertainty[i], lines.uncertainty[j], dv / scale)
     ang = features.angular_points.xy

@@ -24,6 +24,7 @@ __all__ = [
     "break_points",
     "detection_angles",
     "distance_scale",
+    "line_distance_scale",
     "point_uncertainty",
     "filter_points",
     "clusters",
@@ -198,6 +199,31 @@ def distance_scale(ranges: FloatArray, cfg: FuzzyConfig) -> float:
         return 1.0
     q = float(np.quantile(ranges, quantile))
     return max(1.0, q / reference)
+
+
+def line_distance_scale(line_ranges: FloatArray, point_scale: float, cfg: FuzzyConfig) -> float:
+    """The scale the lines, d_v and the virtual points' distance limit are graded on, from the
+    ranges of the points that belong to line fits: with ``line_distance_scale = "structure"``
+    (and ``distance_scale = "scan"``), max(``point_scale``, the ``distance_scale_quantile`` of
+    those ranges weighted by range / ``distance_scale_reference``); else ``point_scale``.
+
+    Weighted by range, each beam counts as the length of surface it samples (ρ·Δφ up to its
+    incidence), so the quantile is of the lines' length by distance: short clutter near the
+    robot takes many beams but little of that length."""
+    if (
+        cfg.distance_scale == "fixed"
+        or cfg.line_distance_scale == "points"
+        or line_ranges.shape[0] == 0
+    ):
+        return point_scale
+    reference = cfg.distance_scale_reference
+    r = np.sort(line_ranges)
+    if r[-1] <= reference * point_scale:
+        return point_scale
+    # the weighted quantile: the range where the cumulative weight (midpoint rule) reaches q
+    w = np.cumsum(r) - 0.5 * r
+    q = float(np.interp(cfg.distance_scale_quantile * float(r.sum()), w, r))
+    return max(point_scale, q / reference)
 
 
 def point_uncertainty(
