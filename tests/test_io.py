@@ -1289,3 +1289,27 @@ def test_a_corrupt_gzip_carmen_log_is_a_format_error(tmp_path, how):
     path.write_bytes(_damaged_gzip(text, how))
     with pytest.raises(CarmenFormatError, match=r"log\.clf\.gz:\d+: corrupt gzip stream"):
         list(read_carmen(path))
+
+
+# -- the ranges' text: one byte matrix per scan, the very text of the per-reading loop -------
+_READINGS = st.one_of(
+    st.floats(0.0, 100.0),
+    st.floats(-1.0, 1e7),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(0, 10**6).map(lambda k: (k + 0.5) / 1e4),  # ties at the last decimal
+    st.sampled_from([0.0, -0.0, 5e-5, -1e-5, 0.03125, 7.99996, 8.0, 8.00004, 1e12]),
+)
+
+
+@given(st.lists(_READINGS, max_size=60), st.sampled_from([8.0, 81.91, math.inf]))
+def test_ranges_text_is_the_per_reading_text(values, range_max):
+    from fuzzypos.io import carmen_write as cw
+
+    scan = LaserScan(np.array(values, dtype=float), -1.0, 0.01, range_max=range_max)
+    assert cw._ranges_raw(scan) == cw._ranges_raw_exact(scan)
+    fill = repr(range_max) if math.isfinite(range_max) else "0"
+    assert cw._ranges_filled(scan, fill) == cw._ranges_filled_exact(scan, fill)
+    finite = np.array([v for v in values if math.isfinite(v)], dtype=float)
+    fast = cw._fixed_text(finite)
+    per_value = " ".join(f"{v:.4f}".rstrip("0").removesuffix(".") for v in finite.tolist())
+    assert fast is None or fast == per_value

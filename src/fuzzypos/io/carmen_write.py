@@ -24,6 +24,7 @@ one scan is held at a time.
 from __future__ import annotations
 
 import contextlib
+import functools
 import gzip
 import io
 import math
@@ -34,6 +35,7 @@ from types import TracebackType
 from typing import IO, Any, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .._version import __version__
 from ..geometry import Pose2D
@@ -42,6 +44,8 @@ from ._common import LogRecord, PathLike
 from ._flaser import GEOMETRY_TOL, RANGE_DECIMALS, carmen_beam_geometry, check_convention, check_fov
 
 __all__ = ["CarmenWriter", "flaser_geometry", "write_carmen"]
+
+FloatArray = NDArray[np.float64]
 
 
 # -- beam geometry and ranges ----------------------------------------------------------------
@@ -76,11 +80,79 @@ def _misfit(scan: LaserScan, fov: float, convention: str) -> tuple[float, float]
     return None
 
 
+_SCALE = 10**RANGE_DECIMALS
+#: the integer parts the tables cover (beyond them, the per-value path)
+_INT_WIDTH = 5
+
+
+@functools.cache
+def _tables() -> tuple[NDArray[np.uint8], NDArray[np.bool_], NDArray[np.uint8], NDArray[np.bool_]]:
+    """The text of every integer part below ``10**_INT_WIDTH`` and of every ``.dddd``
+    decimal part, as fixed-width characters with the mask of the ones written (no leading
+    zeros, no trailing zeros, no ``.`` for a whole number)."""
+    digits = np.frombuffer(b"0123456789", dtype=np.uint8)
+    q = np.arange(10**_INT_WIDTH, dtype=np.int64)[:, None]
+    p = 10 ** np.arange(_INT_WIDTH - 1, -1, -1, dtype=np.int64)
+    int_chars = digits[(q // p) % 10]
+    int_keep = q >= p
+    int_keep[:, -1] = True  # "0"
+    f = np.arange(_SCALE, dtype=np.int64)[:, None]
+    p = 10 ** np.arange(RANGE_DECIMALS - 1, -1, -1, dtype=np.int64)
+    frac_chars = np.hstack((np.full((_SCALE, 1), ord("."), dtype=np.uint8), digits[(f // p) % 10]))
+    frac_keep = np.hstack((f != 0, f % (10 * p) != 0))
+    return int_chars, int_keep, frac_chars, frac_keep
+
+
+def _fixed_text(values: FloatArray) -> str | None:
+    """The finite ``values`` as ``f"{v:.4f}".rstrip("0").removesuffix(".")`` each (to
+    ``RANGE_DECIMALS``), space-separated, built as one byte matrix from tables instead of one
+    string per value; None where that cannot be sure of the same text (a value within
+    rounding error of a tie at the last decimal, or of ``10**_INT_WIDTH`` or more), for the
+    caller's exact per-value path."""
+    n = len(values)
+    if n == 0:
+        return ""
+    mag = np.abs(values * float(_SCALE))
+    if not float(mag.max()) < 10.0 ** (_INT_WIDTH + RANGE_DECIMALS) - 1.0:
+        return None
+    tie = np.abs(mag - np.floor(mag) - 0.5)
+    if (tie <= mag * 1e-15).any():  # too near a tie: the product's rounding may decide it
+        return None
+    k = np.rint(mag).astype(np.int64)  # the correctly rounded count of the last decimal
+    q, f = np.divmod(k, _SCALE)
+    int_chars, int_keep, frac_chars, frac_keep = _tables()
+    width = 1 + _INT_WIDTH + 1 + RANGE_DECIMALS + 1
+    chars = np.empty((n, width), dtype=np.uint8)
+    keep = np.empty((n, width), dtype=bool)
+    chars[:, 0] = ord("-")
+    keep[:, 0] = np.signbit(values)
+    chars[:, 1 : 1 + _INT_WIDTH] = int_chars[q]
+    keep[:, 1 : 1 + _INT_WIDTH] = int_keep[q]
+    chars[:, 1 + _INT_WIDTH : -1] = frac_chars[f]
+    keep[:, 1 + _INT_WIDTH : -1] = frac_keep[f]
+    chars[:, -1] = ord(" ")
+    keep[:, -1] = True
+    keep[-1, -1] = False  # no space after the last value
+    return chars[keep].tobytes().decode("ascii")
+
+
 def _ranges_filled(scan: LaserScan, fill: str) -> str:
     """:func:`write_carmen`'s ranges: valid readings to 0.1 mm (full precision where rounding
     would move them across 0 or ``range_max``), invalid ones as ``fill``."""
     r = scan.ranges
     valid = scan.valid
+    rounded = np.round(r, RANGE_DECIMALS)
+    exact = valid & ((rounded >= scan.range_max) | (rounded <= 0.0))
+    if not exact.any() and fill in ("0", _fixed_text(np.array([scan.range_max]))):
+        fast = _fixed_text(np.where(valid, r, 0.0 if fill == "0" else scan.range_max))
+        if fast is not None:
+            return fast
+    return _ranges_filled_exact(scan, fill)
+
+
+def _ranges_filled_exact(scan: LaserScan, fill: str) -> str:
+    """:func:`_ranges_filled` one reading at a time (and the reference of the vectorised one)."""
+    r, valid = scan.ranges, scan.valid
     rounded = np.round(r, RANGE_DECIMALS)
     exact = valid & ((rounded >= scan.range_max) | (rounded <= 0.0))
     out: list[str] = []
@@ -98,6 +170,18 @@ def _ranges_raw(scan: LaserScan) -> str:
     """The estimate log's ranges: the raw readings (as the log gave them) to 0.1 mm; a valid
     reading that rounding would move onto ``range_max`` or 0 at full precision; NaN and ±inf
     as 0 (invalid)."""
+    r = scan.ranges
+    finite = np.isfinite(r)
+    rounded = np.round(r, RANGE_DECIMALS)
+    if not (scan.valid & ((rounded >= scan.range_max) | (rounded <= 0.0))).any():
+        fast = _fixed_text(np.where(finite, r, 0.0))
+        if fast is not None:
+            return fast
+    return _ranges_raw_exact(scan)
+
+
+def _ranges_raw_exact(scan: LaserScan) -> str:
+    """:func:`_ranges_raw` one reading at a time (and the reference of the vectorised one)."""
     out: list[str] = []
     rmax = scan.range_max
     for v, ok in zip(scan.ranges.tolist(), scan.valid.tolist()):
