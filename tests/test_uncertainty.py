@@ -223,6 +223,14 @@ def test_the_gate_rejects_what_both_covariances_make_unlikely() -> None:
     assert Uncertainty(CFG.covariance, CFG.gate).threshold == pytest.approx(11.3449, abs=1e-3)
 
 
+@pytest.mark.parametrize("probability", [0.5, 0.9, 0.99, 0.999, 0.9999, 1 - 1e-9])
+def test_gate_threshold_is_scipy_stats_chi2_quantile(probability):
+    from scipy.stats import chi2
+
+    gate = replace(CFG.gate, probability=probability)
+    assert Uncertainty(CFG.covariance, gate).threshold == float(chi2.ppf(probability, 3))
+
+
 def learning_run(turn_at: int | None, gap_at: int | None, n: int = 60) -> list:
     """A robot driving an arc in a furnished room with precise odometry; at ``turn_at`` the
     scan is matched 7° off by a false match (the refinement forced there); at ``gap_at`` the
