@@ -375,3 +375,34 @@ def test_the_learned_prior_does_not_teach_the_odometry_its_own_weight() -> None:
     floor = CFG.odometry_noise.min_translation_per_sqrt_m
     assert fused.alpha_translation > 5.0 * floor
     assert not fused.better_than_matching and not fused.trusted  # the scans are the better
+
+
+@given(
+    st.lists(st.floats(allow_nan=False, allow_infinity=False, width=32), max_size=80),
+    st.integers(1, 12),
+)
+def test_running_window_median_is_numpy_median(values, maxlen):
+    from collections import deque
+
+    from fuzzypos.pipeline._window import Window, median_of
+
+    window, plain = Window(maxlen), deque(maxlen=maxlen)
+    for v in values:
+        window.append(v)
+        plain.append(v)
+        assert list(window) == list(plain)
+        expected = float(np.median(np.array(plain)))
+        assert window.median() == expected == median_of(plain)
+
+
+@given(st.lists(st.one_of(st.floats(-10, 10), st.just(math.nan)), max_size=40), st.integers(1, 9))
+def test_running_window_median_with_nan_is_the_sorted_median(values, maxlen):
+    from collections import deque
+
+    from fuzzypos.pipeline._window import Window, median_of
+
+    window, plain = Window(maxlen), deque(maxlen=maxlen)
+    for v in values:
+        window.append(v)
+        plain.append(v)
+        np.testing.assert_equal(window.median(), median_of(plain))

@@ -6,13 +6,13 @@ calibration of the odometry's scale and rotation factor."""
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..config import OdometryNoiseConfig
 from ..geometry import relative
+from ._window import Window
 
 __all__ = ["OdometryNoise"]
 
@@ -23,14 +23,6 @@ _MEDIAN_CHI2_2 = 2.0 * math.log(2.0)
 _MEDIAN_CHI2_1 = 0.454936423119572
 #: increments shorter than this (m, or m-equivalent of turning) teach the model nothing
 _MIN_TRAVEL = 1e-3
-
-
-def _median(values: deque[float]) -> float:
-    """The median of a running window (as ``np.median``; a sort of a flat array is cheaper
-    than ``np.median`` on a deque)."""
-    a = np.sort(np.fromiter(values, dtype=float, count=len(values)))
-    n = len(a)
-    return float(a[n // 2]) if n % 2 else float(0.5 * (a[n // 2 - 1] + a[n // 2]))
 
 
 class OdometryNoise:
@@ -52,11 +44,11 @@ class OdometryNoise:
         s = self.settings
         self.alpha_translation = s.translation_per_sqrt_m
         self.alpha_rotation = s.rotation_per_sqrt_m
-        self._translation: deque[float] = deque(maxlen=s.window)
-        self._rotation: deque[float] = deque(maxlen=s.window)
+        self._translation = Window(s.window)
+        self._rotation = Window(s.window)
         # the matches' own variance per unit of travel, beside the disagreements
-        self._translation_own: deque[float] = deque(maxlen=s.window)
-        self._rotation_own: deque[float] = deque(maxlen=s.window)
+        self._translation_own = Window(s.window)
+        self._rotation_own = Window(s.window)
         # least squares of the matched against the odometry's motion: Σ m·o and Σ o²
         self._scale_sums = np.zeros(2)
         self._turn_sums = np.zeros(2)
@@ -160,20 +152,20 @@ class OdometryNoise:
         s = self.settings
         if min(len(self._translation_own), len(self._rotation_own)) < s.min_samples:
             return False
-        own_t = _median(self._translation_own)
-        own_r = _median(self._rotation_own)
+        own_t = self._translation_own.median()
+        own_r = self._rotation_own.median()
         return self.alpha_translation**2 < own_t and self.alpha_rotation**2 < own_r
 
     def _update(self) -> None:
         self._better = None
         s = self.settings
         if len(self._translation) >= s.min_samples:
-            own = _median(self._translation_own) if self._translation_own else 0.0
-            a = math.sqrt(max(_median(self._translation) - own, 0.0))
+            own = self._translation_own.median() if len(self._translation_own) else 0.0
+            a = math.sqrt(max(self._translation.median() - own, 0.0))
             lo, hi = s.min_translation_per_sqrt_m, s.max_translation_per_sqrt_m
             self.alpha_translation = min(max(a, lo), hi)
         if len(self._rotation) >= s.min_samples:
-            own = _median(self._rotation_own) if self._rotation_own else 0.0
-            a = math.sqrt(max(_median(self._rotation) - own, 0.0))
+            own = self._rotation_own.median() if len(self._rotation_own) else 0.0
+            a = math.sqrt(max(self._rotation.median() - own, 0.0))
             lo, hi = s.min_rotation_per_sqrt_m, s.max_rotation_per_sqrt_m
             self.alpha_rotation = min(max(a, lo), hi)

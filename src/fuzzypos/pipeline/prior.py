@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,6 +10,7 @@ from numpy.typing import NDArray
 
 from ..config import OdometryConfig
 from ..geometry import Pose2D, relative
+from ._window import Window
 
 __all__ = ["OdometryPrior", "Prior"]
 
@@ -60,7 +60,7 @@ class OdometryPrior:
         self._prev_stamp = 0.0
         self._last_increment: FloatArray = np.zeros(3)
         self._last_dt = 0.0
-        self._steps: deque[float] = deque(maxlen=_STEPS)
+        self._steps = Window(_STEPS)
         #: odometry increments rejected as jumps so far
         self.jumps = 0
 
@@ -94,8 +94,8 @@ class OdometryPrior:
         )
         self._prev_odom = odom
         stale = 0.0
-        if self._steps:
-            usual = float(np.median(np.fromiter(self._steps, dtype=float)))
+        if len(self._steps):
+            usual = self._steps.median()
             stale = max(0.0, dt - self.stale_periods * usual)
         if dt > 0.0:
             self._steps.append(dt)
