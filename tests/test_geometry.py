@@ -263,3 +263,15 @@ def test_pose2d_wraps_theta_and_roundtrips_array():
     assert Pose2D(3.0, 4.0, 0.0).translation_norm == 5.0
     with pytest.raises(ValueError):
         Pose2D.from_array([1.0, 2.0])
+
+
+@given(poses, poses)
+def test_single_pose_paths_are_the_arrays_arithmetic(a, b):
+    # one pose each: float arithmetic, bit-identical to numpy scalars' (the former code)
+    pa, pb = a.as_array(), b.as_array()
+    c, s = math.cos(pa[2]), math.sin(pa[2])
+    x, y = pa[0] + c * pb[0] - s * pb[1], pa[1] + s * pb[0] + c * pb[1]
+    np.testing.assert_array_equal(compose(pa, pb)[:2], [x, y])
+    inv = [-(c * pa[0] + s * pa[1]), s * pa[0] - c * pa[1]]
+    np.testing.assert_array_equal(inverse(pa)[:2], inv)
+    np.testing.assert_array_equal(relative(pa, pb), compose(inverse(pa), pb))

@@ -96,14 +96,7 @@ def compose(a: ArrayLike, b: ArrayLike) -> FloatArray:
     a = _as_poses(a)
     b = _as_poses(b)
     if a.ndim == 1 and b.ndim == 1:  # one pose each: scalar arithmetic, far fewer calls
-        c, s = math.cos(a[2]), math.sin(a[2])
-        return np.array(
-            [
-                a[0] + c * b[0] - s * b[1],
-                a[1] + s * b[0] + c * b[1],
-                _wrap_scalar(float(a[2] + b[2])),
-            ]
-        )
+        return np.array(_compose_floats(*a.tolist(), *b.tolist()))
     ca, sa = np.cos(a[..., 2]), np.sin(a[..., 2])
     x = a[..., 0] + ca * b[..., 0] - sa * b[..., 1]
     y = a[..., 1] + sa * b[..., 0] + ca * b[..., 1]
@@ -115,8 +108,7 @@ def inverse(a: ArrayLike) -> FloatArray:
     """``⊖a``: the pose of the outer frame seen from ``a``."""
     a = _as_poses(a)
     if a.ndim == 1:
-        c, s = math.cos(a[2]), math.sin(a[2])
-        return np.array([-(c * a[0] + s * a[1]), s * a[0] - c * a[1], _wrap_scalar(-float(a[2]))])
+        return np.array(_inverse_floats(*a.tolist()))
     ca, sa = np.cos(a[..., 2]), np.sin(a[..., 2])
     x = -(ca * a[..., 0] + sa * a[..., 1])
     y = sa * a[..., 0] - ca * a[..., 1]
@@ -125,7 +117,25 @@ def inverse(a: ArrayLike) -> FloatArray:
 
 def relative(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """``⊖a ⊕ b``: the pose ``b`` in the frame of ``a`` (e.g. the odometry increment)."""
+    a = _as_poses(a)
+    b = _as_poses(b)
+    if a.ndim == 1 and b.ndim == 1:  # as compose(inverse(a), b), without the arrays between
+        return np.array(_compose_floats(*_inverse_floats(*a.tolist()), *b.tolist()))
     return compose(inverse(a), b)
+
+
+def _compose_floats(
+    ax: float, ay: float, at: float, bx: float, by: float, bt: float
+) -> tuple[float, float, float]:
+    """:func:`compose` of one pose each, in floats (the very arithmetic of the arrays')."""
+    c, s = math.cos(at), math.sin(at)
+    return ax + c * bx - s * by, ay + s * bx + c * by, _wrap_scalar(at + bt)
+
+
+def _inverse_floats(ax: float, ay: float, at: float) -> tuple[float, float, float]:
+    """:func:`inverse` of one pose, in floats."""
+    c, s = math.cos(at), math.sin(at)
+    return -(c * ax + s * ay), s * ax - c * ay, _wrap_scalar(-at)
 
 
 def transform_points(pose: ArrayLike, points: ArrayLike) -> FloatArray:
@@ -181,8 +191,9 @@ def compose_jacobians(a: ArrayLike, b: ArrayLike) -> tuple[FloatArray, FloatArra
     b = _as_poses(b).reshape(-1)
     if a.shape != (3,) or b.shape != (3,):
         raise ValueError("compose_jacobians takes one pose each")
-    c, s = math.cos(a[2]), math.sin(a[2])
-    ja = np.array([[1.0, 0.0, -s * b[0] - c * b[1]], [0.0, 1.0, c * b[0] - s * b[1]], [0, 0, 1.0]])
+    at, (bx, by, _) = float(a[2]), b.tolist()
+    c, s = math.cos(at), math.sin(at)
+    ja = np.array([[1.0, 0.0, -s * bx - c * by], [0.0, 1.0, c * bx - s * by], [0, 0, 1.0]])
     jb = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return ja, jb
 
