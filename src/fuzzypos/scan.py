@@ -14,6 +14,7 @@ Some scanners also report "no return" as codes below their maximum (SICK in cm m
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -236,10 +237,22 @@ def _band_bounds(bands: Sequence[tuple[float, float]]) -> tuple[FloatArray, Floa
     return np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64)
 
 
+@functools.lru_cache(maxsize=16)
+def _band_bounds_cached(bands: tuple[tuple[float, float], ...]) -> tuple[FloatArray, FloatArray]:
+    """:func:`_band_bounds` of a configuration's (hashable) bands, computed once (read-only)."""
+    lo, hi = _band_bounds(bands)
+    lo.setflags(write=False)
+    hi.setflags(write=False)
+    return lo, hi
+
+
 def _in_bands(ranges: ArrayLike, bands: Sequence[tuple[float, float]]) -> BoolArray:
     """``(n_bands, n)``: reading ``j`` lies in band ``i`` (bounds widened, NaN in none)."""
     r = np.asarray(ranges, dtype=np.float64).reshape(-1)
-    lo, hi = _band_bounds(bands)
+    try:
+        lo, hi = _band_bounds_cached(bands) if isinstance(bands, tuple) else _band_bounds(bands)
+    except TypeError:  # a tuple holding something unhashable: as given
+        lo, hi = _band_bounds(bands)
     with np.errstate(invalid="ignore"):
         return (r[None, :] >= lo[:, None]) & (r[None, :] <= hi[:, None])
 

@@ -37,6 +37,16 @@ FloatArray = NDArray[np.float64]
 
 #: the points' information is too ill-conditioned to give the motion alone beyond this
 _MAX_CONDITION = 1e8
+_EYE = np.eye(3)
+_EYE.flags.writeable = False
+#: what keeps the fit's information invertible
+_TINY = 1e-12 * np.eye(3)
+_TINY.flags.writeable = False
+
+
+def _read_only(a: FloatArray) -> FloatArray:
+    a.flags.writeable = False
+    return a
 
 
 def local(cov: FloatArray, theta: float) -> FloatArray:
@@ -78,6 +88,11 @@ class Uncertainty:
         f = covariance
         self.floor = np.diag([f.floor_translation**2, f.floor_translation**2, f.floor_rotation**2])
         self.floor.flags.writeable = False
+        t, r = f.no_odometry_translation**2, f.no_odometry_rotation**2
+        self._broad = _read_only(np.diag([t, t, r]))
+        self._feature = _read_only(
+            np.diag([f.feature_translation**2] * 2 + [f.feature_rotation**2])
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -105,15 +120,12 @@ class Uncertainty:
         return out
 
     def feature_covariance(self) -> FloatArray:
-        """The features' own error, isotropic in translation."""
-        f = self.settings
-        return np.diag([f.feature_translation**2] * 2 + [f.feature_rotation**2])
+        """The features' own error, isotropic in translation (read-only)."""
+        return self._feature
 
     def broad(self) -> FloatArray:
-        """The covariance of a prior without (sane) odometry: the last increment."""
-        f = self.settings
-        t, r = f.no_odometry_translation**2, f.no_odometry_rotation**2
-        return np.diag([t, t, r])
+        """The covariance of a prior without (sane) odometry: the last increment (read-only)."""
+        return self._broad
 
     def assess(
         self,
@@ -148,7 +160,7 @@ class Uncertainty:
         gate, rejected = None, False
         if gate_open:
             # the disagreement with the prior: (pull − 1) of the odometry's error plus the scan's
-            k = jb_inv @ pull @ jb - np.eye(3)
+            k = jb_inv @ pull @ jb - _EYE
             cov_d = jb_inv @ scan_part @ jb_inv.T + k @ prior_covariance @ k.T + self.floor
             d = relative(prior, inc)
             gate = float(d @ np.linalg.solve(cov_d, d))
@@ -178,14 +190,15 @@ class Uncertainty:
         the prior's): both carry the odometry's error, and a target that is not the odometry's
         motion itself also the features' own error."""
         m = fit.information + fit.prior_information + fit.hold_information
-        m_inv = np.linalg.inv(m + 1e-12 * np.eye(3))
+        m_inv = np.linalg.inv(m + _TINY)
         odometric = fit.prior_information + fit.hold_information
         other = np.zeros((3, 3))
+        key = key_prior.tolist()
         for term, target in (
             (fit.prior_information, fit.prior),
             (fit.hold_information, fit.start if fit.hold_on_start else key_prior),
         ):
-            if max(abs(float(target[i]) - float(key_prior[i])) for i in range(3)) > 1e-12:
+            if max(abs(t - k) for t, k in zip(target.tolist(), key)) > 1e-12:
                 other = other + term
         points = self.settings.point_correlation * fit.gradient_covariance
         own = points + other @ feature @ other
