@@ -653,3 +653,26 @@ def test_the_environment_selects_the_numpy_references(monkeypatch) -> None:
     monkeypatch.setattr(kernels, "_ENABLED", None)
     monkeypatch.setenv("FUZZYPOS_KERNELS", "numba")
     assert kernels.compiled()
+
+
+# -- the CARMEN writer's ranges as text -------------------------------------------------------
+@given(
+    st.lists(
+        st.one_of(
+            st.floats(-100.0, 100.0),
+            st.floats(allow_nan=True, allow_infinity=True),
+            st.integers(-(10**6), 10**6).map(lambda k: (k + 0.5) / 1e4),  # ties
+            st.integers(0, 10**9).map(lambda k: k / 1e4),  # whole decimals
+            st.sampled_from([0.0, -0.0, 5e-5, -1e-5, 0.03125, 99999.99995, 1e5, 1e12]),
+        ),
+        max_size=50,
+    )
+)
+def test_fixed_text_kernel_is_its_reference(values):
+    from fuzzypos.io import carmen_write
+
+    v = np.array(values, dtype=np.float64)
+    fast, reference = both(lambda: carmen_write._fixed_text(v))
+    assert fast == reference == carmen_write._fixed_text_numpy(v)
+    if reference is not None:
+        assert reference == " ".join(f"{x:.4f}".rstrip("0").removesuffix(".") for x in values)

@@ -37,6 +37,7 @@ from typing import IO, Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from .._kernels import compiled
 from .._version import __version__
 from ..geometry import Pose2D
 from ..scan import LaserScan
@@ -104,6 +105,18 @@ def _tables() -> tuple[NDArray[np.uint8], NDArray[np.bool_], NDArray[np.uint8], 
 
 
 def _fixed_text(values: FloatArray) -> str | None:
+    """:func:`_fixed_text_numpy` as one compiled loop (``fuzzypos._kernels.text``)."""
+    if not compiled():
+        return _fixed_text_numpy(values)
+    from .._kernels.text import fixed_text
+
+    ok, text = fixed_text(
+        np.ascontiguousarray(values, dtype=np.float64), _SCALE, RANGE_DECIMALS, _INT_WIDTH
+    )
+    return text.tobytes().decode("ascii") if ok else None
+
+
+def _fixed_text_numpy(values: FloatArray) -> str | None:
     """The finite ``values`` as ``f"{v:.4f}".rstrip("0").removesuffix(".")`` each (to
     ``RANGE_DECIMALS``), space-separated, built as one byte matrix from tables instead of one
     string per value; None where that cannot be sure of the same text (a value within
@@ -112,7 +125,8 @@ def _fixed_text(values: FloatArray) -> str | None:
     n = len(values)
     if n == 0:
         return ""
-    mag = np.abs(values * float(_SCALE))
+    with np.errstate(over="ignore", invalid="ignore"):  # inf and NaN take the exact path
+        mag = np.abs(values * float(_SCALE))
     if not float(mag.max()) < 10.0 ** (_INT_WIDTH + RANGE_DECIMALS) - 1.0:
         return None
     tie = np.abs(mag - np.floor(mag) - 0.5)

@@ -74,4 +74,10 @@ def warm_up(config: Config | None = None) -> float:
     search_start(
         surface, f.points, np.zeros(3), cfg.search, half_width=0.1, translation_half_width=0.2
     )
+    from .._kernels import compiled
+
+    if compiled():  # the CARMEN writer's ranges (fuzzypos.io.carmen_write)
+        from .._kernels.text import fixed_text
+
+        fixed_text(scans[0].ranges, 10_000, 4, 5)
     return time.perf_counter() - t0
