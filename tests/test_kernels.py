@@ -676,3 +676,22 @@ def test_fixed_text_kernel_is_its_reference(values):
     assert fast == reference == carmen_write._fixed_text_numpy(v)
     if reference is not None:
         assert reference == " ".join(f"{x:.4f}".rstrip("0").removesuffix(".") for x in values)
+
+
+# -- the fuzzy rule bases' bilinear interpolation ---------------------------------------------
+@BUDGET
+@given(
+    st.lists(st.tuples(st.floats(-1.0, 40.0), st.floats(-1.0, 3.0)), max_size=40),
+    st.sampled_from(["points", "lines"]),
+)
+def test_rule_base_interpolation_kernel_is_its_reference(pairs, which):
+    base = getattr(rule_bases(CFG.fuzzy), which)
+    assert base._grids is not None  # the fast path
+    x1 = np.array([p[0] for p in pairs], dtype=np.float64)
+    x2 = np.array([p[1] for p in pairs], dtype=np.float64)
+    # the grids' own peaks too: where np.interp takes a point's value as it is
+    g1, g2 = base._grids
+    x1 = np.concatenate([x1, g1])
+    x2 = np.concatenate([x2, np.resize(g2, g1.shape)])
+    compiled, reference = both(lambda: base(x1, x2))
+    np.testing.assert_allclose(compiled, reference, rtol=0, atol=TOL)

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._kernels import compiled
 from .config import FuzzyConfig
 
 FloatArray = NDArray[np.float64]
@@ -134,6 +135,7 @@ class RuleBase:
         _centre_hi: float = field(init=False, repr=False)
         _grids: tuple[FloatArray, FloatArray] | None = field(init=False, repr=False)
         _columns: tuple[FloatArray, ...] = field(init=False, repr=False)
+        _table: FloatArray = field(init=False, repr=False)
         _units: tuple[FloatArray, ...] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -159,6 +161,7 @@ class RuleBase:
         object.__setattr__(
             self, "_columns", tuple(table[:, j].copy() for j in range(table.shape[1]))
         )
+        object.__setattr__(self, "_table", np.ascontiguousarray(table, dtype=np.float64))
         object.__setattr__(self, "_units", tuple(np.eye(table.shape[1])))
 
     @property
@@ -217,6 +220,10 @@ class RuleBase:
         g1, g2 = self._grids
         if x1.shape[0] == 0:
             return np.zeros(0)
+        if compiled():
+            from ._kernels.fuzzy import bilinear
+
+            return bilinear(x1, x2, g1, g2, self._table, self._centre_lo, self._centre_hi)
         out = np.zeros(x1.shape[0])
         for col, unit in zip(self._columns, self._units):
             out += _interp(x1, g1, col, None, None) * _interp(x2, g2, unit, None, None)
