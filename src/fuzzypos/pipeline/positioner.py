@@ -147,7 +147,10 @@ class Positioner:
         prior = self.odometry_prior.predict(stamp, odom)
         if not prior.from_odometry:
             return prior
-        return replace(prior, increment=self.odometry_noise.calibrated(prior.increment))
+        increment = self.odometry_noise.calibrated(prior.increment)
+        if increment is prior.increment:  # no calibration to apply
+            return prior
+        return replace(prior, increment=increment)
 
     def _prior_covariance(self, prior: Prior) -> FloatArray:
         """The covariance of the prior: the odometry's learned noise (grown by the time it was

@@ -217,10 +217,10 @@ class Uncertainty:
         covariance A⁻¹ G A⁻¹ carried on from the previous scan. What the odometry's noise is
         learned from: the fused increment would teach it its own weight back. None where the
         points alone do not fix the motion (a corridor held, or too little information)."""
-        if np.any(fit.hold_information != 0.0):
+        if fit.hold_information.any():
             return None
         a = fit.information
-        if not np.all(np.isfinite(a)) or np.linalg.cond(a) > _MAX_CONDITION:
+        if not np.isfinite(a).all() or np.linalg.cond(a) > _MAX_CONDITION:
             return None
         m = a + fit.prior_information
         x_f = np.asarray(fit.increment, dtype=float)
