@@ -275,7 +275,8 @@ class _CovarianceOut:
         if self._csv is None:
             self._csv = open(self._tmp, "w", encoding="utf-8")  # noqa: SIM115 (closed by close)
             self._csv.write(",".join(COVARIANCE_COLUMNS) + "\n")
-        row = [repr(float(est.stamp)), *(repr(float(cov[i, j])) for i, j in _UPPER)]
+        c = cov.tolist()  # Python floats: the same repr, without a numpy scalar per entry
+        row = [repr(float(est.stamp)), *(repr(c[i][j]) for i, j in _UPPER)]
         self._csv.write(",".join(row) + "\n")
         if self.bag is not None:
             self._write_bag(k, est, cov)
