@@ -9,7 +9,7 @@ LINT_PATHS := src tests benchmarks
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,lint]'
+	$(BIN)/python -m pip install --quiet -e '.[test,lint,graph]'
 	touch $(STAMP)
 
 demo: $(STAMP)

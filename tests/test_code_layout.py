@@ -21,7 +21,7 @@ LAYERS = (
     ("matching",),
     ("pipeline",),
     ("io", "sim"),
-    ("evaluation", "plot"),
+    ("evaluation", "plot", "graph"),
     ("logs", "provenance", "folders"),
     ("scoring", "run"),
     ("benchmark", "demo"),

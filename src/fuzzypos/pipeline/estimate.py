@@ -55,6 +55,8 @@ class Estimate:
     the one the scan was matched against (a scan that becomes the next keyframe is still
     relative to the old one). ``gate``: the Mahalanobis distance squared of the match's
     disagreement with the odometry under both covariances (None where not compared).
+    ``keyframe``: this scan became the keyframe the next scans are matched against (the first
+    scan, and every renewal: what a pose graph's vertices are).
     """
 
     stamp: float
@@ -70,3 +72,4 @@ class Estimate:
     covariance: NDArray[np.float64] | None = None
     keyframe_covariance: NDArray[np.float64] | None = None
     gate: float | None = None
+    keyframe: bool = False

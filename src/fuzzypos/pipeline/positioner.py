@@ -127,7 +127,8 @@ class Positioner:
             pose = self.local_map.pose_of(from_key)
             increment = relative(self._pose, pose)
         self._learn(prior, t_prev, fit if from_key is not None else None)
-        if self.local_map.add(features, pose, from_key):
+        renewed = self.local_map.add(features, pose, from_key)
+        if renewed:
             self.uncertainty.renewed()
         self._pose = pose
         self.odometry_prior.accept(increment, prior.dt)
@@ -139,7 +140,7 @@ class Positioner:
             features=features, reason=Reason.MATCHED if from_key is not None else reason,
             odometry_rejected=prior.odometry_rejected, refined=refined,
             covariance=judged.covariance, keyframe_covariance=judged.keyframe_covariance,
-            gate=judged.gate,
+            gate=judged.gate, keyframe=renewed,
         )  # fmt: skip
 
     def _prior(self, stamp: float, odom: Pose2D | None) -> Prior:
@@ -205,7 +206,7 @@ class Positioner:
         return Estimate(
             scan.stamp, Pose2D.from_array(start), _IDENTITY, _IDENTITY, 0, False, features,
             Reason.FIRST_SCAN, covariance=first.covariance,
-            keyframe_covariance=first.keyframe_covariance,
+            keyframe_covariance=first.keyframe_covariance, keyframe=True,
         )  # fmt: skip
 
     def _refine(

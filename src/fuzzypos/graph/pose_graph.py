@@ -1,0 +1,260 @@
+"""A pose graph over the front end's keyframes: one vertex per keyframe, an edge between
+consecutive keyframes from the fit itself (``Estimate.keyframe_covariance``, a right
+perturbation x, y, θ), loop closures as more edges; optimised by gtsam's Levenberg-Marquardt,
+closures made robust by a graduated non-convexity (GNC) or a Cauchy kernel; the scans between
+keyframes follow their keyframe. g2o files out and in (``VERTEX_SE2``, ``EDGE_SE2`` with the
+upper triangle of the information matrix)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..features import Features
+from ..geometry import compose, relative
+from ..pipeline import Estimate
+from ._gtsam import gtsam
+
+__all__ = ["Edge", "Keyframe", "PoseGraph", "PoseGraphError", "ROBUST_KINDS", "read_g2o"]
+
+FloatArray = NDArray[np.float64]
+
+#: how closures are made robust: graduated non-convexity, a Cauchy kernel, or not at all
+ROBUST_KINDS = ("gnc", "cauchy", "none")
+#: the first keyframe's anchor (m, rad): the graph's gauge, not a measurement
+_ANCHOR_SIGMAS = (1e-6, 1e-6, 1e-7)
+#: added to every edge's covariance's diagonal (m², rad²) so a degenerate one stays invertible
+_COVARIANCE_FLOOR = 1e-12
+
+
+class PoseGraphError(ValueError):
+    """A pose graph cannot be built or read as asked; the message says why."""
+
+    __module__ = "fuzzypos.graph"
+
+
+@dataclass(frozen=True, eq=False)
+class Keyframe:
+    """A vertex: the scan it is (index among the estimates), its stamp, the front end's pose
+    and, where kept, the scan's features (what a closure is verified with)."""
+
+    scan: int
+    stamp: float
+    pose: FloatArray
+    features: Features | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Edge:
+    """Keyframe ``j``'s pose in keyframe ``i``'s frame, ``measured``, with the covariance of its
+    right perturbation (x, y in m, θ in rad); ``closure``: a loop closure, not the front end."""
+
+    i: int
+    j: int
+    measured: FloatArray
+    covariance: FloatArray
+    closure: bool = False
+
+    @property
+    def information(self) -> FloatArray:
+        cov = 0.5 * (self.covariance + self.covariance.T) + _COVARIANCE_FLOOR * np.eye(3)
+        info = np.asarray(np.linalg.inv(cov), dtype=np.float64)
+        out: FloatArray = 0.5 * (info + info.T)
+        return out
+
+
+class PoseGraph:
+    """Keyframes and the edges between them, built one estimate at a time (:meth:`add`) or
+    from a whole run (:meth:`from_estimates`). Every scan remembers its keyframe and its pose
+    relative to it, so after :meth:`optimize` it follows its keyframe (:meth:`trajectory`)."""
+
+    def __init__(self) -> None:
+        self.keyframes: list[Keyframe] = []
+        self.edges: list[Edge] = []
+        self._owner: list[int] = []  # per scan: its keyframe
+        self._offset: list[FloatArray] = []  # per scan: its pose relative to its keyframe
+        self._stamps: list[float] = []
+        self._frontend: list[FloatArray] = []
+        #: the keyframes' optimised poses (the front end's until optimised)
+        self.poses: FloatArray = np.zeros((0, 3))
+        #: per closure edge (in order): its weight in the last optimisation (1 kept, 0 rejected)
+        self.closure_weights: list[float] = []
+
+    @classmethod
+    def from_estimates(cls, estimates: Iterable[Estimate]) -> PoseGraph:
+        graph = cls()
+        for est in estimates:
+            graph.add(est)
+        return graph
+
+    def __len__(self) -> int:
+        return len(self.keyframes)
+
+    @property
+    def scans(self) -> int:
+        return len(self._owner)
+
+    @property
+    def stamps(self) -> FloatArray:
+        return np.array(self._stamps, dtype=float)
+
+    @property
+    def closures(self) -> list[Edge]:
+        return [e for e in self.edges if e.closure]
+
+    def add(self, est: Estimate) -> bool:
+        """The next scan's estimate; whether it became a keyframe (a vertex, with an edge from
+        the keyframe before it). The first estimate is always one."""
+        pose = est.pose.as_array()
+        k = len(self._owner)
+        if est.keyframe or not self.keyframes:
+            if self.keyframes:
+                self._edge_to(est, pose, k)
+            self.keyframes.append(Keyframe(k, est.stamp, pose, est.features))
+            self.poses = np.vstack([self.poses, pose[None, :]])
+        owner = len(self.keyframes) - 1
+        self._owner.append(owner)
+        self._offset.append(relative(self.keyframes[owner].pose, pose))
+        self._stamps.append(float(est.stamp))
+        self._frontend.append(pose)
+        return self.keyframes[owner].scan == k
+
+    def _edge_to(self, est: Estimate, pose: FloatArray, k: int) -> None:
+        cov = est.keyframe_covariance
+        if cov is None:
+            raise PoseGraphError(
+                f"scan {k} (stamp {est.stamp:.6f}) is a keyframe without a keyframe covariance: "
+                "a pose graph needs the front end's (Positioner gives it)"
+            )
+        cov = np.asarray(cov, dtype=float)
+        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+            raise PoseGraphError(f"scan {k}: keyframe covariance is not a finite 3×3 matrix")
+        i = len(self.keyframes) - 1
+        measured = relative(self.keyframes[i].pose, pose)
+        self.edges.append(Edge(i, i + 1, measured, cov))
+
+    def add_closure(self, i: int, j: int, measured: FloatArray, covariance: FloatArray) -> Edge:
+        """A loop closure: keyframe ``j``'s pose in keyframe ``i``'s frame."""
+        n = len(self.keyframes)
+        if not (0 <= i < n and 0 <= j < n) or i == j:
+            raise PoseGraphError(f"a closure needs two keyframes of 0..{n - 1}, got {i} and {j}")
+        cov = np.asarray(covariance, dtype=float)
+        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+            raise PoseGraphError("a closure's covariance must be a finite 3×3 matrix")
+        edge = Edge(i, j, np.asarray(measured, dtype=float), cov, closure=True)
+        self.edges.append(edge)
+        return edge
+
+    def optimize(self, robust: str = "gnc", cauchy_scale: float = 1.0) -> FloatArray:
+        """The keyframes' poses that best explain every edge (Levenberg-Marquardt from the
+        current poses, the first keyframe held); closures robust by ``robust`` (``ROBUST_KINDS``;
+        ``cauchy_scale``: the Cauchy kernel's, in standard deviations). Sets :attr:`poses` and
+        :attr:`closure_weights`."""
+        if robust not in ROBUST_KINDS:
+            raise PoseGraphError(f"robust must be one of {ROBUST_KINDS}, got {robust!r}")
+        if not self.keyframes:
+            raise PoseGraphError("the pose graph has no keyframes")
+        g = gtsam()
+        graph, values = g.NonlinearFactorGraph(), g.Values()
+        for k, pose in enumerate(self.poses):
+            values.insert(k, g.Pose2(*map(float, pose)))
+        anchor = g.noiseModel.Diagonal.Sigmas(np.array(_ANCHOR_SIGMAS))
+        graph.add(g.PriorFactorPose2(0, g.Pose2(*map(float, self.poses[0])), anchor))
+        closure_factors = []
+        for e in self.edges:
+            noise = g.noiseModel.Gaussian.Information(e.information)
+            if e.closure and robust == "cauchy":
+                noise = g.noiseModel.Robust.Create(
+                    g.noiseModel.mEstimator.Cauchy.Create(cauchy_scale), noise
+                )
+            if e.closure:
+                closure_factors.append(graph.size())
+            graph.add(g.BetweenFactorPose2(e.i, e.j, g.Pose2(*map(float, e.measured)), noise))
+        lm = g.LevenbergMarquardtParams()
+        if robust == "gnc" and closure_factors:
+            params = g.GncLMParams(lm)
+            known = [k for k in range(graph.size()) if k not in set(closure_factors)]
+            params.setKnownInliers(known)
+            optimizer = g.GncLMOptimizer(graph, values, params)
+            optimizer.setInlierCostThresholdsAtProbability(0.99)
+            result = optimizer.optimize()
+            weights = np.asarray(optimizer.getWeights(), dtype=float)
+            self.closure_weights = [float(weights[k]) for k in closure_factors]
+        else:
+            result = g.LevenbergMarquardtOptimizer(graph, values, lm).optimize()
+            self.closure_weights = [1.0] * len(closure_factors)
+        out = np.array([_array(result.atPose2(k)) for k in range(len(self.keyframes))])
+        self.poses = out
+        return out
+
+    def trajectory(self) -> FloatArray:
+        """Every scan's pose, ``(scans, 3)``: its keyframe's current pose composed with the
+        scan's pose relative to it (the front end's)."""
+        if not self._owner:
+            return np.zeros((0, 3))
+        owners = self.poses[np.array(self._owner)]
+        return compose(owners, np.array(self._offset))
+
+    def frontend_trajectory(self) -> FloatArray:
+        """Every scan's pose as the front end gave it."""
+        return np.array(self._frontend, dtype=float).reshape(-1, 3)
+
+    def write_g2o(self, path: str | Path) -> None:
+        """The graph as a g2o file: ``VERTEX_SE2 id x y θ`` (the current poses) and ``EDGE_SE2
+        i j dx dy dθ`` with the information matrix's upper triangle (I11 I12 I13 I22 I23
+        I33), closures after the front end's edges as added."""
+        lines = [
+            f"VERTEX_SE2 {k} {p[0]:.9g} {p[1]:.9g} {p[2]:.9g}" for k, p in enumerate(self.poses)
+        ]
+        for e in self.edges:
+            info = e.information
+            upper = (info[0, 0], info[0, 1], info[0, 2], info[1, 1], info[1, 2], info[2, 2])
+            m = e.measured
+            lines.append(
+                f"EDGE_SE2 {e.i} {e.j} {m[0]:.9g} {m[1]:.9g} {m[2]:.9g} "
+                + " ".join(f"{v:.9g}" for v in upper)
+            )
+        Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def _array(pose: Any) -> FloatArray:
+    """A gtsam Pose2 as ``[x, y, θ]``."""
+    return np.array([pose.x(), pose.y(), pose.theta()], dtype=np.float64)
+
+
+def read_g2o(path: str | Path) -> tuple[FloatArray, list[Edge]]:
+    """A g2o file's ``VERTEX_SE2`` poses (by id, ids 0..n-1) and ``EDGE_SE2`` edges (each with
+    the covariance its information matrix gives; ``closure`` where ``j`` ≠ ``i`` + 1)."""
+    path = Path(path)
+    vertices: dict[int, FloatArray] = {}
+    edges: list[Edge] = []
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        words = line.split()
+        if not words:
+            continue
+        try:
+            if words[0] == "VERTEX_SE2" and len(words) == 5:
+                vertices[int(words[1])] = np.array([float(w) for w in words[2:5]])
+                continue
+            if words[0] == "EDGE_SE2" and len(words) == 12:
+                i, j = int(words[1]), int(words[2])
+                v = [float(w) for w in words[3:]]
+                u = v[3:]
+                info = np.array([[u[0], u[1], u[2]], [u[1], u[3], u[4]], [u[2], u[4], u[5]]])
+                edges.append(Edge(i, j, np.array(v[:3]), np.linalg.inv(info), closure=j != i + 1))
+                continue
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            raise PoseGraphError(f"{path}:{n}: {exc}") from exc
+        raise PoseGraphError(f"{path}:{n}: not a VERTEX_SE2 or EDGE_SE2 line: {line[:60]!r}")
+    if sorted(vertices) != list(range(len(vertices))):
+        raise PoseGraphError(f"{path}: vertex ids are not 0..{len(vertices) - 1}")
+    poses = np.array([vertices[k] for k in range(len(vertices))]).reshape(-1, 3)
+    if not all(math.isfinite(float(x)) for x in poses.ravel()):
+        raise PoseGraphError(f"{path}: a vertex is not finite")
+    return poses, edges
