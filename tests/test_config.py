@@ -59,6 +59,7 @@ ANGLES_DEG = {
     ("odometry_noise", "floor_rotation"): 0.05,
     ("odometry_noise", "min_rotation_per_sqrt_m"): 0.05,
     ("odometry_noise", "max_rotation_per_sqrt_m"): 20.0,
+    ("loop_closure", "search_angle"): 20.0,
 }
 ANGLE_WORDS = ("angle", "rotation", "heading", "bearing", "yaw", "theta")
 SECTIONS = [
@@ -77,6 +78,7 @@ SECTIONS = [
     "odometry_noise",
     "gate",
     "scanner",
+    "loop_closure",
 ]
 
 

@@ -15,7 +15,7 @@ from fuzzypos.pipeline import Estimate
 
 gtsam = pytest.importorskip("gtsam")
 
-from fuzzypos.graph import PoseGraph, PoseGraphError, read_g2o  # noqa: E402
+from fuzzypos.graph import LoopCloser, PoseGraph, PoseGraphError, read_g2o  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -94,3 +94,109 @@ def test_a_bad_g2o_line_names_the_file_and_line(tmp_path: Path) -> None:
     path.write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE3 0 1\n", encoding="utf-8")
     with pytest.raises(PoseGraphError, match=r"bad\.g2o:2"):
         read_g2o(path)
+
+
+def test_the_loop_closes_by_itself(loop) -> None:
+    """Candidates gated by the chain's uncertainty, verified against a submap: the lap's last
+    keyframes close on its first, and the end comes back near the scan noise."""
+    run, ests = loop
+    graph = PoseGraph.from_estimates(ests)
+    truth = run.true_poses
+    before = _end_error(graph.frontend_trajectory(), truth)
+    closer = LoopCloser(Config())
+    closures = closer.run(graph)
+    assert closures and closer.verified >= len(closures)
+    for c in closures:
+        a, b = graph.keyframes[c.i].scan, graph.keyframes[c.j].scan
+        assert c.j - c.i >= Config().loop_closure.recent_keyframes
+        true = relative(truth[a], truth[b])
+        assert np.hypot(*(c.measured[:2] - true[:2])) < 0.03, (c, true)
+        assert c.weight > 0.9 and c.inlier_fraction >= 0.6
+    after = _end_error(graph.trajectory(), truth)
+    assert after < 0.02 and after < before / 2, (before, after)
+
+
+def _twin_rooms() -> sim.World:
+    """Two identical furnished rooms 14 m apart on a corridor (each 6 m × 5 m with doors east
+    and west, a dead-end stub beyond the outer doors): from inside, one is the other."""
+    polys, flags = [], []
+    for cx in (0.0, TWIN_SHIFT):
+        polys += [
+            np.array([[cx + 3, 0.6], [cx + 3, 2.5], [cx - 3, 2.5], [cx - 3, 0.6]]),
+            np.array([[cx - 3, -0.6], [cx - 3, -2.5], [cx + 3, -2.5], [cx + 3, -0.6]]),
+            sim.box_polygon(cx + 1.0, 1.6, 0.8, 0.6),
+            sim.box_polygon(cx - 1.8, -1.8, 0.6, 0.6, np.radians(30)),
+            sim.circle_polygon(cx + 2.2, -1.8, 0.15),
+        ]
+        flags += [False, False, True, True, True]
+    polys += [
+        np.array([[3, 0.6], [11, 0.6]]),
+        np.array([[3, -0.6], [11, -0.6]]),
+        np.array([[-3, 0.6], [-11, 0.6], [-11, -0.6], [-3, -0.6]]),
+        np.array([[17, 0.6], [25, 0.6], [25, -0.6], [17, -0.6]]),
+    ]
+    return sim.World.from_polygons(polys, closed=[*flags, False, False, False, False])
+
+
+TWIN_SHIFT = 14.0
+
+
+@pytest.fixture(scope="module")
+def twins() -> tuple[sim.SimulatedRun, list[Estimate]]:
+    """A loop in the first room, down the corridor, the same loop in the second (821 scans)."""
+    loop_a = [(-1.5, 0.0), (1.5, 0.0), (1.5, -1.0), (-1.5, -1.0), (-1.5, 0.0), (1.5, 0.0)]
+    loop_b = [(x + TWIN_SHIFT, y) for x, y in loop_a]
+    path = sim.CommandedPath.waypoints(loop_a + loop_b, speed=0.5)
+    run = sim.simulate_run(_twin_rooms(), path, DemoSettings().scanner, sim.SlipModel(), 0)
+    pos = Positioner(Config())
+    return run, [pos.update(s, run.odometry_pose(k)) for k, s in enumerate(run.scans)]
+
+
+def test_only_true_closures_between_twin_rooms(twins) -> None:
+    run, ests = twins
+    graph = PoseGraph.from_estimates(ests)
+    truth = run.true_poses
+    closures = LoopCloser(Config()).run(graph)
+    assert len(closures) >= 4  # each room's loop closes
+    for c in closures:
+        a, b = graph.keyframes[c.i].scan, graph.keyframes[c.j].scan
+        true = relative(truth[a], truth[b])
+        assert np.hypot(*(c.measured[:2] - true[:2])) < 0.05, (c, true)
+        assert abs(truth[a, 0] - truth[b, 0]) < TWIN_SHIFT / 2  # the same room
+    before = graph.frontend_trajectory()
+    after = graph.trajectory()
+    mean = [float(np.mean(np.hypot(*(p[:, :2] - truth[:, :2]).T))) for p in (before, after)]
+    assert mean[1] <= mean[0] + 0.005, mean
+
+
+def test_false_closures_between_twin_rooms_do_not_survive(twins) -> None:
+    """Told the second room is the first (the search started at the twin's place), the
+    verification accepts matches there (the rooms are alike); the robust optimisation gives
+    every such closure no weight and the trajectory stays where the chain puts it, where plain
+    least squares would drag the second room onto the first."""
+    run, ests = twins
+    truth = run.true_poses
+    results = {}
+    for robust in ("gnc", "none"):
+        graph = PoseGraph.from_estimates(ests)
+        closer = LoopCloser(Config())
+        false = []
+        for j, kf in enumerate(graph.keyframes):
+            if truth[kf.scan, 0] < TWIN_SHIFT - 3.0:
+                continue  # not in the second room
+            twin = graph.poses[j] - np.array([TWIN_SHIFT, 0.0, 0.0])
+            i = int(np.argmin(np.hypot(*(graph.poses[:, :2] - twin[:2]).T)))
+            found = closer.verify(graph, i, j, predicted=relative(graph.poses[i], twin))
+            if found is not None:
+                graph.add_closure(found.i, found.j, found.measured, found.covariance)
+                false.append(found)
+        assert len(false) >= 3  # the verification alone cannot tell the rooms apart
+        graph.optimize(robust)
+        results[robust] = (graph.closure_weights, graph.trajectory())
+    weights, trajectory = results["gnc"]
+    assert max(weights) < 0.1, weights
+    chain = PoseGraph.from_estimates(ests).trajectory()
+    moved = np.hypot(*(trajectory[:, :2] - chain[:, :2]).T)
+    assert moved.max() < 0.05, moved.max()
+    _, dragged = results["none"]
+    assert _end_error(dragged, truth) > 1.0  # what the robust optimisation prevents

@@ -30,6 +30,7 @@ from ._config_features import (
     SegmentationConfig,
     VirtualPointConfig,
 )
+from ._config_graph import LoopClosureConfig
 from ._config_pipeline import (
     FusionConfig,
     MatchingConfig,
@@ -70,6 +71,7 @@ __all__ = [
     "OdometryNoiseConfig",
     "GateConfig",
     "ScannerConfig",
+    "LoopClosureConfig",
     "FieldSpec",
     "PRESETS",
 ]
@@ -96,6 +98,7 @@ class Config:
     covariance: CovarianceConfig = field(default_factory=CovarianceConfig)
     odometry_noise: OdometryNoiseConfig = field(default_factory=OdometryNoiseConfig)
     gate: GateConfig = field(default_factory=GateConfig)
+    loop_closure: LoopClosureConfig = field(default_factory=LoopClosureConfig)
 
     def __post_init__(self) -> None:
         validate(self, _SECTIONS)

@@ -9,10 +9,13 @@ extra: ``pip install 'fuzzypos[graph]'``).
 from __future__ import annotations
 
 from ._gtsam import GraphDependencyError
+from .closure import Closure, LoopCloser
 from .pose_graph import ROBUST_KINDS, Edge, Keyframe, PoseGraph, PoseGraphError, read_g2o
 
 __all__ = [
     "GraphDependencyError",
+    "LoopCloser",
+    "Closure",
     "PoseGraph",
     "PoseGraphError",
     "Edge",

@@ -154,44 +154,62 @@ class PoseGraph:
     def optimize(self, robust: str = "gnc", cauchy_scale: float = 1.0) -> FloatArray:
         """The keyframes' poses that best explain every edge (Levenberg-Marquardt from the
         current poses, the first keyframe held); closures robust by ``robust`` (``ROBUST_KINDS``;
-        ``cauchy_scale``: the Cauchy kernel's, in standard deviations). Sets :attr:`poses` and
-        :attr:`closure_weights`."""
+        ``cauchy_scale``: the Cauchy kernel's, in standard deviations). With ``"gnc"`` the
+        closures GNC weighs below one half are left out and the rest kept whole in a last
+        plain solve (GNC stops once its weights settle, before solving with them). Sets
+        :attr:`poses` and :attr:`closure_weights`."""
         if robust not in ROBUST_KINDS:
             raise PoseGraphError(f"robust must be one of {ROBUST_KINDS}, got {robust!r}")
         if not self.keyframes:
             raise PoseGraphError("the pose graph has no keyframes")
         g = gtsam()
+        closures = [e for e in self.edges if e.closure]
+        keep = [True] * len(closures)
+        if robust == "gnc" and closures:
+            graph, values, factors = self._factors(g, "none", cauchy_scale, keep)
+            params = g.GncLMParams(g.LevenbergMarquardtParams())
+            params.setKnownInliers([k for k in range(graph.size()) if k not in set(factors)])
+            optimizer = g.GncLMOptimizer(graph, values, params)
+            optimizer.setInlierCostThresholdsAtProbability(0.99)
+            optimizer.optimize()
+            weights = np.asarray(optimizer.getWeights(), dtype=float)
+            self.closure_weights = [float(weights[k]) for k in factors]
+            keep = [w >= 0.5 for w in self.closure_weights]
+        else:
+            self.closure_weights = [1.0] * len(closures)
+        graph, values, _ = self._factors(g, robust, cauchy_scale, keep)
+        result = g.LevenbergMarquardtOptimizer(graph, values, g.LevenbergMarquardtParams())
+        solved = result.optimize()
+        out = np.array([_array(solved.atPose2(k)) for k in range(len(self.keyframes))])
+        self.poses = out
+        return out
+
+    def _factors(
+        self, g: Any, robust: str, cauchy_scale: float, keep: list[bool]
+    ) -> tuple[Any, Any, list[int]]:
+        """The factor graph (the anchor, every front-end edge, the closures ``keep`` says),
+        the initial values (the current poses) and the closures' factor indices."""
         graph, values = g.NonlinearFactorGraph(), g.Values()
         for k, pose in enumerate(self.poses):
             values.insert(k, g.Pose2(*map(float, pose)))
         anchor = g.noiseModel.Diagonal.Sigmas(np.array(_ANCHOR_SIGMAS))
         graph.add(g.PriorFactorPose2(0, g.Pose2(*map(float, self.poses[0])), anchor))
-        closure_factors = []
+        factors: list[int] = []
+        closure = 0
         for e in self.edges:
+            if e.closure:
+                closure += 1
+                if not keep[closure - 1]:
+                    continue
             noise = g.noiseModel.Gaussian.Information(e.information)
             if e.closure and robust == "cauchy":
                 noise = g.noiseModel.Robust.Create(
                     g.noiseModel.mEstimator.Cauchy.Create(cauchy_scale), noise
                 )
             if e.closure:
-                closure_factors.append(graph.size())
+                factors.append(graph.size())
             graph.add(g.BetweenFactorPose2(e.i, e.j, g.Pose2(*map(float, e.measured)), noise))
-        lm = g.LevenbergMarquardtParams()
-        if robust == "gnc" and closure_factors:
-            params = g.GncLMParams(lm)
-            known = [k for k in range(graph.size()) if k not in set(closure_factors)]
-            params.setKnownInliers(known)
-            optimizer = g.GncLMOptimizer(graph, values, params)
-            optimizer.setInlierCostThresholdsAtProbability(0.99)
-            result = optimizer.optimize()
-            weights = np.asarray(optimizer.getWeights(), dtype=float)
-            self.closure_weights = [float(weights[k]) for k in closure_factors]
-        else:
-            result = g.LevenbergMarquardtOptimizer(graph, values, lm).optimize()
-            self.closure_weights = [1.0] * len(closure_factors)
-        out = np.array([_array(result.atPose2(k)) for k in range(len(self.keyframes))])
-        self.poses = out
-        return out
+        return graph, values, factors
 
     def trajectory(self) -> FloatArray:
         """Every scan's pose, ``(scans, 3)``: its keyframe's current pose composed with the

@@ -1,0 +1,124 @@
+"""The configuration section of loop closure on a pose graph (``[loop_closure]``, issue 13).
+Part of :mod:`fuzzypos.config`, which assembles every section into ``Config``."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ._config_schema import _field, section
+
+RAD = "rad"  # an angle: radians in code, degrees under "<name>_deg" in TOML
+M = "m"
+
+
+@dataclass(frozen=True)
+@section("loop_closure")
+class LoopClosureConfig:
+    """Loop closure: a pose graph over the keyframes, candidates gated by the graph's
+    uncertainty, each verified by matching the keyframe's scan against a submap around the
+    candidate, and a robust optimisation against false closures (``fuzzypos.graph``)."""
+
+    enabled: bool = _field(
+        False,
+        "off by default: built and tested on simulated loops (a known closure brings the end "
+        "back, no false closure survives between two identical rooms), not yet measured on "
+        "the shared logs; `fuzzypos run --loop-closure` turns it on",
+    )
+    recent_keyframes: int = _field(
+        10,
+        "the last 10 keyframes are not loop candidates: the front end matched against them "
+        "already (its local map holds two), and closing on them adds nothing but correlation",
+        ge=1,
+    )
+    overlap_radius: float = _field(
+        1.5,
+        "two keyframes whose positions lie within 1.5 m of each other see mostly the same place: "
+        "the candidate gate allows this on top of the graph's uncertainty",
+        unit=M,
+        gt=0.0,
+    )
+    gate_probability: float = _field(
+        0.99,
+        "a keyframe is a candidate where its position relative to the new one, under the "
+        "chain's covariance plus overlap_radius², lies within the χ²(2) quantile of 99 %: "
+        "where the drift could have put the robot back at it",
+        gt=0.0,
+        lt=1.0,
+    )
+    max_candidates: int = _field(
+        3,
+        "at most the 3 nearest candidates (by Mahalanobis distance) are verified per keyframe: "
+        "each verification is a search and several refinements",
+        ge=1,
+    )
+    submap_keyframes: int = _field(
+        2,
+        "the submap holds the candidate and 2 keyframes either side of it (in the candidate's "
+        "frame): one keyframe's scan sees too little of a place from another viewpoint",
+        ge=0,
+    )
+    search_distance: float = _field(
+        1.0,
+        "the verification searches translations within 3 σ of the predicted pose, at most "
+        "1 m: the search's grid (search.translation_step) costs grow with its square",
+        unit=M,
+        gt=0.0,
+    )
+    search_angle: float = _field(
+        math.radians(20.0),
+        "and rotations within ±20° of it: a front end that drifts degrees over a loop has lost "
+        "its way, a closure would not mend it",
+        unit=RAD,
+        gt=0.0,
+    )
+    min_inlier_fraction: float = _field(
+        0.6,
+        "a closure is accepted only where 60 % of the scan's points pair with the submap's "
+        "surfaces: a false match in clutter pairs far less, a true one from a nearby viewpoint "
+        "more (the front end asks refinement.min_inlier_fraction from the previous keyframes)",
+        ge=0.0,
+        le=1.0,
+    )
+    min_constraint_ratio: float = _field(
+        0.05,
+        "and where the fit constrains the weaker direction of the translation at least 5 % as "
+        "much as the stronger: along a corridor a closure would fix a position it cannot see",
+        gt=0.0,
+        le=1.0,
+    )
+    ambiguity_distance: float = _field(
+        0.5,
+        "the fit is refined again from starts 0.5 m away on either axis: two places alike (a "
+        "corridor's doors) give a second answer from there",
+        unit=M,
+        gt=0.0,
+    )
+    agree_distance: float = _field(
+        0.1,
+        "a refinement that ends further than 0.1 m from the fit is another answer (the "
+        "refinement converges to within millimetres from the true start)",
+        unit=M,
+        gt=0.0,
+    )
+    ambiguity_margin: float = _field(
+        0.1,
+        "the fit is ambiguous, and rejected, where another answer puts its close fraction "
+        "within 0.1 of the fit's: both explain the scan about as well",
+        ge=0.0,
+        le=1.0,
+    )
+    robust: str = _field(
+        "gnc",
+        "closures enter the optimisation through graduated non-convexity (gtsam's GNC with "
+        "truncated least squares, the front end's edges known inliers): a closure inconsistent "
+        "with the chain gets weight 0 instead of bending it ('cauchy': a Cauchy kernel; "
+        "'none': plain least squares, for comparison)",
+        choices=("gnc", "cauchy", "none"),
+    )
+    map_resolution: float = _field(
+        0.05,
+        "the occupancy map's cells are 5 cm, ROS map_server's usual resolution for a 2D lidar",
+        unit=M,
+        gt=0.0,
+    )

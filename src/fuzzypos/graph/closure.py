@@ -1,0 +1,249 @@
+"""Loop closures: candidates gated by the graph's uncertainty, verified by matching a
+keyframe's scan against a submap around the candidate, added to the pose graph and optimised
+robustly (``[loop_closure]``).
+
+A keyframe ``i`` is a candidate for the new keyframe ``j`` where it is not among the last
+``recent_keyframes`` and its position relative to ``j``, under the covariance of the chain of
+front-end edges between them plus ``overlap_radius``² (both see the same place from that far),
+lies within the χ²(2) gate. The nearest ``max_candidates`` are verified: the scan of ``j`` is
+searched (``search_start``) and refined (the front end's :class:`~fuzzypos.pipeline.Refiner`,
+with the search's weak prior) against the surfaces of ``i`` and ``submap_keyframes`` either side
+in ``i``'s frame, from the pose the graph predicts; the fit is accepted where enough of the scan
+lies on the submap, the translation is constrained both ways, and refinements from starts
+``ambiguity_distance`` away find no other answer nearly as good. Its covariance is the fit's
+M⁻¹ G M⁻¹ (the points' share of the front end's sandwich), as a right perturbation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import Config
+from ..features import Features
+from ..geometry import compose, compose_jacobians, relative, transform_points
+from ..matching import Refinement, SurfacePoints, search_start, surface_points
+from ..pipeline import Refiner
+from ..pipeline.refine import ScanPoints
+from ..pipeline.uncertainty import local
+from .pose_graph import PoseGraph
+
+__all__ = ["Closure", "LoopCloser"]
+
+FloatArray = NDArray[np.float64]
+
+#: the covariance floor of a closure (m², rad²): a fit is never better than a millimetre
+_FLOOR = np.diag([1e-6, 1e-6, math.radians(0.01) ** 2])
+
+
+@dataclass(frozen=True, eq=False)
+class Closure:
+    """A verified loop closure: keyframe ``j``'s pose in keyframe ``i``'s frame, its covariance
+    (right perturbation), the fraction of ``j``'s scan that paired with the submap, the
+    Mahalanobis distance squared of the candidate gate, and (after optimisation) its weight."""
+
+    i: int
+    j: int
+    measured: FloatArray
+    covariance: FloatArray
+    inlier_fraction: float
+    gate: float
+    weight: float = 1.0
+
+
+def _angle_increment(features: Features) -> float:
+    """The beam spacing (rad) of a scan, from its points' bearings and beam indices."""
+    b = np.unwrap(np.arctan2(features.points[:, 1], features.points[:, 0]))
+    di = np.diff(features.beam_index.astype(float))
+    ok = di != 0
+    if not np.any(ok):
+        return math.radians(1.0)
+    return float(np.median(np.abs(np.diff(b)[ok] / di[ok])))
+
+
+class LoopCloser:
+    """Finds, verifies and adds loop closures to a :class:`PoseGraph` whose keyframes kept
+    their features (``config.loop_closure``; the refinement and search sections for the
+    matching)."""
+
+    def __init__(self, config: Config) -> None:
+        self.config = config
+        self.settings = config.loop_closure
+        self.refiner = Refiner(config.refinement, config.search)
+        self.closures: list[Closure] = []
+        self.verified = 0  # candidates verified
+        self._surfaces: dict[int, SurfacePoints] = {}
+        self._chi2 = -2.0 * math.log(1.0 - self.settings.gate_probability)  # χ²(2) quantile
+
+    def candidates(self, graph: PoseGraph, j: int) -> list[tuple[int, float]]:
+        """``(i, d²)`` for every keyframe ``i`` within the gate of ``j``, nearest first, at
+        most ``max_candidates``. The covariance of ``i`` relative to ``j`` is carried back
+        along the chain of front-end edges from ``j``."""
+        s = self.settings
+        last = j - s.recent_keyframes
+        if last < 0:
+            return []
+        edges = {e.i: e for e in graph.edges if not e.closure and e.j == e.i + 1}
+        rel = np.zeros(3)  # keyframe j in keyframe k's frame, k going back from j
+        cov = np.zeros((3, 3))
+        out = []
+        r2 = s.overlap_radius**2
+        for k in range(j - 1, -1, -1):
+            e = edges.get(k)
+            if e is None:  # the chain is broken: nothing further back is related
+                break
+            ja, jb = compose_jacobians(e.measured, rel)
+            rel = compose(e.measured, rel)
+            cov = (
+                ja @ local_to_additive(e.covariance, float(e.measured[2])) @ ja.T + jb @ cov @ jb.T
+            )
+            if k > last:
+                continue
+            predicted = relative(graph.poses[k], graph.poses[j])
+            t = predicted[:2]
+            sigma = cov[:2, :2] + r2 * np.eye(2)
+            d2 = float(t @ np.linalg.solve(sigma, t))
+            if d2 <= self._chi2:
+                out.append((k, d2))
+        out.sort(key=lambda c: c[1])
+        return out[: s.max_candidates]
+
+    def submap(self, graph: PoseGraph, i: int, j: int) -> SurfacePoints:
+        """The surfaces of keyframe ``i`` and ``submap_keyframes`` either side (none among the
+        last ``recent_keyframes`` before ``j``), in ``i``'s frame at the graph's poses."""
+        h = self.settings.submap_keyframes
+        top = min(i + h, j - self.settings.recent_keyframes, len(graph) - 1)
+        xy, normal, weight = [], [], []
+        for k in range(max(0, i - h), max(i, top) + 1):
+            surf = self._surface(graph, k)
+            if surf is None:
+                continue
+            rel = relative(graph.poses[i], graph.poses[k])
+            xy.append(transform_points(rel, surf.xy))
+            c, s_ = math.cos(rel[2]), math.sin(rel[2])
+            n = surf.normal
+            normal.append(np.stack((c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]), 1))
+            weight.append(surf.weight)
+        if not xy:
+            empty = np.zeros((0, 2))
+            return SurfacePoints(empty, empty, np.zeros(0))
+        return SurfacePoints(np.concatenate(xy), np.concatenate(normal), np.concatenate(weight))
+
+    def _surface(self, graph: PoseGraph, k: int) -> SurfacePoints | None:
+        if k not in self._surfaces:
+            f = graph.keyframes[k].features
+            if f is None:
+                return None
+            r = self.config.refinement
+            self._surfaces[k] = surface_points(f.points, f.ranges, f.uncertainty, r)
+        return self._surfaces[k]
+
+    def verify(
+        self,
+        graph: PoseGraph,
+        i: int,
+        j: int,
+        gate: float = 0.0,
+        predicted: FloatArray | None = None,
+    ) -> Closure | None:
+        """The closure between keyframes ``i`` and ``j`` where the match of ``j``'s scan
+        against the submap around ``i`` is good and unambiguous (module docstring), else None.
+        The search starts from ``predicted`` (``j``'s pose in ``i``'s frame), by default the
+        graph's."""
+        s = self.settings
+        features = graph.keyframes[j].features
+        if features is None:
+            return None
+        points = self.refiner.points(features, _angle_increment(features))
+        surface = self.submap(graph, i, j)
+        if points is None or len(surface) < 3:
+            return None
+        self.verified += 1
+        if predicted is None:
+            predicted = relative(graph.poses[i], graph.poses[j])
+        hit = search_start(
+            surface, points.xy, predicted, self.config.search,
+            half_width=s.search_angle, translation_half_width=s.search_distance,
+        )  # fmt: skip
+        fit = self._fit(surface, points, hit.start)
+        if fit is None or fit.inlier_fraction < s.min_inlier_fraction:
+            return None
+        if not self._constrained(fit) or self._ambiguous(surface, points, fit):
+            return None
+        return Closure(i, j, fit.increment, self._covariance(fit), fit.inlier_fraction, gate)
+
+    def _fit(
+        self, surface: SurfacePoints, points: ScanPoints, start: FloatArray
+    ) -> Refinement | None:
+        r = self.config.refinement
+        return self.refiner.fit(
+            surface, points, start, start, start, max_distance=r.max_distance, weak_prior=True
+        )
+
+    def _constrained(self, fit: Refinement) -> bool:
+        """Whether the points fix the translation both ways (not a corridor)."""
+        w = np.linalg.eigvalsh(fit.information[:2, :2])
+        return bool(w[-1] > 0.0 and w[0] >= self.settings.min_constraint_ratio * w[-1])
+
+    def _ambiguous(self, surface: SurfacePoints, points: ScanPoints, fit: Refinement) -> bool:
+        """Whether a refinement from a start ``ambiguity_distance`` away on either axis ends
+        elsewhere with nearly as good a close fraction."""
+        s = self.settings
+        x = np.asarray(fit.increment, dtype=float)
+        for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            start = x + np.array([dx, dy, 0.0]) * s.ambiguity_distance
+            other = self._fit(surface, points, start)
+            if other is None:
+                continue
+            if math.dist(other.increment[:2], x[:2]) <= s.agree_distance:
+                continue
+            if other.close_fraction >= fit.close_fraction - s.ambiguity_margin:
+                return True
+        return False
+
+    def _covariance(self, fit: Refinement) -> FloatArray:
+        """M⁻¹ G M⁻¹ of the fit (additive, keyframe i's frame) as a right perturbation."""
+        m = fit.information + fit.prior_information + fit.hold_information
+        m_inv = np.linalg.inv(m + 1e-12 * np.eye(3))
+        g = self.config.covariance.point_correlation * fit.gradient_covariance
+        cov = m_inv @ g @ m_inv
+        out: FloatArray = local(0.5 * (cov + cov.T), float(fit.increment[2])) + _FLOOR
+        return out
+
+    def close(self, graph: PoseGraph, j: int) -> Closure | None:
+        """The first verified closure of keyframe ``j`` with a candidate, added to the graph
+        (not yet optimised), or None."""
+        for i, d2 in self.candidates(graph, j):
+            found = self.verify(graph, i, j, d2)
+            if found is not None:
+                graph.add_closure(found.i, found.j, found.measured, found.covariance)
+                self.closures.append(found)
+                return found
+        return None
+
+    def run(self, graph: PoseGraph) -> list[Closure]:
+        """Every keyframe in turn: close its loop where it can, the graph optimised after each
+        closure (so the next keyframes' predictions start from the corrected poses). The
+        closures with their final weights."""
+        robust = self.settings.robust
+        for j in range(len(graph)):
+            if self.close(graph, j) is not None:
+                graph.optimize(robust)
+        if self.closures:
+            graph.optimize(robust)
+        mine = [e for e in graph.edges if e.closure]
+        weights = dict(zip(((e.i, e.j) for e in mine), graph.closure_weights))
+        self.closures = [replace(c, weight=weights.get((c.i, c.j), 1.0)) for c in self.closures]
+        return self.closures
+
+
+def local_to_additive(cov: FloatArray, theta: float) -> FloatArray:
+    """A right-perturbation covariance of a pose with heading ``theta`` in additive
+    coordinates of its parent frame (the inverse of ``uncertainty.local``)."""
+    c, s = math.cos(theta), math.sin(theta)
+    g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    out: FloatArray = g @ cov @ g.T
+    return out
