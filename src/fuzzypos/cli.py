@@ -605,6 +605,15 @@ def run(
         str | None,
         typer.Option("--bag-storage", help="ros1, sqlite3 or mcap (default: by --bag-out's name)"),
     ] = None,
+    loop_closure: Annotated[
+        bool,
+        typer.Option(
+            "--loop-closure",
+            help="close loops on a pose graph of the keyframes ([loop_closure], needs "
+            "pip install 'fuzzypos[graph]'): trajectory.tum optimised, trajectory_frontend.tum, "
+            "graph.g2o, map.pgm/map.yaml/map.png, the closures in summary.json",
+        ),
+    ] = False,
 ) -> None:
     """Position the robot along a log and write a results folder.
 
@@ -621,6 +630,8 @@ def run(
     from .run import run_log
 
     cfg = _load_config(preset, config_file)
+    if loop_closure:
+        cfg = cfg.with_overrides({"loop_closure": {"enabled": True}})
     opened = _open(
         log,
         scan_topic=scan_topic,

@@ -41,6 +41,12 @@ RESULT_FILES = (
     "path.png",
     "covariance.csv",
     "summary.json",
+    # with loop closure (fuzzypos.graph.LOOP_CLOSURE_FILES)
+    "trajectory_frontend.tum",
+    "graph.g2o",
+    "map.pgm",
+    "map.yaml",
+    "map.png",
 )
 #: the default results folder's name: the run's local date and time
 _DATE_TIME = "%Y-%m-%d_%H-%M-%S"

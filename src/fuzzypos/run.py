@@ -50,7 +50,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +68,7 @@ from .folders import (
     log_label,
 )
 from .geometry import Pose2D, covariance_to_parent, propagate
+from .graph import PoseGraph, close_loops, require_gtsam
 from .io import CarmenWriter, LogRecord, OdometryBagWriter, Relations, write_tum
 from .logs import OpenLog, open_log, select_records, select_stamps
 from .pipeline import Estimate, Positioner
@@ -230,6 +231,8 @@ class _Track:
     #: what stopped the run before the end of the stretch (an error, Ctrl-C), and why
     stopped: BaseException | None = None
     partial_reason: str | None = None
+    #: the pose graph of the keyframes (loop closure on), with their features
+    graph: PoseGraph | None = None
 
     def __len__(self) -> int:
         return len(self.stamps)
@@ -335,7 +338,7 @@ def _position_along(
     """Run ``positioner`` over ``records``, streaming the estimate into ``clf`` and
     ``outputs`` and keeping the :class:`_Track` of the scans done. An error or Ctrl-C stops
     the run: it is kept in ``track.stopped`` (anything else aborts both and is raised)."""
-    track = _Track()
+    track = _Track(graph=PoseGraph() if positioner.config.loop_closure.enabled else None)
     bands = positioner.config.scanner.no_return_bands  # the map shows what the positioner saw
     t_start = time.perf_counter()
     try:
@@ -346,6 +349,8 @@ def _position_along(
             track.positioner_seconds += time.perf_counter() - t0
             pose = est.pose
             outputs.write(k, est)
+            if track.graph is not None:
+                track.graph.add(est)
             clf.write(scan, odom, rec.truth, pose=pose)
             track.stamps.append(scan.stamp)
             track.poses.append((pose.x, pose.y, pose.theta))
@@ -562,6 +567,14 @@ def _finish(
     """After the loop: write the results folder (``summary.json`` last) and sum the run up."""
     notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
     a = _Arrays.of(track)
+    loop = None
+    if track.graph is not None and track.partial_reason is None:
+        loop = close_loops(track.graph, cfg)
+        a = replace(a, poses=loop.poses)
+        notes.append(
+            "loop closure: trajectory.tum holds the optimised poses (trajectory_frontend.tum "
+            "the front end's); trajectory.clf, covariance.csv and the bag the front end's"
+        )
     files = _write_results(
         out,
         log,
@@ -575,6 +588,8 @@ def _finish(
         map_every=map_every,
         notes=notes,
     )
+    if loop is not None:
+        files.update(loop.write(out, a.stamps, log.name, cfg.loop_closure.map_resolution))
     truth_errors = _truth_errors(a.truth, a.poses, a.odometry, track.degraded)
     rel = _relations_errors(a.stamps, a.poses, relations, notes)
     files["summary.json"] = out / "summary.json"
@@ -591,6 +606,8 @@ def _finish(
         notes=notes,
         files=files,
     )
+    if loop is not None:
+        summary["loop_closure"] = loop.summary
     write_json(files["summary.json"], summary)
     return RunSummary(
         results_dir=out,
@@ -674,6 +691,8 @@ def run_log(
     log.check_stamps(start=start, end=end, max_scans=max_scans)  # corrupt stamps: StampError
     total = _scans_in_stretch(log, start, end, max_scans) if progress is not None else None
     positioner = Positioner(cfg)
+    if cfg.loop_closure.enabled:
+        require_gtsam()  # before any output: a missing extra is a GraphDependencyError
     given = None if results_dir is None else Path(results_dir)
     check_outputs(given, out_tum, bag_out)
     folder = ResultsFolder.make(log.name, given, overwrite)

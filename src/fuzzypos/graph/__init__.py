@@ -3,13 +3,18 @@ extra: ``pip install 'fuzzypos[graph]'``).
 
 - :mod:`.pose_graph`: :class:`PoseGraph` (vertices the keyframes, edges from the front end's
   keyframe fits and from closures; gtsam Levenberg-Marquardt, robust closures), g2o out and in.
+- :mod:`.closure`: :class:`LoopCloser` (candidates, verification against a submap, closures).
+- :mod:`.occupancy`: the occupancy map (ROS map_server's ``map.pgm`` + ``map.yaml``, ``map.png``).
+- :mod:`.outputs`: :func:`close_loops` after a run, and the files it adds to a results folder.
 - :mod:`._gtsam`: gtsam imported on first use, :class:`GraphDependencyError` where it is absent.
 """
 
 from __future__ import annotations
 
 from ._gtsam import GraphDependencyError
+from ._gtsam import gtsam as require_gtsam
 from .closure import Closure, LoopCloser
+from .outputs import LOOP_CLOSURE_FILES, LoopClosureResult, close_loops
 from .pose_graph import ROBUST_KINDS, Edge, Keyframe, PoseGraph, PoseGraphError, read_g2o
 
 __all__ = [
@@ -22,4 +27,8 @@ __all__ = [
     "Keyframe",
     "ROBUST_KINDS",
     "read_g2o",
+    "require_gtsam",
+    "close_loops",
+    "LoopClosureResult",
+    "LOOP_CLOSURE_FILES",
 ]

@@ -155,8 +155,9 @@ class PoseGraph:
         """The keyframes' poses that best explain every edge (Levenberg-Marquardt from the
         current poses, the first keyframe held); closures robust by ``robust`` (``ROBUST_KINDS``;
         ``cauchy_scale``: the Cauchy kernel's, in standard deviations). With ``"gnc"`` the
-        closures GNC weighs below one half are left out and the rest kept whole in a last
-        plain solve (GNC stops once its weights settle, before solving with them). Sets
+        closures GNC (started from the plain solution with every closure) weighs below one half
+        are left out and the rest kept whole in a last plain solve from the current poses
+        (GNC stops once its weights settle, before solving with them). Sets
         :attr:`poses` and :attr:`closure_weights`."""
         if robust not in ROBUST_KINDS:
             raise PoseGraphError(f"robust must be one of {ROBUST_KINDS}, got {robust!r}")
@@ -167,6 +168,11 @@ class PoseGraph:
         keep = [True] * len(closures)
         if robust == "gnc" and closures:
             graph, values, factors = self._factors(g, "none", cauchy_scale, keep)
+            # from the plain solution: from the front end's poses, where the closures' residuals
+            # are thousands of σ, GNC's first weights dropped true closures (a simulated loop)
+            values = g.LevenbergMarquardtOptimizer(
+                graph, values, g.LevenbergMarquardtParams()
+            ).optimize()
             params = g.GncLMParams(g.LevenbergMarquardtParams())
             params.setKnownInliers([k for k in range(graph.size()) if k not in set(factors)])
             optimizer = g.GncLMOptimizer(graph, values, params)

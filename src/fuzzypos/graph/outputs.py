@@ -1,0 +1,91 @@
+"""Loop closure after a run (``fuzzypos run --loop-closure``): the closures found on the run's
+pose graph, the optimised trajectory, and the files it adds to a results folder:
+``trajectory_frontend.tum`` (the front end's poses; ``trajectory.tum`` then holds the
+optimised ones), ``graph.g2o`` and the occupancy map ``map.pgm`` + ``map.yaml`` (ROS
+map_server) and ``map.png``."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import Config
+from ..io import write_tum
+from .closure import Closure, LoopCloser
+from .occupancy import occupancy_grid
+from .pose_graph import PoseGraph
+
+__all__ = ["LOOP_CLOSURE_FILES", "LoopClosureResult", "close_loops"]
+
+FloatArray = NDArray[np.float64]
+
+#: the files loop closure adds to a results folder
+LOOP_CLOSURE_FILES = ("trajectory_frontend.tum", "graph.g2o", "map.pgm", "map.yaml", "map.png")
+
+
+@dataclass(frozen=True, eq=False)
+class LoopClosureResult:
+    """The optimised poses of every scan, the front end's, the graph and its closures."""
+
+    poses: FloatArray
+    frontend: FloatArray
+    graph: PoseGraph
+    closures: list[Closure]
+    verified: int
+    seconds: float
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    def write(
+        self, folder: Path, stamps: FloatArray, source: str, resolution: float
+    ) -> dict[str, Path]:
+        """Write ``trajectory_frontend.tum``, ``graph.g2o`` and the map into ``folder``."""
+        files: dict[str, Path] = {"trajectory_frontend.tum": folder / "trajectory_frontend.tum"}
+        write_tum(
+            files["trajectory_frontend.tum"], stamps, self.frontend,
+            header_comment=f"the front end's estimate of {source}, before loop closure",
+        )  # fmt: skip
+        files["graph.g2o"] = folder / "graph.g2o"
+        self.graph.write_g2o(files["graph.g2o"])
+        scans = [
+            kf.features.points if kf.features is not None else np.zeros((0, 2))
+            for kf in self.graph.keyframes
+        ]
+        files.update(occupancy_grid(self.graph.poses, scans, resolution).write(folder))
+        return files
+
+
+def close_loops(graph: PoseGraph, config: Config) -> LoopClosureResult:
+    """Find, verify and add the closures of ``graph`` (its keyframes with their features) and
+    optimise it; the summary for ``summary.json``."""
+    t0 = time.perf_counter()
+    closer = LoopCloser(config)
+    frontend = graph.frontend_trajectory()
+    closures = closer.run(graph)
+    poses = graph.trajectory()
+    seconds = time.perf_counter() - t0
+    moved = np.hypot(*(poses[:, :2] - frontend[:, :2]).T) if len(poses) else np.zeros(1)
+    summary = {
+        "keyframes": len(graph),
+        "candidates_verified": closer.verified,
+        "closures": [
+            {
+                "keyframes": [c.i, c.j],
+                "stamps": [graph.keyframes[c.i].stamp, graph.keyframes[c.j].stamp],
+                "measured": [float(v) for v in c.measured],
+                "inlier_fraction": c.inlier_fraction,
+                "gate": c.gate,
+                "weight": c.weight,
+            }
+            for c in closures
+        ],
+        "closures_kept": sum(c.weight >= 0.5 for c in closures),
+        "max_correction_m": float(moved.max()),
+        "seconds": seconds,
+        "robust": config.loop_closure.robust,
+    }
+    return LoopClosureResult(poses, frontend, graph, closures, closer.verified, seconds, summary)

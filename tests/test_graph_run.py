@@ -1,0 +1,89 @@
+"""``fuzzypos run LOG --loop-closure`` (issue 13): the optimised trajectory, the front end's,
+the g2o file, the occupancy map and the closures in summary.json; a clear error without
+gtsam."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from fuzzypos import Config
+from fuzzypos.cli import app
+from fuzzypos.folders import RESULT_FILES
+from fuzzypos.graph import LOOP_CLOSURE_FILES, GraphDependencyError, read_g2o
+from fuzzypos.io import read_tum
+from fuzzypos.run import run_log
+from helpers import write_sim_log
+
+pytest.importorskip("gtsam")
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def loop_log(tmp_path_factory):
+    """1.3 laps of a 1 m circle in the office (270 scans): the lap's end sees its start."""
+    path = tmp_path_factory.mktemp("loop") / "loop.clf"
+    return path, write_sim_log(path, laps=1.3, seed=0)
+
+
+def test_run_with_loop_closure_writes_its_files(loop_log, tmp_path) -> None:
+    path, run = loop_log
+    out = tmp_path / "res"
+    res = runner.invoke(app, ["run", str(path), "--loop-closure", "--results", str(out)])
+    assert res.exit_code == 0, res.output
+    assert set(LOOP_CLOSURE_FILES) <= set(RESULT_FILES)
+    for name in (*LOOP_CLOSURE_FILES, "trajectory.tum", "summary.json"):
+        assert (out / name).is_file(), name
+    summary = json.loads((out / "summary.json").read_text())
+    lc = summary["loop_closure"]
+    assert lc["closures"] and lc["closures_kept"] >= 1, lc
+    for c in lc["closures"]:
+        i, j = c["keyframes"]
+        assert j - i >= Config().loop_closure.recent_keyframes and 0 <= c["weight"] <= 1
+    stamps, optimised = read_tum(out / "trajectory.tum")[:2]
+    _, frontend = read_tum(out / "trajectory_frontend.tum")[:2]
+    assert len(stamps) == len(run.scans) == len(frontend)
+    moved = np.hypot(*(optimised[:, :2] - frontend[:, :2]).T)
+    assert 0.0 < moved.max() <= lc["max_correction_m"] + 1e-6
+    truth = run.true_poses
+    end = [float(np.hypot(*(p[-1, :2] - truth[-1, :2]))) for p in (frontend, optimised)]
+    assert end[1] < end[0] + 0.01, end
+    poses, edges = read_g2o(out / "graph.g2o")
+    assert len(poses) == lc["keyframes"] and sum(e.closure for e in edges) == len(lc["closures"])
+    yaml = (out / "map.yaml").read_text()
+    assert "image: map.pgm" in yaml and "resolution: 0.05" in yaml
+    header = (out / "map.pgm").read_bytes()[:2]
+    assert header == b"P5"
+    # the map's free cells are where the robot went (but where this circle, centred on the
+    # corridor's north wall, passes through it: the simulator does not collide)
+    data = (out / "map.pgm").read_bytes()
+    w, h = (int(v) for v in data.split(b"\n")[2].split())
+    img = np.frombuffer(data[-w * h :], dtype=np.uint8).reshape(h, w)
+    origin = [float(v) for v in yaml.split("origin: [")[1].split("]")[0].split(",")[:2]]
+    col = ((truth[:, 0] - origin[0]) / 0.05).astype(int)
+    row = h - 1 - ((truth[:, 1] - origin[1]) / 0.05).astype(int)
+    assert np.mean(img[row, col] == 254) > 0.8
+    assert np.mean(img == 0) > 0.001  # walls
+
+
+def test_loop_closure_is_off_by_default(loop_log, tmp_path) -> None:
+    path, _ = loop_log
+    summary = run_log(path, Config(), results_dir=tmp_path / "res", plot=False)
+    assert "loop_closure" not in summary.summary
+    assert not any((tmp_path / "res" / name).exists() for name in LOOP_CLOSURE_FILES)
+
+
+def test_without_gtsam_the_error_says_how_to_install_it(loop_log, tmp_path, monkeypatch) -> None:
+    path, _ = loop_log
+    monkeypatch.setitem(sys.modules, "gtsam", None)  # import gtsam now raises ImportError
+    cfg = Config().with_overrides({"loop_closure": {"enabled": True}})
+    with pytest.raises(GraphDependencyError, match=r"pip install 'fuzzypos\[graph\]'"):
+        run_log(path, cfg, results_dir=tmp_path / "res")
+    assert not (tmp_path / "res").exists()  # refused before any output
+    res = runner.invoke(app, ["run", str(path), "--loop-closure", "--results", str(tmp_path)])
+    assert res.exit_code == 2 and "fuzzypos[graph]" in res.output
