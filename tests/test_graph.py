@@ -10,7 +10,7 @@ import pytest
 
 from fuzzypos import Config, Positioner, sim
 from fuzzypos.demo import DemoSettings
-from fuzzypos.geometry import relative
+from fuzzypos.geometry import compose, compose_jacobians, relative
 from fuzzypos.pipeline import Estimate
 
 gtsam = pytest.importorskip("gtsam")
@@ -41,9 +41,13 @@ def test_keyframes_and_edges_follow_the_front_end(loop) -> None:
     assert flagged[0] == 0 and [kf.scan for kf in graph.keyframes] == flagged
     assert 15 <= len(graph) <= 40  # a keyframe every metre or 30° along 25 m
     assert len(graph.edges) == len(graph) - 1 and not graph.closures
+    m = Config().matching
     for e in graph.edges:
         a, b = graph.keyframes[e.i], graph.keyframes[e.j]
         assert e.j == e.i + 1
+        # renewed where the front end renews its keyframe: 1 m or 30° away, or a failed match
+        far = np.hypot(*e.measured[:2]) >= m.keyframe_distance
+        assert far or abs(e.measured[2]) >= m.keyframe_angle or ests[b.scan].degraded
         np.testing.assert_allclose(e.measured, relative(a.pose, b.pose), atol=1e-12)
         sigma = np.sqrt(np.diag(e.covariance))
         assert np.all(sigma > 0) and sigma[0] < 0.05 and sigma[2] < np.radians(2)
@@ -200,3 +204,25 @@ def test_false_closures_between_twin_rooms_do_not_survive(twins) -> None:
     assert moved.max() < 0.05, moved.max()
     _, dragged = results["none"]
     assert _end_error(dragged, truth) > 1.0  # what the robust optimisation prevents
+
+
+def test_the_chain_covariance_is_the_propagation_along_the_chain(loop) -> None:
+    """The prefix sums give what carrying each edge's covariance along the chain gives."""
+    _, ests = loop
+    graph = PoseGraph.from_estimates(ests)
+    closer = LoopCloser(Config())
+    j = len(graph) - 1
+    ks = np.arange(j)
+    fast = closer.chain_covariances(graph, j, ks)
+    rel, cov = np.zeros(3), np.zeros((3, 3))
+    for k in range(j - 1, -1, -1):
+        e = graph.edges[k]
+        th = e.measured[2]
+        g = np.array([[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]])
+        ja, jb = compose_jacobians(e.measured, rel)
+        rel = compose(e.measured, rel)
+        cov = ja @ (g @ e.covariance @ g.T) @ ja.T + jb @ cov @ jb.T
+        c, s = np.cos(graph.poses[k, 2]), np.sin(graph.poses[k, 2])
+        r = np.array([[c, -s], [s, c]])
+        np.testing.assert_allclose(fast[k], r @ cov[:2, :2] @ r.T, rtol=1e-6, atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(fast[0]) > 0)

@@ -108,6 +108,21 @@ class LoopClosureConfig:
         ge=0.0,
         le=1.0,
     )
+    reoptimize_distance: float = _field(
+        0.1,
+        "the graph is optimised again after a closure whose measurement lies 0.1 m or more "
+        "from the graph's prediction (or reoptimize_angle): the next candidates' predictions "
+        "start from the corrected poses, while a closure that agrees moves nothing and an "
+        "optimisation after every closure costs more than the matching on a long log",
+        unit=M,
+        gt=0.0,
+    )
+    reoptimize_angle: float = _field(
+        math.radians(1.0),
+        "or 1° from it: a heading error of 1° moves a keyframe 10 m away by 17 cm",
+        unit=RAD,
+        gt=0.0,
+    )
     robust: str = _field(
         "gnc",
         "closures enter the optimisation through graduated non-convexity (gtsam's GNC with "

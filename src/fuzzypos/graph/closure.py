@@ -24,16 +24,17 @@ from numpy.typing import NDArray
 
 from ..config import Config
 from ..features import Features
-from ..geometry import compose, compose_jacobians, relative, transform_points
+from ..geometry import relative, transform_points
 from ..matching import Refinement, SurfacePoints, search_start, surface_points
 from ..pipeline import Refiner
 from ..pipeline.refine import ScanPoints
 from ..pipeline.uncertainty import local
-from .pose_graph import PoseGraph
+from .pose_graph import PoseGraph, PoseGraphError
 
 __all__ = ["Closure", "LoopCloser"]
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
 
 #: the covariance floor of a closure (m², rad²): a fit is never better than a millimetre
 _FLOOR = np.diag([1e-6, 1e-6, math.radians(0.01) ** 2])
@@ -77,39 +78,82 @@ class LoopCloser:
         self.verified = 0  # candidates verified
         self._surfaces: dict[int, SurfacePoints] = {}
         self._chi2 = -2.0 * math.log(1.0 - self.settings.gate_probability)  # χ²(2) quantile
+        self._prefix_of: tuple[FloatArray, tuple[FloatArray, ...]] | None = None
 
     def candidates(self, graph: PoseGraph, j: int) -> list[tuple[int, float]]:
         """``(i, d²)`` for every keyframe ``i`` within the gate of ``j``, nearest first, at
-        most ``max_candidates``. The covariance of ``i`` relative to ``j`` is carried back
-        along the chain of front-end edges from ``j``."""
+        most ``max_candidates``: d² the Mahalanobis distance squared of the two positions under
+        the covariance of ``j`` relative to ``i`` along the chain of front-end edges between
+        them (:meth:`chain_covariances`) plus ``overlap_radius``²."""
         s = self.settings
         last = j - s.recent_keyframes
         if last < 0:
             return []
-        edges = {e.i: e for e in graph.edges if not e.closure and e.j == e.i + 1}
-        rel = np.zeros(3)  # keyframe j in keyframe k's frame, k going back from j
-        cov = np.zeros((3, 3))
-        out = []
-        r2 = s.overlap_radius**2
-        for k in range(j - 1, -1, -1):
-            e = edges.get(k)
-            if e is None:  # the chain is broken: nothing further back is related
-                break
-            ja, jb = compose_jacobians(e.measured, rel)
-            rel = compose(e.measured, rel)
-            cov = (
-                ja @ local_to_additive(e.covariance, float(e.measured[2])) @ ja.T + jb @ cov @ jb.T
-            )
-            if k > last:
-                continue
-            predicted = relative(graph.poses[k], graph.poses[j])
-            t = predicted[:2]
-            sigma = cov[:2, :2] + r2 * np.eye(2)
-            d2 = float(t @ np.linalg.solve(sigma, t))
-            if d2 <= self._chi2:
-                out.append((k, d2))
-        out.sort(key=lambda c: c[1])
-        return out[: s.max_candidates]
+        ks = np.arange(last + 1)
+        cov = self.chain_covariances(graph, j, ks)
+        cov = cov + s.overlap_radius**2 * np.eye(2)
+        delta = graph.poses[j, :2] - graph.poses[ks, :2]
+        d2 = np.einsum("ni,ni->n", delta, np.linalg.solve(cov, delta[:, :, None])[:, :, 0])
+        inside = np.flatnonzero(d2 <= self._chi2)
+        order = inside[np.argsort(d2[inside], kind="stable")][: s.max_candidates]
+        return [(int(k), float(d2[k])) for k in order]
+
+    def chain_covariances(self, graph: PoseGraph, j: int, ks: IntArray) -> FloatArray:
+        """The 2×2 world-frame covariances of keyframe ``j``'s position relative to each
+        keyframe of ``ks`` (all before ``j``) from the front-end edges between them, linearised
+        at the graph's poses. Edge m's right perturbation (δt, δθ) moves ``j`` by R_{m+1} δt +
+        δθ J (p_j − p_{m+1}) (J the quarter turn), so the covariance is a sum over the edges
+        whose terms split into prefix sums: one pass over the chain per optimisation, then a
+        few array operations per keyframe."""
+        c1, cu, cuq, cs, csq, csqq = self._prefix(graph)
+        a = np.array([-graph.poses[j, 1], graph.poses[j, 0]])  # J p_j
+        s1 = c1[j] - c1[ks]
+        su = cu[j] - cu[ks]
+        suq = cuq[j] - cuq[ks]
+        ss = cs[j] - cs[ks]
+        ssq = csq[j] - csq[ks]
+        ssqq = csqq[j] - csqq[ks]
+        t2 = su[:, :, None] * a[None, None, :] - suq  # Σ u (a − q)ᵀ
+        t4 = (
+            ss[:, None, None] * np.outer(a, a)[None]
+            - a[None, :, None] * ssq[:, None, :]
+            - ssq[:, :, None] * a[None, None, :]
+            + ssqq
+        )  # Σ σθθ (a − q)(a − q)ᵀ
+        out: FloatArray = s1 + t2 + np.transpose(t2, (0, 2, 1)) + t4
+        return out
+
+    def _prefix(self, graph: PoseGraph) -> tuple[FloatArray, ...]:
+        """The prefix sums over the chain's edges m < n (index n) of R Σtt Rᵀ, u = R σtθ,
+        u qᵀ, σθθ, σθθ q and σθθ q qᵀ, with R, q = J p of keyframe m + 1 at the graph's poses
+        (cached until the poses change)."""
+        if self._prefix_of is not None and self._prefix_of[0] is graph.poses:
+            return self._prefix_of[1]
+        n = len(graph)
+        chain = {e.i: e for e in graph.edges if not e.closure and e.j == e.i + 1}
+        if len(chain) < n - 1:
+            raise PoseGraphError("the pose graph's chain of front-end edges is broken")
+        cov = np.array([chain[m].covariance for m in range(n - 1)]).reshape(-1, 3, 3)
+        nxt = graph.poses[1:]
+        c, s_ = np.cos(nxt[:, 2]), np.sin(nxt[:, 2])
+        rot = np.stack((np.stack((c, -s_), -1), np.stack((s_, c), -1)), 1)  # (m, 2, 2)
+        q = np.stack((-nxt[:, 1], nxt[:, 0]), 1)
+        tt = rot @ cov[:, :2, :2] @ np.transpose(rot, (0, 2, 1))
+        u = (rot @ cov[:, :2, 2:3])[:, :, 0]
+        sig = cov[:, 2, 2]
+        terms = (
+            tt,
+            u,
+            u[:, :, None] * q[:, None, :],
+            sig,
+            sig[:, None] * q,
+            sig[:, None, None] * q[:, :, None] * q[:, None, :],
+        )
+        sums = tuple(
+            np.concatenate((np.zeros((1, *t.shape[1:])), np.cumsum(t, axis=0))) for t in terms
+        )
+        self._prefix_of = (graph.poses, sums)
+        return sums
 
     def submap(self, graph: PoseGraph, i: int, j: int) -> SurfacePoints:
         """The surfaces of keyframe ``i`` and ``submap_keyframes`` either side (none among the
@@ -225,25 +269,23 @@ class LoopCloser:
         return None
 
     def run(self, graph: PoseGraph) -> list[Closure]:
-        """Every keyframe in turn: close its loop where it can, the graph optimised after each
-        closure (so the next keyframes' predictions start from the corrected poses). The
-        closures with their final weights."""
-        robust = self.settings.robust
+        """Every keyframe in turn: close its loop where it can, the graph optimised after a
+        closure that disagrees with it (``reoptimize_distance``, ``reoptimize_angle``: the next
+        keyframes' predictions start from the corrected poses) and at the end. The closures
+        with their final weights."""
+        s = self.settings
         for j in range(len(graph)):
-            if self.close(graph, j) is not None:
-                graph.optimize(robust)
+            found = self.close(graph, j)
+            if found is None:
+                continue
+            off = relative(relative(graph.poses[found.i], graph.poses[j]), found.measured)
+            if math.hypot(off[0], off[1]) >= s.reoptimize_distance or abs(off[2]) >= (
+                s.reoptimize_angle
+            ):
+                graph.optimize(s.robust)
         if self.closures:
-            graph.optimize(robust)
+            graph.optimize(s.robust)
         mine = [e for e in graph.edges if e.closure]
         weights = dict(zip(((e.i, e.j) for e in mine), graph.closure_weights))
         self.closures = [replace(c, weight=weights.get((c.i, c.j), 1.0)) for c in self.closures]
         return self.closures
-
-
-def local_to_additive(cov: FloatArray, theta: float) -> FloatArray:
-    """A right-perturbation covariance of a pose with heading ``theta`` in additive
-    coordinates of its parent frame (the inverse of ``uncertainty.local``)."""
-    c, s = math.cos(theta), math.sin(theta)
-    g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    out: FloatArray = g @ cov @ g.T
-    return out

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -61,7 +62,7 @@ class Edge:
     covariance: FloatArray
     closure: bool = False
 
-    @property
+    @cached_property
     def information(self) -> FloatArray:
         cov = 0.5 * (self.covariance + self.covariance.T) + _COVARIANCE_FLOOR * np.eye(3)
         info = np.asarray(np.linalg.inv(cov), dtype=np.float64)
