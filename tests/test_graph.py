@@ -118,6 +118,13 @@ def test_the_loop_closes_by_itself(loop) -> None:
         assert c.weight > 0.9 and c.inlier_fraction >= 0.6
     after = _end_error(graph.trajectory(), truth)
     assert after < 0.02 and after < before / 2, (before, after)
+    # blended, the keyframes stay where they are and the scans between them do not jump
+    follow, blend = graph.trajectory(), graph.trajectory(blend=True)
+    at = [kf.scan for kf in graph.keyframes]
+    np.testing.assert_allclose(blend[at], follow[at], atol=1e-9)
+    steps = [np.hypot(*np.diff(p[:, :2], axis=0).T) - np.hypot(*np.diff(truth[:, :2], axis=0).T)
+             for p in (follow, blend)]  # fmt: skip
+    assert np.abs(steps[1]).max() <= np.abs(steps[0]).max() + 1e-6
 
 
 def _twin_rooms() -> sim.World:

@@ -66,7 +66,7 @@ def close_loops(graph: PoseGraph, config: Config) -> LoopClosureResult:
     closer = LoopCloser(config)
     frontend = graph.frontend_trajectory()
     closures = closer.run(graph)
-    poses = graph.trajectory()
+    poses = graph.trajectory(blend=True)
     seconds = time.perf_counter() - t0
     moved = np.hypot(*(poses[:, :2] - frontend[:, :2]).T) if len(poses) else np.zeros(1)
     summary = {

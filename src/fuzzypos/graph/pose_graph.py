@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..features import Features
-from ..geometry import compose, relative
+from ..geometry import compose, inverse, relative
 from ..pipeline import Estimate
 from ._gtsam import gtsam
 
@@ -218,13 +218,29 @@ class PoseGraph:
             graph.add(g.BetweenFactorPose2(e.i, e.j, g.Pose2(*map(float, e.measured)), noise))
         return graph, values, factors
 
-    def trajectory(self) -> FloatArray:
+    def trajectory(self, blend: bool = False) -> FloatArray:
         """Every scan's pose, ``(scans, 3)``: its keyframe's current pose composed with the
-        scan's pose relative to it (the front end's)."""
+        scan's pose relative to it (the front end's). ``blend``: the correction (the current
+        pose over the front end's) blended linearly, by scan index, from the scan's keyframe's
+        to the next keyframe's, so the trajectory does not jump where the keyframe changes."""
         if not self._owner:
             return np.zeros((0, 3))
-        owners = self.poses[np.array(self._owner)]
-        return compose(owners, np.array(self._offset))
+        owner = np.array(self._owner)
+        follow = compose(self.poses[owner], np.array(self._offset))
+        if not blend or len(self.keyframes) < 2:
+            return follow
+        front = np.array([kf.pose for kf in self.keyframes])
+        correction = compose(self.poses, inverse(front))  # world-frame: current = C ⊕ front
+        scan_of = np.array([kf.scan for kf in self.keyframes])
+        idx = np.arange(len(owner))
+        nxt = np.minimum(owner + 1, len(self.keyframes) - 1)
+        span = np.maximum(scan_of[nxt] - scan_of[owner], 1)
+        f = np.where(nxt > owner, (idx - scan_of[owner]) / span, 0.0)[:, None]
+        a, b = correction[owner], correction[nxt]
+        dth = np.arctan2(np.sin(b[:, 2] - a[:, 2]), np.cos(b[:, 2] - a[:, 2]))
+        blended = np.column_stack((a[:, :2] + f * (b[:, :2] - a[:, :2]), a[:, 2] + f[:, 0] * dth))
+        out: FloatArray = compose(blended, self.frontend_trajectory())
+        return out
 
     def frontend_trajectory(self) -> FloatArray:
         """Every scan's pose as the front end gave it."""
