@@ -52,6 +52,15 @@ class LoopClosureConfig:
         "each verification is a search and several refinements",
         ge=1,
     )
+    heading_floor: float = _field(
+        math.radians(2.0),
+        "a verified fit's heading must lie within the χ²(1) gate (gate_probability) of the "
+        "graph's predicted heading under the chain's heading variance plus (2°)²: a false match "
+        "in a symmetric place turns the scan by many degrees where a short chain knows the "
+        "heading to a fraction of one; the floor allows for the front end's overconfidence",
+        unit=RAD,
+        gt=0.0,
+    )
     submap_keyframes: int = _field(
         2,
         "the submap holds the candidate and 2 keyframes either side of it (in the candidate's "

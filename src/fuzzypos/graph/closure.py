@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from statistics import NormalDist
 
 import numpy as np
 from numpy.typing import NDArray
@@ -78,6 +79,8 @@ class LoopCloser:
         self.verified = 0  # candidates verified
         self._surfaces: dict[int, SurfacePoints] = {}
         self._chi2 = -2.0 * math.log(1.0 - self.settings.gate_probability)  # χ²(2) quantile
+        p = self.settings.gate_probability  # χ²(1) quantile: the normal's, squared
+        self._chi2_1 = NormalDist().inv_cdf(0.5 + 0.5 * p) ** 2
         self._prefix_of: tuple[FloatArray, tuple[FloatArray, ...]] | None = None
 
     def candidates(self, graph: PoseGraph, j: int) -> list[tuple[int, float]]:
@@ -215,6 +218,8 @@ class LoopCloser:
         fit = self._fit(surface, points, hit.start)
         if fit is None or fit.inlier_fraction < s.min_inlier_fraction:
             return None
+        if not self._heading_agrees(graph, i, j, fit.increment, predicted):
+            return None
         if not self._constrained(fit) or self._ambiguous(surface, points, fit):
             return None
         return Closure(i, j, fit.increment, self._covariance(fit), fit.inlier_fraction, gate)
@@ -226,6 +231,17 @@ class LoopCloser:
         return self.refiner.fit(
             surface, points, start, start, start, max_distance=r.max_distance, weak_prior=True
         )
+
+    def _heading_agrees(
+        self, graph: PoseGraph, i: int, j: int, measured: FloatArray, predicted: FloatArray
+    ) -> bool:
+        """Whether the fit's heading lies within the χ²(1) gate of the predicted one under the
+        chain's heading variance between ``i`` and ``j`` plus ``heading_floor``²."""
+        cs = self._prefix(graph)[3]
+        lo, hi = min(i, j), max(i, j)
+        variance = float(cs[hi] - cs[lo]) + self.settings.heading_floor**2
+        d = math.remainder(float(measured[2]) - float(predicted[2]), math.tau)
+        return d * d <= self._chi2_1 * variance
 
     def _constrained(self, fit: Refinement) -> bool:
         """Whether the points fix the translation both ways (not a corridor)."""
