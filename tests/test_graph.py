@@ -233,3 +233,21 @@ def test_the_chain_covariance_is_the_propagation_along_the_chain(loop) -> None:
         r = np.array([[c, -s], [s, c]])
         np.testing.assert_allclose(fast[k], r @ cov[:2, :2] @ r.T, rtol=1e-6, atol=1e-12)
     assert np.all(np.linalg.eigvalsh(fast[0]) > 0)
+
+
+def test_a_fit_whose_heading_the_graph_rules_out_is_refused(loop) -> None:
+    """The search finds the true match 15° from a (wrong) prediction; over a short chain the
+    graph knows the heading to a fraction of that, so the verification refuses it."""
+    _, ests = loop
+    graph = PoseGraph.from_estimates(ests)
+    closer = LoopCloser(Config())
+    j = len(graph) - 1
+    i = closer.candidates(graph, j)[0][0]
+    predicted = relative(graph.poses[i], graph.poses[j])
+    assert closer.verify(graph, i, j, predicted=predicted) is not None
+    turned = predicted + np.array([0.0, 0.0, np.radians(15.0)])
+    assert closer.verify(graph, i, j, predicted=turned) is None
+    # what refuses it is the heading gate: without it the search's match stands
+    loose = Config().with_overrides({"loop_closure": {"heading_floor": np.radians(90.0)}})
+    found = LoopCloser(loose).verify(graph, i, j, predicted=turned)
+    assert found is not None and abs(found.measured[2] - predicted[2]) < np.radians(1.0)
