@@ -9,7 +9,8 @@ LINT_PATHS := src tests benchmarks
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,lint,graph]'
+	$(BIN)/python -m pip install --quiet -e '.[test,lint]'
+	$(BIN)/python -m pip install --quiet -e '.[graph]' || echo 'no gtsam wheel for this Python: the loop-closure tests skip'
 	touch $(STAMP)
 
 demo: $(STAMP)
