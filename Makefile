@@ -11,6 +11,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test,lint]'
 	$(BIN)/python -m pip install --quiet -e '.[graph]' || echo 'no gtsam wheel for this Python: the loop-closure tests skip'
+	$(BIN)/python -m pip install --quiet -e '.[ray]' || echo 'no ray wheel for this Python: fuzzypos batch and its tests skip'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -24,7 +24,7 @@ LAYERS = (
     ("evaluation", "plot", "graph"),
     ("logs", "provenance", "folders"),
     ("scoring", "run"),
-    ("benchmark", "demo"),
+    ("benchmark", "batch", "demo"),
     ("results",),
     ("cli",),
 )

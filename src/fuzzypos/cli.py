@@ -856,6 +856,31 @@ def benchmark(
         raise typer.Exit(code=1)
 
 
+@app.command()
+def batch(
+    paths: Annotated[list[Path], typer.Argument(help="logs, or folders searched for logs")],
+    out: Annotated[Path, typer.Option(help="the results' folder", readable=False)] = Path("batch"),
+    configs: Annotated[list[Path] | None, typer.Option("--config", help="config TOML")] = None,
+    max_scans: Annotated[int | None, typer.Option("--max-scans", help="scans per run")] = None,
+    address: Annotated[str | None, typer.Option(help="a Ray cluster to join (auto)")] = None,
+    jobs: Annotated[int | None, typer.Option(help="local Ray's CPUs (default all)")] = None,
+    force: Annotated[bool, typer.Option("--force", help="redo complete runs")] = False,
+) -> None:
+    """Every log under PATHS × every --config, a Ray task each: OUT/<log>/<config>/, batch.json."""
+    from .batch import batch_table, progress_bar, run_batch
+
+    try:
+        with Progress(console=console, transient=True) as bar:
+            result = run_batch(
+                paths, out, configs=configs or (), max_scans=max_scans, address=address,
+                jobs=jobs, force=force, progress=progress_bar(bar),
+            )  # fmt: skip
+    except (ValueError, OSError) as exc:
+        _fail(_error_text(exc))
+    console.print(batch_table(result.rows))
+    raise typer.Exit(code=1 if result.failed else 0)
+
+
 def _unwrap(doc: str) -> str:
     """A docstring as help text: the lines of each paragraph joined (typer's rich help keeps
     the docstring's line breaks otherwise)."""

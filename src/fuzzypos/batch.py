@@ -1,0 +1,360 @@
+"""The batch job: every log under some paths × every configuration, each run one Ray task.
+
+:func:`find_logs` tells logs by their content (:func:`~fuzzypos.logs.log_kind`: a ROS1 bag's
+magic, a ROS2 bag directory's ``metadata.yaml``; a CARMEN file, plain or gzip, only when its
+first non-comment line is a CARMEN message), passing over anything else silently.
+:func:`run_batch` runs each log with each configuration as a Ray task with one thread
+(:func:`~fuzzypos.run.run_log`, results in ``<out>/<log label>/<config name>/``) and writes
+``<out>/batch.json`` as runs finish: a row per run with its ``status`` (``ok``, ``failed``,
+``skipped``), the error's first line, ``seconds``, ``scans``, ``scans_per_second`` and the
+relations scores where a ``NAME.relations`` lies beside the log.
+
+A run whose folder already holds complete results of the same input (sha256), configuration,
+fuzzypos version and options is skipped unless ``force``. Ray is the ``ray`` extra; without
+it :class:`RayMissingError`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gzip
+import json
+import os
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ._version import __version__
+from .config import Config
+from .folders import log_label
+from .io import read_relations
+from .logs import UnknownLogError, log_kind
+from .provenance import file_sha256, write_json
+from .run import log_name, run_log
+
+__all__ = [
+    "BATCH_ENV",
+    "BatchResult",
+    "RayMissingError",
+    "batch_table",
+    "progress_bar",
+    "find_logs",
+    "run_batch",
+]
+
+#: the environment of every run's task: one thread
+BATCH_ENV = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "NUMBA_NUM_THREADS": "1",
+}
+#: the first word of a CARMEN log's first non-comment line
+CARMEN_MESSAGES = frozenset(
+    {"FLASER", "RLASER", "ROBOTLASER1", "ROBOTLASER2", "ODOM", "TRUEPOS", "PARAM", "SYNC"}
+    | {f"RAWLASER{k}" for k in range(1, 5)}
+    | {"NMEAGGA", "NMEARMC", "SONAR", "BUMPER", "SCANMARK", "POSITIONLASER"}
+)
+#: ``progress(row, done, total)`` as each run finishes
+BatchProgress = Callable[[dict[str, Any], int, int], None]
+
+_INSTALL = "fuzzypos batch needs Ray: pip install 'fuzzypos[ray]' (or pip install 'ray>=2.9')"
+
+
+class RayMissingError(OSError):
+    """Ray (the ``ray`` extra) is not installed: the message says how to install it."""
+
+    def __init__(self, message: str = _INSTALL) -> None:
+        super().__init__(message)
+
+
+def _require_ray() -> Any:
+    try:
+        import ray
+    except ImportError:
+        raise RayMissingError() from None
+    return ray
+
+
+# -- finding the logs ------------------------------------------------------------------------
+def _first_word(path: Path) -> str | None:
+    """The first word of the first non-blank, non-comment line (plain or gzip), or None."""
+    opener: Any = gzip.open if path.read_bytes()[:2] == b"\x1f\x8b" else open
+    try:
+        with opener(path, "rt", encoding="utf-8", errors="replace") as f:
+            for k, line in enumerate(f):
+                text = line.strip()
+                if text and not text.startswith("#"):
+                    return str(text.split()[0])
+                if k > 10_000:
+                    break
+    except (OSError, EOFError, UnicodeError):
+        return None
+    return None
+
+
+def is_log(path: Path) -> bool:
+    """Whether ``path`` is a log by its content (the module docstring)."""
+    try:
+        kind = log_kind(path)
+    except (UnknownLogError, OSError):
+        return False
+    return kind != "carmen" or _first_word(path) in CARMEN_MESSAGES
+
+
+def _walk(root: Path) -> Iterable[Path]:
+    """Files and ROS2 bag directories under ``root`` (not into a bag directory), sorted."""
+    if (root / "metadata.yaml").is_file():
+        yield root
+        return
+    for child in sorted(root.iterdir()):
+        if child.is_dir():
+            yield from _walk(child)
+        elif child.is_file():
+            yield child
+
+
+def find_logs(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
+    """Every log (:func:`is_log`) given or under the directories given, in order, once each.
+    ``FileNotFoundError`` for a path that does not exist; ``ValueError`` when there is no log
+    or two have the same :func:`~fuzzypos.folders.log_label` (their folders would clash)."""
+    found: dict[Path, None] = {}
+    for given in paths:
+        p = Path(given)
+        if not p.exists():
+            raise FileNotFoundError(2, "No such file or directory", os.fspath(given))
+        for cand in _walk(p) if p.is_dir() else [p]:
+            if is_log(cand):
+                found.setdefault(cand, None)
+    logs = list(found)
+    if not logs:
+        raise ValueError(f"no log under {', '.join(os.fspath(p) for p in paths)}")
+    labels: dict[str, Path] = {}
+    for log in logs:
+        other = labels.setdefault(log_label(log), log)
+        if other != log:
+            raise ValueError(f"{other} and {log}: two logs named {log_label(log)!r}")
+    return logs
+
+
+def relations_beside(log: Path) -> Path | None:
+    """``NAME.relations`` next to the log ``NAME.clf.gz`` (``.clf``, ``.bag`` …), or None."""
+    rel = log.with_name(log_name(log) + ".relations")
+    return rel if rel.is_file() else None
+
+
+# -- one run ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Run:
+    """One task's input."""
+
+    log: str
+    config: Config
+    config_name: str
+    config_file: str | None
+    folder: str
+    max_scans: int | None
+    force: bool
+
+
+def _complete(run: _Run) -> dict[str, Any] | None:
+    """The summary of the folder's earlier run when it is complete for the same input,
+    configuration, version and options; else None."""
+    folder = Path(run.folder)
+    try:
+        summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+        same = (
+            not summary.get("partial", True)
+            and summary.get("fuzzypos_version") == __version__
+            and summary.get("selection", {}).get("max_scans") == run.max_scans
+            and (summary.get("config") or {}).get("file") == run.config_file
+            and (folder / "config.toml").read_text(encoding="utf-8") == run.config.to_toml()
+            and all(Path(f).exists() for f in (summary.get("files") or {}).values())
+            and summary.get("input", {}).get("sha256") == file_sha256(run.log)
+        )
+    except (OSError, ValueError, AttributeError):
+        return None
+    return summary if same else None
+
+
+def _error_line(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[0] if lines else type(exc).__name__
+
+
+def _run_one(run: _Run) -> dict[str, Any]:
+    """One run's row (in the task): skipped, ok or failed."""
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {
+        "log": run.log,
+        "config": run.config_name,
+        "folder": run.folder,
+        "status": "ok",
+        "error": None,
+    }
+    summary = None if run.force else _complete(run)
+    if summary is not None:
+        row["status"] = "skipped"
+    else:
+        try:
+            rel = relations_beside(Path(run.log))
+            run_log(
+                run.log,
+                run.config,
+                results_dir=run.folder,
+                overwrite=True,
+                max_scans=run.max_scans,
+                preset=None if run.config_file else "default",
+                config_file=run.config_file,
+                relations=None if rel is None else read_relations(rel),
+            )
+            summary = json.loads((Path(run.folder) / "summary.json").read_text("utf-8"))
+        except (ValueError, OSError) as exc:
+            row.update(status="failed", error=_error_line(exc))
+    summary = summary or {}
+    row.update(
+        seconds=time.perf_counter() - t0 if row["status"] != "skipped" else summary["seconds"],
+        scans=summary.get("scans"),
+        scans_per_second=summary.get("scans_per_second"),
+        relations=summary.get("relations"),
+    )
+    return row
+
+
+# -- the batch -------------------------------------------------------------------------------
+@dataclass(eq=False)
+class BatchResult:
+    """:func:`run_batch`'s rows (as in ``batch.json``) and where it wrote them."""
+
+    rows: list[dict[str, Any]]
+    json_path: Path
+
+    @property
+    def failed(self) -> int:
+        return sum(r["status"] == "failed" for r in self.rows)
+
+
+def _start_ray(ray: Any, address: str | None, jobs: int) -> bool:
+    """Join ``address`` (or ``RAY_ADDRESS``), else start a local Ray; True when started
+    here (and to be shut down); nothing when Ray is already up in this process."""
+    if ray.is_initialized():
+        return False
+    address = address or os.environ.get("RAY_ADDRESS") or None
+    if address:
+        ray.init(address=address)
+    else:
+        os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+        ray.init(num_cpus=jobs, include_dashboard=False)
+    return True
+
+
+def _runs(
+    logs: Sequence[Path], configs: Sequence[Path], out: Path, max_scans: int | None, force: bool
+) -> list[_Run]:
+    """Every log × every configuration (default: the default one)."""
+    loaded: list[tuple[str, str | None, Config]] = [
+        (c.stem, str(c), Config.from_toml(c)) for c in configs
+    ] or [("default", None, Config())]
+    names = [name for name, _, _ in loaded]
+    if len(set(names)) != len(names):
+        raise ValueError(f"two configuration files with the same name: {names}")
+    return [
+        _Run(str(log), cfg, name, file, str(out / log_label(log) / name), max_scans, force)
+        for log in logs
+        for name, file, cfg in loaded
+    ]
+
+
+def _write(path: Path, rows: list[dict[str, Any]], total: int, interrupted: bool) -> None:
+    data = {"fuzzypos_version": __version__, "runs": total, "interrupted": interrupted}
+    write_json(path, {**data, "rows": rows})
+
+
+def run_batch(
+    paths: Sequence[str | os.PathLike[str]],
+    out: str | os.PathLike[str] = "batch",
+    *,
+    configs: Sequence[str | os.PathLike[str]] = (),
+    max_scans: int | None = None,
+    address: str | None = None,
+    jobs: int | None = None,
+    force: bool = False,
+    progress: BatchProgress | None = None,
+) -> BatchResult:
+    """Run every log under ``paths`` (:func:`find_logs`) with every configuration file of
+    ``configs`` (default: the default configuration), one Ray task each; ``batch.json`` in
+    ``out`` is rewritten as each finishes. ``jobs``: the local Ray's CPUs (default: all);
+    ``address``: a cluster to join. Raises :class:`RayMissingError`, ``ValueError`` (bad
+    input, a configuration file's :class:`~fuzzypos.config.ConfigError`) or ``OSError``
+    before any run; ``KeyboardInterrupt`` stops the tasks, keeping what finished."""
+    if jobs is not None and jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {jobs}")
+    if max_scans is not None and max_scans < 1:
+        raise ValueError(f"max_scans must be at least 1, got {max_scans}")
+    ray = _require_ray()
+    out_dir = Path(out)
+    runs = _runs(find_logs(paths), [Path(c) for c in configs], out_dir, max_scans, force)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    json_path = out_dir / "batch.json"
+    started = _start_ray(ray, address, jobs or os.cpu_count() or 1)
+    task = ray.remote(num_cpus=1, runtime_env={"env_vars": BATCH_ENV})(_run_one)
+    pending = {task.remote(r): r for r in runs}
+    rows: list[dict[str, Any]] = []
+    try:
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            run = pending.pop(done[0])
+            try:
+                row = ray.get(done[0])
+            except Exception as exc:  # a crashed worker, an unexpected error in the task
+                row = {"log": run.log, "config": run.config_name, "folder": run.folder}
+                row.update(status="failed", error=_error_line(exc), seconds=None, scans=None)
+            rows.append(row)
+            _write(json_path, rows, len(runs), False)
+            if progress is not None:
+                progress(row, len(rows), len(runs))
+    except KeyboardInterrupt:
+        for ref in pending:
+            with contextlib.suppress(Exception):
+                ray.cancel(ref, force=True)
+        _write(json_path, rows, len(runs), True)
+        raise
+    finally:
+        if started:
+            ray.shutdown()
+    return BatchResult(rows, json_path)
+
+
+def progress_bar(bar: Any) -> BatchProgress:
+    """A :class:`BatchProgress` moving a task of the :class:`rich.progress.Progress` ``bar``."""
+    task = bar.add_task("runs", total=None)
+
+    def report(row: dict[str, Any], done: int, total: int) -> None:
+        bar.update(task, completed=done, total=total)
+
+    return report
+
+
+def batch_table(rows: Sequence[dict[str, Any]]) -> Any:
+    """The rows as a :class:`rich.table.Table`."""
+    from rich.table import Table
+
+    table = Table("log", "config", "status", "scans", "scans/s", "s", "rel. m")
+    table.add_column("error", no_wrap=True, overflow="ellipsis", max_width=60)
+    for r in rows:
+        rel = r.get("relations") or {}
+        score = rel.get("all_trans_mean_m") if isinstance(rel, dict) else None
+        sps, secs = r.get("scans_per_second"), r.get("seconds")
+        table.add_row(
+            log_label(r["log"]),
+            r["config"],
+            r["status"],
+            "" if r.get("scans") is None else str(r["scans"]),
+            "" if sps is None else f"{sps:.0f}",
+            "" if secs is None else f"{secs:.1f}",
+            "" if score is None else f"{score:.3f}",
+            r.get("error") or "",
+        )
+    return table
