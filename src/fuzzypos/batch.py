@@ -21,7 +21,7 @@ import gzip
 import json
 import os
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,7 +57,7 @@ CARMEN_MESSAGES = frozenset(
     | {f"RAWLASER{k}" for k in range(1, 5)}
     | {"NMEAGGA", "NMEARMC", "SONAR", "BUMPER", "SCANMARK", "POSITIONLASER"}
 )
-#: ``progress(row, done, total)`` as each run finishes
+#: ``progress(row, done, total)`` as each run finishes (first ``({}, 0, total)``)
 BatchProgress = Callable[[dict[str, Any], int, int], None]
 
 _INSTALL = "fuzzypos batch needs Ray: pip install 'fuzzypos[ray]' (or pip install 'ray>=2.9')"
@@ -303,6 +303,8 @@ def run_batch(
     pending = {task.remote(r): r for r in runs}
     rows: list[dict[str, Any]] = []
     try:
+        if progress is not None:
+            progress({}, 0, len(runs))
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
             run = pending.pop(done[0])
@@ -327,14 +329,28 @@ def run_batch(
     return BatchResult(rows, json_path)
 
 
-def progress_bar(bar: Any) -> BatchProgress:
-    """A :class:`BatchProgress` moving a task of the :class:`rich.progress.Progress` ``bar``."""
+@contextlib.contextmanager
+def progress_bar(console: Any) -> Iterator[BatchProgress]:
+    """A :class:`BatchProgress` drawing a transient :class:`rich.progress.Progress` bar on
+    ``console`` over the runs, started at the first report (errors before any run print
+    nothing of it)."""
+    from rich.progress import Progress
+
+    bar = Progress(console=console, transient=True)
     task = bar.add_task("runs", total=None)
+    started: list[bool] = []
 
     def report(row: dict[str, Any], done: int, total: int) -> None:
+        if not started:
+            bar.start()
+            started.append(True)
         bar.update(task, completed=done, total=total)
 
-    return report
+    try:
+        yield report
+    finally:
+        if started:
+            bar.stop()
 
 
 def batch_table(rows: Sequence[dict[str, Any]]) -> Any:

@@ -870,10 +870,10 @@ def batch(
     from .batch import batch_table, progress_bar, run_batch
 
     try:
-        with Progress(console=console, transient=True) as bar:
+        with progress_bar(console) as report:
             result = run_batch(
                 paths, out, configs=configs or (), max_scans=max_scans, address=address,
-                jobs=jobs, force=force, progress=progress_bar(bar),
+                jobs=jobs, force=force, progress=report,
             )  # fmt: skip
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
