@@ -33,7 +33,7 @@ def _rows(out: Path) -> dict[str, dict[str, Any]]:
 def ray_session() -> Iterator[None]:
     ray = pytest.importorskip("ray", reason="Ray (the ray extra) is not installed")
     try:
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+        ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     except Exception as exc:  # pragma: no cover - depends on the machine
         pytest.skip(f"Ray cannot start here: {exc}")
     yield
@@ -131,3 +131,25 @@ def test_without_ray_one_line_and_exit_2(
     res = runner.invoke(app, ["batch", str(data), "--out", str(tmp_path)])
     assert res.exit_code == 2
     assert res.output.count("\n") == 1 and "pip install 'fuzzypos[ray]'" in res.output
+
+
+def test_every_log_with_every_config(first: Path, data: Path, tmp_path: Path) -> None:
+    (tmp_path / "a.toml").write_text('[fuzzy]\ninference = "product"\n')
+    (tmp_path / "b.toml").write_text('[fuzzy]\ninference = "mamdani"\n')
+    out = tmp_path / "out"
+    args = ["batch", str(data / "good.clf"), "--out", str(out), "--max-scans", "4"]
+    res = runner.invoke(
+        app, [*args, "--config", str(tmp_path / "a.toml"), "--config", str(tmp_path / "b.toml")]
+    )
+    assert res.exit_code == 0, res.output
+    rows = json.loads((out / "batch.json").read_text())["rows"]
+    assert sorted((r["config"], r["status"]) for r in rows) == [("a", "ok"), ("b", "ok")]
+    for name in ("a", "b"):
+        assert (out / "good.clf" / name / "summary.json").is_file()
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "a.toml").write_text("")
+    res = runner.invoke(
+        app,
+        [*args, "--config", str(tmp_path / "a.toml"), "--config", str(tmp_path / "sub" / "a.toml")],
+    )
+    assert res.exit_code == 2 and "fuzzypos: error: " in res.output

@@ -246,7 +246,7 @@ def _start_ray(ray: Any, address: str | None, jobs: int) -> bool:
         ray.init(address=address)
     else:
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-        ray.init(num_cpus=jobs, include_dashboard=False)
+        ray.init(address="local", num_cpus=jobs, include_dashboard=False)
     return True
 
 
