@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 
 from fuzzypos.batch import RayMissingError, find_logs, run_batch
 from fuzzypos.cli import app
-from helpers import write_relations, write_sim_log
+from helpers import make_bag, standard, write_relations, write_sim_log
 
 runner = CliRunner()
 MAX_SCANS = "8"
@@ -67,9 +67,11 @@ def first(ray_session: None, data: Path, tmp_path_factory: pytest.TempPathFactor
     return out
 
 
-def test_find_logs_by_content(data: Path) -> None:
+def test_find_logs_by_content(data: Path, tmp_path: Path) -> None:
     names = [p.name for p in find_logs([data])]
     assert names == ["broken.clf", "good.clf", "zipped.clf.gz"]
+    bag = make_bag(tmp_path, "ros2-sqlite3", standard)
+    assert find_logs([tmp_path]) == [bag]  # a ROS2 bag directory, not the files in it
 
 
 def test_a_failed_log_does_not_stop_the_others(first: Path) -> None:
@@ -153,3 +155,23 @@ def test_every_log_with_every_config(first: Path, data: Path, tmp_path: Path) ->
         [*args, "--config", str(tmp_path / "a.toml"), "--config", str(tmp_path / "sub" / "a.toml")],
     )
     assert res.exit_code == 2 and "fuzzypos: error: " in res.output
+
+
+def test_ctrl_c_keeps_what_finished(first: Path, data: Path, tmp_path: Path) -> None:
+    def stop(row: dict[str, Any], done: int, total: int) -> None:
+        if done == 1:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_batch([data], tmp_path, max_scans=4, progress=stop)
+    kept = json.loads((tmp_path / "batch.json").read_text())
+    assert kept["interrupted"] is True and kept["runs"] == 3 and len(kept["rows"]) == 1
+
+
+def test_ctrl_c_exits_130(monkeypatch: pytest.MonkeyPatch, data: Path, tmp_path: Path) -> None:
+    def interrupted(*args: Any, **kwargs: Any) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("fuzzypos.batch.run_batch", interrupted)
+    res = runner.invoke(app, ["batch", str(data), "--out", str(tmp_path)])
+    assert res.exit_code == 130 and "interrupted" in res.output

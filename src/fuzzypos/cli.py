@@ -67,9 +67,9 @@ app = typer.Typer(
 console = Console()
 
 
-def _fail(message: str) -> NoReturn:
+def _fail(message: str, code: int = 2) -> NoReturn:
     typer.echo(f"fuzzypos: error: {message}", err=True)
-    raise typer.Exit(code=2)
+    raise typer.Exit(code=code)
 
 
 def _load_config(preset: str, config: Path | None) -> Config:
@@ -871,10 +871,10 @@ def batch(
 
     try:
         with progress_bar(console) as report:
-            result = run_batch(
-                paths, out, configs=configs or (), max_scans=max_scans, address=address,
-                jobs=jobs, force=force, progress=report,
-            )  # fmt: skip
+            result = run_batch(paths, out, configs=configs or (), max_scans=max_scans,
+                address=address, jobs=jobs, force=force, progress=report)  # fmt: skip
+    except KeyboardInterrupt:
+        _fail(f"interrupted; the runs finished are in {out / 'batch.json'}", 130)
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
     console.print(batch_table(result.rows))
