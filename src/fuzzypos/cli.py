@@ -858,7 +858,7 @@ def benchmark(
 
 @app.command()
 def batch(
-    paths: Annotated[list[Path], typer.Argument(help="logs, or folders searched for logs")],
+    paths: Annotated[list[Path], typer.Argument(help="logs or their folders", readable=False)],
     out: Annotated[Path, typer.Option(help="the results' folder", readable=False)] = Path("batch"),
     configs: Annotated[list[Path] | None, typer.Option("--config", help="config TOML")] = None,
     max_scans: Annotated[int | None, typer.Option("--max-scans", help="scans per run")] = None,
