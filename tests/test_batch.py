@@ -72,6 +72,11 @@ def test_find_logs_by_content(data: Path, tmp_path: Path) -> None:
     assert names == ["broken.clf", "good.clf", "zipped.clf.gz"]
     bag = make_bag(tmp_path, "ros2-sqlite3", standard)
     assert find_logs([tmp_path]) == [bag]  # a ROS2 bag directory, not the files in it
+    results = tmp_path / "results" / "good.clf"
+    results.mkdir(parents=True)
+    (results / "trajectory.clf").write_bytes((data / "good.clf").read_bytes())
+    (results / "summary.json").write_text("{}")
+    assert find_logs([tmp_path]) == [bag]  # a results folder is passed over
 
 
 def test_a_failed_log_does_not_stop_the_others(first: Path) -> None:

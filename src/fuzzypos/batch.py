@@ -81,8 +81,9 @@ def _require_ray() -> Any:
 # -- finding the logs ------------------------------------------------------------------------
 def _first_word(path: Path) -> str | None:
     """The first word of the first non-blank, non-comment line (plain or gzip), or None."""
-    opener: Any = gzip.open if path.read_bytes()[:2] == b"\x1f\x8b" else open
     try:
+        with open(path, "rb") as raw:
+            opener: Any = gzip.open if raw.read(2) == b"\x1f\x8b" else open
         with opener(path, "rt", encoding="utf-8", errors="replace") as f:
             for k, line in enumerate(f):
                 text = line.strip()
@@ -105,9 +106,12 @@ def is_log(path: Path) -> bool:
 
 
 def _walk(root: Path) -> Iterable[Path]:
-    """Files and ROS2 bag directories under ``root`` (not into a bag directory), sorted."""
+    """Files and ROS2 bag directories under ``root`` (not into a bag directory), sorted; not
+    into a results folder (one holding ``summary.json``: its ``trajectory.clf`` is no input)."""
     if (root / "metadata.yaml").is_file():
         yield root
+        return
+    if (root / "summary.json").is_file():
         return
     for child in sorted(root.iterdir()):
         if child.is_dir():
@@ -313,6 +317,7 @@ def run_batch(
             except Exception as exc:  # a crashed worker, an unexpected error in the task
                 row = {"log": run.log, "config": run.config_name, "folder": run.folder}
                 row.update(status="failed", error=_error_line(exc), seconds=None, scans=None)
+                row.update(scans_per_second=None, relations=None)
             rows.append(row)
             _write(json_path, rows, len(runs), False)
             if progress is not None:
