@@ -68,9 +68,11 @@ class LoopClosureConfig:
         ge=0,
     )
     search_distance: float = _field(
-        1.0,
-        "the verification searches translations within 3 σ of the predicted pose, at most "
-        "1 m: the search's grid (search.translation_step) costs grow with its square",
+        3.0,
+        "the verification searches translations within ±3 m of the predicted pose: where the "
+        "graph has gone a while without a closure to the old map its prediction drifts past "
+        "1 m and a narrower search never attaches it again (the ambiguity test guards the "
+        "wider one); the search's grid (search.translation_step) costs grow with its square",
         unit=M,
         gt=0.0,
     )
