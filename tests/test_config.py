@@ -62,6 +62,7 @@ ANGLES_DEG = {
     ("loop_closure", "search_angle"): 20.0,
     ("loop_closure", "reoptimize_angle"): 1.0,
     ("loop_closure", "heading_floor"): 2.0,
+    ("loop_closure", "closure_floor_rotation"): 0.5,
 }
 ANGLE_WORDS = ("angle", "rotation", "heading", "bearing", "yaw", "theta")
 SECTIONS = [

@@ -52,6 +52,24 @@ class LoopClosureConfig:
         "each verification is a search and several refinements",
         ge=1,
     )
+    closure_floor_translation: float = _field(
+        0.03,
+        "a verified closure's covariance is at least (3 cm)² in translation: its fit's own "
+        "M⁻¹ G M⁻¹ says 1–5 mm where closures lie 2–7 cm from a SLAM reference (the submap's "
+        "keyframes carry their own error); overconfident closures fight each other and the "
+        "chain, and GNC then drops true ones",
+        unit=M,
+        gt=0.0,
+        le=1.0,
+    )
+    closure_floor_rotation: float = _field(
+        math.radians(0.5),
+        "and at least (0.5°)² in rotation, for the same reason (fits claim 0.05–0.2°, lie "
+        "about 0.4° off)",
+        unit=RAD,
+        gt=0.0,
+        le=math.radians(10.0),
+    )
     heading_floor: float = _field(
         math.radians(2.0),
         "a verified fit's heading must lie within the χ²(1) gate (gate_probability) of the "

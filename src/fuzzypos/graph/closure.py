@@ -37,12 +37,6 @@ __all__ = ["Closure", "LoopCloser"]
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
-#: the covariance floor of a closure (m², rad²): 3 cm and 0.5°. The fit's own M⁻¹ G M⁻¹ says
-#: 1–5 mm and 0.05–0.2° where a closure lies 2–7 cm and 0.4° from a SLAM reference (the
-#: submap's keyframes carry their own error), and so overconfident closures fight each other
-#: and the chain: GNC then drops true ones and the local error grows
-_FLOOR = np.diag([0.03**2, 0.03**2, math.radians(0.5) ** 2])
-
 
 @dataclass(frozen=True, eq=False)
 class Closure:
@@ -273,7 +267,9 @@ class LoopCloser:
         m_inv = np.linalg.inv(m + 1e-12 * np.eye(3))
         g = self.config.covariance.point_correlation * fit.gradient_covariance
         cov = m_inv @ g @ m_inv
-        out: FloatArray = local(0.5 * (cov + cov.T), float(fit.increment[2])) + _FLOOR
+        s = self.settings  # the floors: what a closure is at best (the config's reasons)
+        floor = np.diag([s.closure_floor_translation**2] * 2 + [s.closure_floor_rotation**2])
+        out: FloatArray = local(0.5 * (cov + cov.T), float(fit.increment[2])) + floor
         return out
 
     def close(self, graph: PoseGraph, j: int) -> Closure | None:
