@@ -124,11 +124,11 @@ import numpy as np
 from ..geometry import Pose2D
 from ..scan import LaserScan, ScanError
 from ._common import (
-    GZIP_ERRORS,
     FloatArray,
     LogFormatError,
     LogRecord,
     PathLike,
+    _lines,
     display_name,
     open_text,
     spool_if_stream,
@@ -411,23 +411,19 @@ class CarmenReader:
 
     def _scan_stamps(self) -> Iterator[float]:
         with open_text(self.path) as fh:
-            it = iter(fh)
-            while True:
-                try:
-                    line = next(it)
-                except StopIteration:
-                    return
-                except GZIP_ERRORS:
-                    return
-                if not line.startswith(("FLASER ", "ROBOTLASER1 ")):
-                    continue
-                tail = line.rsplit(None, 3)
-                try:
-                    t = float(tail[1]) if len(tail) == 4 else math.nan
-                except ValueError:
-                    continue
-                if math.isfinite(t):
-                    yield t
+            try:
+                for _, line in _lines(fh, self.path, CarmenFormatError):
+                    if not line.startswith(("FLASER ", "ROBOTLASER1 ")):
+                        continue
+                    tail = line.rsplit(None, 3)
+                    try:
+                        t = float(tail[1]) if len(tail) == 4 else math.nan
+                    except ValueError:
+                        continue
+                    if math.isfinite(t):
+                        yield t
+            except CarmenFormatError:  # a damaged stream ends the pass; records() reports it
+                return
 
     def _flush_pending(self) -> None:
         if self._pending is not None:
