@@ -16,7 +16,7 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from fuzzypos import features as F
-from fuzzypos import sim
+from fuzzypos import segmentation, sim
 from fuzzypos.config import Config
 from fuzzypos.geometry import Pose2D
 from fuzzypos.scan import LaserScan
@@ -407,7 +407,7 @@ def test_angular_points_interior_angle_on_a_constructed_corner() -> None:
     b = np.column_stack([3.0 - np.linspace(0.1, 1.4, 14), np.zeros(14)])  # along y = 0
     pts = np.vstack([a, b])
     cluster = np.zeros(len(pts), dtype=np.int64)
-    steps = F._steps(pts, closed=False)
+    steps = segmentation._steps(pts, closed=False)
     is_corner, angle = F.angular_points(pts, cluster, steps, CFG)
     np.testing.assert_array_equal(np.flatnonzero(is_corner), [14])
     assert angle[14] == pytest.approx(math.pi / 2, abs=1e-12)

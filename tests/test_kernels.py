@@ -622,6 +622,69 @@ def test_the_features_of_a_scan_are_the_same_either_way(pose, seed, beams) -> No
         np.testing.assert_allclose(getattr(f.lines, name), getattr(g.lines, name), atol=TOL)
 
 
+@BUDGET
+@given(
+    pose=poses,
+    seed=st.integers(0, 1000),
+    beams=st.sampled_from([180, 360]),
+    clockwise=st.booleans(),
+    offset=st.booleans(),
+    bands=st.booleans(),
+)
+def test_the_compiled_front_of_the_chain_is_the_staged_one(
+    pose, seed, beams, clockwise, offset, bands
+) -> None:
+    """The fused front of feature extraction (usable points to segment ids, two compiled
+    calls) against the staged chain in numpy, on scans read clockwise, with the scanner off
+    the robot's centre and with "no return" bands that take some of the readings."""
+    scan = scan_at(pose, seed, beams)
+    ranges = np.asarray(scan.ranges)
+    if clockwise:  # the same beams, listed from the other end
+        scan = replace(
+            scan, ranges=ranges[::-1].copy(),
+            angle_min=scan.angle_min + (ranges.shape[0] - 1) * scan.angle_increment,
+            angle_increment=-scan.angle_increment,
+        )  # fmt: skip
+    if offset:
+        scan = replace(scan, sensor_pose=Pose2D(0.12, -0.03, 0.05))
+    cfg = CFG
+    if bands:  # the band around the median range drops a stretch of readings
+        mid = float(np.median(ranges[np.isfinite(ranges)]))
+        band = ((max(mid - 0.2, 0.0), mid + 0.2),)
+        cfg = CFG.with_overrides({"scanner": {"no_return_bands": band}})
+    bases = features_module.rule_bases(cfg.fuzzy)
+    closed = bool(scan.is_full_circle)
+    kernels._ENABLED = True
+    fused = seg.segment_scan_compiled(scan, closed, bases, cfg)
+    with numpy_kernels():
+        staged = seg.segment_scan_staged(scan, closed, bases, cfg)
+    assert fused is not None  # noisy scans of the office have gaps: no gapless ring
+    th = cfg.filtering.detection_angle_threshold
+    assume(np.abs(staged[4] - th).min(initial=1.0) > MARGIN)
+    for k, (x, y) in enumerate(zip(fused, staged)):
+        if isinstance(y, np.ndarray) and y.dtype == np.float64:
+            np.testing.assert_allclose(x, y, rtol=0, atol=TOL, err_msg=str(k))
+        elif isinstance(y, np.ndarray):
+            np.testing.assert_array_equal(x, y, err_msg=str(k))
+        else:
+            assert x == pytest.approx(y, abs=TOL), k
+
+
+def test_a_gapless_ring_leaves_its_seam_to_the_staged_chain() -> None:
+    """A 360° scan inside a closed square room has no gap: the fused front declines, and
+    extract_features puts the seam on the sharpest corner as the staged chain does."""
+    room = sim.World.from_polygons([sim.worlds.box_polygon(0.0, 0.0, 6.0, 6.0)])
+    scan = sim.simulate_scan(room, Pose2D(0.3, -0.2, 0.4), scanner(360, noise=0.002),
+                             rng=np.random.default_rng(1))  # fmt: skip
+    bases = features_module.rule_bases(CFG.fuzzy)
+    kernels._ENABLED = True
+    assert seg.segment_scan_compiled(scan, True, bases, CFG) is None
+    f, g = both(lambda: extract_features(scan, CFG))
+    np.testing.assert_array_equal(f.is_angular_point, g.is_angular_point)
+    assert f.is_angular_point[0]  # the seam on a corner
+    assert f.lines.normal.shape[0] == g.lines.normal.shape[0] >= 4
+
+
 def test_a_simulated_run_is_the_same_either_way() -> None:
     """A drive through the office with drifting odometry: the same trajectory, step by step."""
     truth = sim.arc_path(Pose2D(-8.0, 0.0, 0.0), 60, step=0.08, turn_deg=1.0)
@@ -695,3 +758,110 @@ def test_rule_base_interpolation_kernel_is_its_reference(pairs, which):
     x2 = np.concatenate([x2, np.resize(g2, g1.shape)])
     compiled, reference = both(lambda: base(x1, x2))
     np.testing.assert_allclose(compiled, reference, rtol=0, atol=TOL)
+
+
+# -- the uncertainty stage's 3×3 arithmetic ---------------------------------------------------
+def _spd(rng: np.random.Generator, scale: float) -> np.ndarray:
+    """A random symmetric positive definite 3×3 of about ``scale``."""
+    a = rng.normal(size=(3, 3))
+    return scale * (a @ a.T + 0.3 * np.eye(3))
+
+
+def _fit(rng: np.random.Generator, hold: bool, prior_differs: bool, across: bool = False) -> Any:
+    """A random fit; ``across``: its heading near π, its prior's across ±π from it."""
+    from fuzzypos.matching import Refinement
+
+    heading = math.pi - 0.01 * rng.uniform() if across else rng.uniform(-math.pi, math.pi)
+    increment = np.array([*rng.normal(scale=0.3, size=2), heading])
+    prior = increment + (rng.normal(scale=0.02, size=3) if prior_differs else 0.0)
+    if across:
+        prior[2] = increment[2] + 0.02
+    prior[2] = (prior[2] + math.pi) % math.tau - math.pi  # wrapped: across ±π from increment's
+    return Refinement(
+        increment, 150, 0.9, 0.8,
+        information=_spd(rng, 1e5),
+        prior_information=_spd(rng, 1e3),
+        hold_information=_spd(rng, 1e4) if hold else np.zeros((3, 3)),
+        hold_on_start=bool(rng.integers(2)),
+        start=increment + rng.normal(scale=0.01, size=3),
+        prior=prior,
+        gradient_covariance=_spd(rng, 1e3),
+    )  # fmt: skip
+
+
+@BUDGET
+@given(
+    seed=st.integers(0, 10**6),
+    with_fit=st.booleans(),
+    hold=st.booleans(),
+    prior_differs=st.booleans(),
+    gate_open=st.booleans(),
+)
+def test_the_compiled_assessment_is_the_numpy_one(
+    seed, with_fit, hold, prior_differs, gate_open
+) -> None:
+    """``Uncertainty.assess`` of random fits (a hold or none, a prior at the odometry's motion
+    or off it, the gate open or closed), compiled and in numpy, from the same previous
+    covariance: the covariances, the gate, the rejection and the state the next scan inherits."""
+    from fuzzypos.pipeline.uncertainty import Uncertainty
+
+    rng = np.random.default_rng(seed)
+    t_prev = rng.normal(scale=[0.5, 0.5, 1.0])
+    prior = rng.normal(scale=[0.1, 0.1, 0.2])
+    prior_cov = _spd(rng, 1e-4)
+    previous = _spd(rng, 1e-5)
+    fit = _fit(rng, hold, prior_differs) if with_fit else None
+    from_key = fit.increment if fit is not None else rng.normal(scale=[0.3, 0.3, 0.5])
+    if fit is not None and not prior_differs:
+        # the prior at the odometry's motion from the keyframe, as the positioner gives it
+        key = np.array(Pose2D(*t_prev).compose(Pose2D(*prior)).as_array())
+        fit = replace(fit, prior=key)
+
+    def run() -> Any:
+        u = Uncertainty(CFG.covariance, CFG.gate)
+        u._previous = previous.copy()
+        out = u.assess(t_prev, prior, prior_cov, from_key, fit, gate_open)
+        return out, u._previous
+
+    (a, prev_a), (b, prev_b) = both(run)
+    if b.gate is not None:
+        assume(abs(b.gate - Uncertainty(CFG.covariance, CFG.gate).threshold) > MARGIN)
+    assert a.rejected == b.rejected
+    assert (a.gate is None) == (b.gate is None)
+    if b.gate is not None:
+        assert a.gate == pytest.approx(b.gate, rel=TOL, abs=TOL)
+    for x, y in ((a.covariance, b.covariance), (a.keyframe_covariance, b.keyframe_covariance)):
+        np.testing.assert_allclose(x, y, rtol=TOL, atol=TOL * np.abs(y).max())
+    np.testing.assert_allclose(prev_a, prev_b, rtol=TOL, atol=TOL * np.abs(prev_b).max())
+
+
+@BUDGET
+@given(seed=st.integers(0, 10**6), singular=st.booleans(), hold=st.booleans(), across=st.booleans())
+def test_the_compiled_scan_only_motion_is_the_numpy_one(seed, singular, hold, across) -> None:
+    """``Uncertainty.scan_only`` of random fits, compiled and in numpy: the same motion and
+    covariance, and None alike where a hold was used or the points' information is too
+    ill-conditioned (a corridor's); the prior's heading unwrapped near the fit's across ±π."""
+    from fuzzypos.pipeline.uncertainty import Uncertainty
+
+    rng = np.random.default_rng(seed)
+    fit = _fit(rng, hold, True, across)
+    if singular:
+        info = fit.information.copy()
+        info[0] = info[1] * (1.0 + 1e-12)  # rank deficient to rounding
+        info[:, 0] = info[:, 1] * (1.0 + 1e-12)
+        fit = replace(fit, information=info)
+    t_prev = rng.normal(scale=[0.5, 0.5, 1.0])
+    previous = _spd(rng, 1e-5)
+
+    def run() -> Any:
+        u = Uncertainty(CFG.covariance, CFG.gate)
+        u._previous = previous.copy()
+        return u.scan_only(fit, t_prev)
+
+    a, b = both(run)
+    if hold or singular:
+        assert b is None
+    assert (a is None) == (b is None)
+    if b is not None:
+        np.testing.assert_allclose(a[0], b[0], rtol=TOL, atol=TOL)
+        np.testing.assert_allclose(a[1], b[1], rtol=TOL, atol=TOL * np.abs(b[1]).max())

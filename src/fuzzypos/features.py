@@ -25,11 +25,9 @@ from numpy.typing import NDArray
 from ._kernels import compiled
 from .config import Config, FuzzyConfig
 from .fuzzy import RuleBases
-from .geometry import stack_columns, transform_points
-from .scan import LaserScan, usable
+from .geometry import stack_columns
+from .scan import LaserScan
 from .segmentation import (
-    _sharpest_ring_corner,
-    _steps,
     _strict_upper,
     angular_points,
     break_points,
@@ -37,10 +35,9 @@ from .segmentation import (
     detection_angles,
     distance_scale,
     filter_points,
-    gap_thresholds,
     line_distance_scale,
     point_uncertainty,
-    segment_ids,
+    segment_scan,
 )
 
 FloatArray = NDArray[np.float64]
@@ -542,52 +539,15 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     """Run every stage of §3.1–3.6 on one scan and keep each intermediate result."""
     cfg = config if config is not None else Config()
     bases = rule_bases(cfg.fuzzy)
-    closed = bool(scan.is_full_circle)
-    beam_index, ranges, p_sensor, points = _valid_points(scan, cfg.scanner.no_return_bands)
     inc = scan.angle_increment
-    t2_valid = gap_thresholds(ranges, inc, cfg)
-
-    # 1. gaps among the valid points, then β (eq. 3), then 2. uncertainty (eq. 4)
-    _, gap_after = break_points(p_sensor, t2_valid, cfg.segmentation.gap_difference, closed)
-    beta = detection_angles(p_sensor, gap_after, closed)
-    u, scale = _graded_points(ranges, beta, bases, cfg)
-
-    # 3. filtering (§3.1)
-    kept = filter_points(beta, cfg.filtering.detection_angle_threshold)
-    kept_index = kept.nonzero()[0]
+    front = segment_scan(scan, bases, cfg)
+    (beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
+     cluster, is_corner, raw_seg, segment, _ring_corner) = front  # fmt: skip
     kp = points.take(kept_index, axis=0)
-    ku = u[kept_index]
-    kr = ranges[kept_index]
-
-    # 4. break points (eq. 13) and clusters (§3.3) on the filtered points
-    t2 = t2_valid[kept_index]
-    is_break, split = break_points(kp, t2, cfg.segmentation.gap_difference, closed)
-    ring_corner = False
-    if closed and kept_index.size:
-        # a 360° scan wraps around (the paper's "indices additive modulo m"): start the
-        # sequence after a gap, or, with no gap at all, at the sharpest corner of the ring
-        if split.any():
-            first = int(split.nonzero()[0][0]) + 1
-        else:
-            first, ring_corner = _sharpest_ring_corner(kp, cfg)
-        order = np.roll(np.arange(kept_index.size), -first)
-        kept_index, kp, ku, kr, t2 = kept_index[order], kp[order], ku[order], kr[order], t2[order]
-        is_break, split = is_break[order], split[order].copy()
-        split[-1] = True
-    fov_edge = np.zeros(kept_index.shape[0], bool)
-    if kept_index.size and not closed:
-        fov_edge[0] = True
-        fov_edge[-1] = True
-    cluster = clusters(split, cfg.segmentation.min_cluster_points)
-
-    # 5. angular points (eq. 14)
-    steps = _steps(kp, False)
-    is_corner, _interior = angular_points(kp, cluster, steps, cfg)
-    if ring_corner and cluster.size and cluster[0] >= 0:
-        is_corner[0] = True  # the seam of a gapless ring sits on its sharpest corner
+    ku = u.take(kept_index)
+    kr = ranges.take(kept_index)
 
     # 6. lines (§3.5, eq. 5–9)
-    raw_seg, segment = segment_ids(cluster, is_corner, cfg.lines.corner_exclusion, ring_corner)
     lu, line_scale = _graded_for_lines(kr, beta[kept_index], ku, segment, scale, bases, cfg)
     lines = fit_lines(kp, lu, segment, cluster, bases, cfg)
     corner_idx = is_corner.nonzero()[0]
@@ -637,15 +597,6 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     )
 
 
-def _graded_points(
-    ranges: FloatArray, beta: FloatArray, bases: RuleBases, cfg: Config
-) -> tuple[FloatArray, float]:
-    """Eq. 4 for every valid point, on distance sets stretched to the scan's own distances
-    (:func:`~fuzzypos.segmentation.distance_scale`); returns the uncertainties and the scale."""
-    scale = distance_scale(ranges, cfg.fuzzy)
-    return point_uncertainty(ranges, beta, bases, scale), scale
-
-
 def _graded_for_lines(
     ranges: FloatArray,
     beta: FloatArray,
@@ -663,26 +614,6 @@ def _graded_for_lines(
     if line_scale == scale:
         return u, scale
     return point_uncertainty(ranges, beta, bases, line_scale), line_scale
-
-
-def _valid_points(
-    scan: LaserScan, no_return_bands: tuple[tuple[float, float], ...] = ()
-) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
-    """The scan's valid readings outside ``no_return_bands`` (:func:`~fuzzypos.scan.usable`)
-    counter-clockwise: their beam indices, ranges, points in the sensor and robot frames."""
-    beam_index = usable(scan, no_return_bands).nonzero()[0]
-    if scan.angle_increment < 0:
-        # process counter-clockwise, so eq. 3's i+1 is the same neighbour
-        beam_index = beam_index[::-1]
-    ranges = np.asarray(scan.ranges)[beam_index]
-    angles = scan.angles[beam_index]
-    p_sensor = stack_columns(ranges * np.cos(angles), ranges * np.sin(angles))
-    sp = scan.sensor_pose
-    if sp.x == 0.0 and sp.y == 0.0 and sp.theta == 0.0:
-        points = p_sensor
-    else:
-        points = transform_points(sp.as_array(), p_sensor)
-    return beam_index, ranges, p_sensor, points
 
 
 @dataclass(frozen=True, eq=False)

@@ -12,8 +12,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._kernels import compiled
-from .config import Config, FuzzyConfig
+from .config import (
+    AngularPointConfig,
+    Config,
+    FilterConfig,
+    FuzzyConfig,
+    LineConfig,
+    SegmentationConfig,
+)
 from .fuzzy import RuleBases
+from .geometry import stack_columns, transform_points
+from .scan import LaserScan, _band_bounds_cached, usable
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -32,6 +41,7 @@ __all__ = [
     "segments",
     "raw_segment_ids",
     "segment_ids",
+    "segment_scan",
 ]
 
 
@@ -436,3 +446,182 @@ def raw_segment_ids(cluster: IntArray, is_corner: BoolArray) -> IntArray:
     after_corner = np.zeros(n, bool)
     after_corner[1:] = is_corner[:-1] & ~new_cluster[1:]
     return _running_count(new_cluster | after_corner) - 1
+
+
+# ---------------------------------------------------------------------------------------------
+# the front of feature extraction: §3.1–3.4 and the segments of §3.5 on one scan
+# ---------------------------------------------------------------------------------------------
+def segment_scan(scan: LaserScan, bases: RuleBases, cfg: Config) -> _Front:
+    """Steps 1–5 of :func:`fuzzypos.features.extract_features` and the segments lines are
+    fitted to: the scan's usable points (beam indices, ranges, points in the robot frame),
+    the distance scale, β, the uncertainty, the kept mask and indices, the break points, the
+    field of view's edges, the clusters, the angular points, the raw and line segment ids and
+    whether a gapless ring's seam sits on its sharpest corner. Compiled in two calls where
+    the kernels are on (a gapless 360° ring takes the staged chain)."""
+    closed = bool(scan.is_full_circle)
+    if compiled():
+        front = segment_scan_compiled(scan, closed, bases, cfg)
+        if front is not None:
+            return front
+    return segment_scan_staged(scan, closed, bases, cfg)
+
+
+#: what the front of the chain (steps 1–5 and the segment ids) gives the rest
+_Front = tuple[
+    IntArray,
+    FloatArray,
+    FloatArray,
+    float,
+    FloatArray,
+    FloatArray,
+    BoolArray,
+    IntArray,
+    BoolArray,
+    BoolArray,
+    IntArray,
+    BoolArray,
+    IntArray,
+    IntArray,
+    bool,
+]
+
+
+def segment_scan_staged(scan: LaserScan, closed: bool, bases: RuleBases, cfg: Config) -> _Front:
+    """Steps 1–5 of :func:`extract_features` and the segments of step 6, stage by stage:
+    the usable points, their β, uncertainty, filtering, break points, clusters, angular
+    points, segment ids (the reference of :func:`segment_scan_compiled`)."""
+    beam_index, ranges, p_sensor, points = _valid_points(scan, cfg.scanner.no_return_bands)
+    inc = scan.angle_increment
+    t2_valid = gap_thresholds(ranges, inc, cfg)
+
+    # 1. gaps among the valid points, then β (eq. 3), then 2. uncertainty (eq. 4)
+    _, gap_after = break_points(p_sensor, t2_valid, cfg.segmentation.gap_difference, closed)
+    beta = detection_angles(p_sensor, gap_after, closed)
+    u, scale = _graded_points(ranges, beta, bases, cfg)
+
+    # 3. filtering (§3.1)
+    kept = filter_points(beta, cfg.filtering.detection_angle_threshold)
+    kept_index = kept.nonzero()[0]
+    kp = points.take(kept_index, axis=0)
+
+    # 4. break points (eq. 13) and clusters (§3.3) on the filtered points
+    t2 = t2_valid[kept_index]
+    is_break, split = break_points(kp, t2, cfg.segmentation.gap_difference, closed)
+    ring_corner = False
+    if closed and kept_index.size:
+        # a 360° scan wraps around (the paper's "indices additive modulo m"): start the
+        # sequence after a gap, or, with no gap at all, at the sharpest corner of the ring
+        if split.any():
+            first = int(split.nonzero()[0][0]) + 1
+        else:
+            first, ring_corner = _sharpest_ring_corner(kp, cfg)
+        order = np.roll(np.arange(kept_index.size), -first)
+        kept_index, kp = kept_index[order], kp[order]
+        is_break, split = is_break[order], split[order].copy()
+        split[-1] = True
+    fov_edge = np.zeros(kept_index.shape[0], bool)
+    if kept_index.size and not closed:
+        fov_edge[0] = True
+        fov_edge[-1] = True
+    cluster = clusters(split, cfg.segmentation.min_cluster_points)
+
+    # 5. angular points (eq. 14)
+    steps = _steps(kp, False)
+    is_corner, _interior = angular_points(kp, cluster, steps, cfg)
+    if ring_corner and cluster.size and cluster[0] >= 0:
+        is_corner[0] = True  # the seam of a gapless ring sits on its sharpest corner
+
+    raw_seg, segment = segment_ids(cluster, is_corner, cfg.lines.corner_exclusion, ring_corner)
+    return (
+        beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
+        cluster, is_corner, raw_seg, segment, ring_corner,
+    )  # fmt: skip
+
+
+def segment_scan_compiled(
+    scan: LaserScan, closed: bool, bases: RuleBases, cfg: Config
+) -> _Front | None:
+    """:func:`segment_scan_staged` in two compiled calls (``_kernels.front``); None for a gapless
+    360° ring (its seam is the staged chain's) or rule bases off the interpolation's path."""
+    from ._kernels import front as kernel
+
+    base = bases.points
+    if base._grids is None:
+        return None
+    lo, hi = _band_bounds_cached(tuple(tuple(band) for band in cfg.scanner.no_return_bands))
+    sp = scan.sensor_pose
+    beam_index, ranges, _p_sensor, points = kernel.valid_points(
+        np.asarray(scan.ranges), scan.angles, scan.valid, lo, hi, float(scan.angle_increment),
+        np.array([sp.x, sp.y, sp.theta]),
+    )  # fmt: skip
+    done, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg = (
+        kernel.scan_front(
+            _p_sensor, points, ranges, float(scan.angle_increment), closed,
+            _front_params(cfg.segmentation, cfg.angular_points, cfg.fuzzy, cfg.filtering,
+                          cfg.lines), base._grids[0], base._grids[1], base._table,
+            base._centre_lo, base._centre_hi,
+        )
+    )  # fmt: skip
+    if not done:
+        return None
+    return (
+        beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
+        cluster, is_corner, raw, seg, False,
+    )  # fmt: skip
+
+
+@lru_cache(maxsize=16)
+def _front_params(
+    seg: SegmentationConfig,
+    ap: AngularPointConfig,
+    fz: FuzzyConfig,
+    filtering: FilterConfig,
+    lines: LineConfig,
+) -> FloatArray:
+    """``_kernels.front.PARAMS`` of a config's sections (cached; not to be written to)."""
+    from ._kernels.front import PARAMS
+
+    values = {
+        "gap_distance": seg.gap_distance,
+        "gap_distance_per_metre": seg.gap_distance_per_metre,
+        "gap_difference": seg.gap_difference,
+        "detection_angle_threshold": filtering.detection_angle_threshold,
+        "min_cluster_points": seg.min_cluster_points,
+        "neighbour_distance": ap.neighbour_distance,
+        "neighbour_step": ap.neighbour_step,
+        "interior_angle_threshold": ap.interior_angle_threshold,
+        "corner_exclusion": lines.corner_exclusion,
+        "distance_scale_reference": fz.distance_scale_reference,
+        "distance_scale_quantile": fz.distance_scale_quantile,
+        "scan_scale": 0.0 if fz.distance_scale == "fixed" else 1.0,
+    }
+    return np.array([float(values[name]) for name in PARAMS])
+
+
+def _graded_points(
+    ranges: FloatArray, beta: FloatArray, bases: RuleBases, cfg: Config
+) -> tuple[FloatArray, float]:
+    """Eq. 4 for every valid point, on distance sets stretched to the scan's own distances
+    (:func:`~fuzzypos.segmentation.distance_scale`); returns the uncertainties and the scale."""
+    scale = distance_scale(ranges, cfg.fuzzy)
+    return point_uncertainty(ranges, beta, bases, scale), scale
+
+
+def _valid_points(
+    scan: LaserScan, no_return_bands: tuple[tuple[float, float], ...] = ()
+) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+    """The scan's valid readings outside ``no_return_bands`` (:func:`~fuzzypos.scan.usable`)
+    counter-clockwise: their beam indices, ranges, points in the sensor and robot frames."""
+    beam_index = usable(scan, no_return_bands).nonzero()[0]
+    if scan.angle_increment < 0:
+        # process counter-clockwise, so eq. 3's i+1 is the same neighbour
+        beam_index = beam_index[::-1]
+    ranges = np.asarray(scan.ranges)[beam_index]
+    angles = scan.angles[beam_index]
+    p_sensor = stack_columns(ranges * np.cos(angles), ranges * np.sin(angles))
+    sp = scan.sensor_pose
+    if sp.x == 0.0 and sp.y == 0.0 and sp.theta == 0.0:
+        points = p_sensor
+    else:
+        points = transform_points(sp.as_array(), p_sensor)
+    return beam_index, ranges, p_sensor, points

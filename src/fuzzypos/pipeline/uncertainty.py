@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .._kernels import compiled
 from ..config import CovarianceConfig, GateConfig
 from ..geometry import compose, compose_jacobians, relative
 from ..matching import Refinement
@@ -42,6 +43,11 @@ _EYE.flags.writeable = False
 #: what keeps the fit's information invertible
 _TINY = 1e-12 * np.eye(3)
 _TINY.flags.writeable = False
+
+
+def _f64(a: FloatArray) -> FloatArray:
+    """A contiguous float64 array (the one type the kernels are compiled for)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _read_only(a: FloatArray) -> FloatArray:
@@ -93,6 +99,8 @@ class Uncertainty:
         self._feature = _read_only(
             np.diag([f.feature_translation**2] * 2 + [f.feature_rotation**2])
         )
+        # the compiled assessment's inputs from a fit: its four matrices and two poses
+        self._fit_matrices, self._fit_poses = np.zeros((4, 3, 3)), np.zeros((2, 3))
         self.reset()
 
     def reset(self) -> None:
@@ -141,6 +149,48 @@ class Uncertainty:
         odometry's, or a broad one), estimated from the keyframe as ``from_key`` by ``fit``
         (None: the features alone; ``from_key`` None: nothing, the prior stands). With
         ``gate_open`` the match is compared with the prior and rejected past the gate."""
+        if from_key is not None and compiled():
+            return self._assess_compiled(t_prev, prior, prior_covariance, from_key, fit, gate_open)
+        return self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
+
+    def _assess_compiled(
+        self,
+        t_prev: FloatArray,
+        prior: FloatArray,
+        prior_covariance: FloatArray,
+        from_key: FloatArray,
+        fit: Refinement | None,
+        gate_open: bool,
+    ) -> Assessment:
+        """:meth:`assess` of a match through the compiled kernel (the fallback, rare, in numpy)."""
+        from .._kernels.uncertainty import assess_fit
+
+        matrices, poses = self._fit_matrices, self._fit_poses
+        if fit is not None:  # the fit's matrices and poses into the kernel's buffers
+            matrices[0], matrices[1] = fit.information, fit.prior_information
+            matrices[2], matrices[3] = fit.hold_information, fit.gradient_covariance
+            poses[0] = fit.prior
+            poses[1] = fit.start if fit.hold_on_start else compose(t_prev, prior)
+        inc_cov, kf, previous, gate = assess_fit(
+            _f64(t_prev), _f64(prior), _f64(prior_covariance), self._previous, _f64(from_key),
+            self._feature, self.floor, fit is not None, matrices, poses,
+            float(self.settings.point_correlation), bool(gate_open),
+        )  # fmt: skip
+        if gate_open and gate > self.threshold:
+            return self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
+        self._previous = previous
+        return Assessment(inc_cov, kf, None if not gate_open else float(gate))
+
+    def _assess_numpy(
+        self,
+        t_prev: FloatArray,
+        prior: FloatArray,
+        prior_covariance: FloatArray,
+        from_key: FloatArray | None,
+        fit: Refinement | None,
+        gate_open: bool,
+    ) -> Assessment:
+        """:meth:`assess` in numpy (the compiled kernel's reference)."""
         ja, jb = compose_jacobians(t_prev, prior)
         prev = ja @ self._previous @ ja.T
         odo = jb @ prior_covariance @ jb.T
@@ -219,6 +269,23 @@ class Uncertainty:
         points alone do not fix the motion (a corridor held, or too little information)."""
         if fit.hold_information.any():
             return None
+        if compiled():
+            from .._kernels.uncertainty import scan_only
+
+            ok, inc, cov = scan_only(
+                _f64(fit.information), _f64(fit.prior_information),
+                _f64(fit.gradient_covariance), _f64(fit.increment), _f64(fit.prior),
+                _f64(t_prev), self._previous, self.floor,
+                float(self.settings.point_correlation), _MAX_CONDITION,
+            )  # fmt: skip
+            return (inc, cov) if ok else None
+        return self._scan_only_numpy(fit, t_prev)
+
+    def _scan_only_numpy(
+        self, fit: Refinement, t_prev: FloatArray
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """:meth:`scan_only` of a fit without a hold, in numpy (the compiled kernel's
+        reference)."""
         a = fit.information
         if not np.isfinite(a).all() or np.linalg.cond(a) > _MAX_CONDITION:
             return None

@@ -1,0 +1,201 @@
+"""The front of feature extraction (§3.1–3.5 up to the line fits) as one compiled call: the
+scan's usable points, gap thresholds, detection angles (eq. 3), point uncertainty (eq. 4 by
+the rule base's bilinear interpolation), filtering (§3.1), break points (eq. 13), clusters
+(§3.3), angular points (eq. 14) and segment ids, each through the stage kernels of
+``_kernels.segmentation`` and ``_kernels.fuzzy``. Its reference is the staged chain of
+``fuzzypos.features.extract_features`` (``_front_staged``), each stage a Python function
+over numpy arrays or its own kernel; here the stages follow each other without returning to
+Python in between (a dozen calls fewer per scan). The angles are libm's ``atan2``, which may
+differ from numpy's ``arctan2`` in the last bit: the two agree except at exact ties."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._jit import kernel
+from .fuzzy import bilinear
+from .segmentation import (
+    break_points,
+    clusters,
+    corner_arms,
+    detection_terms,
+    segments,
+    sharpest_of_runs,
+    steps,
+)
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+#: ``params`` of :func:`scan_front`, in order
+PARAMS = (
+    "gap_distance",
+    "gap_distance_per_metre",
+    "gap_difference",
+    "detection_angle_threshold",
+    "min_cluster_points",
+    "neighbour_distance",
+    "neighbour_step",
+    "interior_angle_threshold",
+    "corner_exclusion",
+    "distance_scale_reference",
+    "distance_scale_quantile",
+    "scan_scale",
+)
+
+
+@kernel
+def valid_points(
+    ranges: FloatArray,
+    angles: FloatArray,
+    valid: BoolArray,
+    band_lo: FloatArray,
+    band_hi: FloatArray,
+    angle_increment: float,
+    sensor_pose: FloatArray,
+) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+    """``features._valid_points``: the beams that are valid and in no "no return" band
+    (``scan.usable``), counter-clockwise; their indices, ranges, points in the sensor and in
+    the robot frame (moved by ``sensor_pose``)."""
+    n = ranges.shape[0]
+    keep = np.empty(n, dtype=np.bool_)
+    count = 0
+    for i in range(n):
+        ok = valid[i]
+        if ok:
+            r = ranges[i]
+            for b in range(band_lo.shape[0]):
+                if band_lo[b] <= r <= band_hi[b]:
+                    ok = False
+                    break
+        keep[i] = ok
+        count += ok
+    index = np.empty(count, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        if keep[i]:
+            index[k] = i
+            k += 1
+    if angle_increment < 0:
+        index = index[::-1].copy()
+    r = np.empty(count)
+    p_sensor = np.empty((count, 2))
+    for k in range(count):
+        i = index[k]
+        r[k] = ranges[i]
+        p_sensor[k, 0] = ranges[i] * math.cos(angles[i])
+        p_sensor[k, 1] = ranges[i] * math.sin(angles[i])
+    if sensor_pose[0] == 0.0 and sensor_pose[1] == 0.0 and sensor_pose[2] == 0.0:
+        return index, r, p_sensor, p_sensor
+    c, s = math.cos(sensor_pose[2]), math.sin(sensor_pose[2])
+    points = np.empty((count, 2))
+    for k in range(count):
+        x, y = p_sensor[k, 0], p_sensor[k, 1]
+        points[k, 0] = sensor_pose[0] + c * x - s * y
+        points[k, 1] = sensor_pose[1] + s * x + c * y
+    return index, r, p_sensor, points
+
+
+@kernel
+def distance_scale(ranges: FloatArray, reference: float, quantile: float) -> float:
+    """``segmentation.distance_scale`` with ``distance_scale = "scan"``."""
+    n = ranges.shape[0]
+    if n == 0:
+        return 1.0
+    k = min(math.ceil(quantile * (n - 1)) + 1, n - 1)
+    within = 0
+    for i in range(n):
+        within += ranges[i] <= reference
+    if within >= k + 1:
+        return 1.0
+    return max(1.0, np.quantile(ranges, quantile) / reference)
+
+
+@kernel
+def scan_front(
+    p_sensor: FloatArray,
+    points: FloatArray,
+    ranges: FloatArray,
+    angle_increment: float,
+    closed: bool,
+    params: FloatArray,
+    g1: FloatArray,
+    g2: FloatArray,
+    table: FloatArray,
+    lo: float,
+    hi: float,
+) -> tuple[
+    bool, float, FloatArray, FloatArray, BoolArray, IntArray, BoolArray, BoolArray,
+    IntArray, BoolArray, IntArray, IntArray,
+]:  # fmt: skip
+    """Steps 1–5 of ``extract_features`` and the segment ids of step 6 (``params`` as
+    :data:`PARAMS`; ``scan_scale`` 1: the distance scale of the scan's ranges, 0: fixed).
+    Returns whether it is done (False for a gapless 360° ring, whose seam the staged chain
+    places at its sharpest corner), the distance scale, β, the uncertainty, the kept mask,
+    the kept indices (in the order of the sequence), the break points, the field of view's
+    edges, the clusters, the angular points and the raw and line segment ids."""
+    gap_distance, per_metre, gap_difference = params[0], params[1], params[2]
+    n = ranges.shape[0]
+    scale = 1.0
+    if params[11] != 0.0:
+        scale = distance_scale(ranges, params[9], params[10])
+    t2_valid = np.empty(n)
+    spacing = per_metre * abs(angle_increment)
+    for i in range(n):
+        t2_valid[i] = max(gap_distance, spacing * ranges[i])
+    # 1. gaps among the valid points, then β (eq. 3), then 2. uncertainty (eq. 4)
+    _, gap_after = break_points(p_sensor, t2_valid, gap_difference, closed)
+    cross, dot, isolated = detection_terms(p_sensor, gap_after, closed)
+    beta = np.empty(n)
+    for i in range(n):
+        beta[i] = 0.0 if isolated[i] else math.atan2(cross[i], dot[i])
+    u = np.zeros(n)
+    if n:
+        u = bilinear(ranges / scale, beta, g1, g2, table, lo, hi)
+    # 3. filtering (§3.1)
+    kept = beta > params[3]
+    kept_index = np.nonzero(kept)[0]
+    kp = points[kept_index]
+    t2 = t2_valid[kept_index]
+    # 4. break points (eq. 13) and clusters (§3.3) on the filtered points
+    is_break, split = break_points(kp, t2, gap_difference, closed)
+    m = kept_index.shape[0]
+    if closed and m:
+        first = -1
+        for j in range(m):
+            if split[j]:
+                first = j + 1
+                break
+        if first < 0:  # a gapless ring: its seam at the sharpest corner (the staged chain)
+            empty = np.zeros(0, dtype=np.int64)
+            nob = np.zeros(0, dtype=np.bool_)
+            return False, scale, beta, u, kept, kept_index, nob, nob, empty, nob, empty, empty
+        order = np.empty(m, dtype=np.int64)
+        for j in range(m):
+            order[j] = (j + first) % m
+        kept_index, kp = kept_index[order], kp[order]
+        is_break, split = is_break[order], split[order]
+        split[m - 1] = True
+    fov_edge = np.zeros(m, dtype=np.bool_)
+    if m and not closed:
+        fov_edge[0] = True
+        fov_edge[m - 1] = True
+    cluster = clusters(split, int(params[4]))
+    # 5. angular points (eq. 14)
+    arms_cross, arms_dot, inside = corner_arms(
+        kp, cluster, steps(kp, False), params[5], int(params[6])
+    )
+    angle = np.empty(m)
+    for j in range(m):
+        angle[j] = abs(math.atan2(arms_cross[j], arms_dot[j])) if inside[j] else math.pi
+    is_corner = sharpest_of_runs(angle, cluster, params[7])
+    # 6. the segments lines are fitted to (§3.5)
+    raw_seg, segment = segments(cluster, is_corner, int(params[8]), False)
+    return (
+        True, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner,
+        raw_seg, segment,
+    )  # fmt: skip
