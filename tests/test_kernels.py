@@ -670,6 +670,51 @@ def test_the_compiled_front_of_the_chain_is_the_staged_one(
             assert x == pytest.approx(y, abs=TOL), k
 
 
+GYM = sim.gym()
+
+
+@BUDGET
+@given(
+    x=st.floats(-10.0, 10.0),
+    y=st.floats(-5.0, 5.0),
+    theta=st.floats(-math.pi, math.pi),
+    seed=st.integers(0, 1000),
+    grading=st.sampled_from(["structure", "points", "fixed"]),
+)
+def test_the_compiled_line_stage_is_the_staged_one(x, y, theta, seed, grading) -> None:
+    """The lines' grading scale, the re-graded points and the line fits in one compiled call
+    against the staged functions in numpy, in a gym seen out to 30 m (so the lines' scale
+    differs from the points'), for each way of grading the distances."""
+    model = sim.ScannerModel(n_beams=360, field_of_view_deg=360.0, angle_min_deg=-180.0,
+                             range_max=30.0, range_noise_std=0.01)  # fmt: skip
+    scan = sim.simulate_scan(GYM, Pose2D(x, y, theta), model, rng=np.random.default_rng(seed))
+    fuzzy = {"structure": {}, "points": {"line_distance_scale": "points"},
+             "fixed": {"distance_scale": "fixed"}}[grading]  # fmt: skip
+    cfg = CFG.with_overrides({"fuzzy": fuzzy}) if fuzzy else CFG
+    bases = features_module.rule_bases(cfg.fuzzy)
+    with numpy_kernels():
+        front = seg.segment_scan(scan, bases, cfg)
+    _, ranges, points, scale, beta, u, _, kept_index = front[:8]
+    segment, cluster = front[13], front[10]
+    kp, kr, ku, kb = points[kept_index], ranges[kept_index], u[kept_index], beta[kept_index]
+    kernels._ENABLED = True
+    fused = features_module._lines_compiled(kp, kr, kb, ku, segment, cluster, scale, bases, cfg)
+    with numpy_kernels():
+        lu, line_scale = features_module._graded_for_lines(kr, kb, ku, segment, scale, bases, cfg)
+        staged = features_module.fit_lines(kp, lu, segment, cluster, bases, cfg)
+    assert fused is not None
+    lines, fused_scale = fused
+    assert fused_scale == pytest.approx(line_scale, rel=TOL)
+    assume(np.abs(lu - 0.5).min(initial=1.0) > MARGIN)  # (no grading sits on a tie)
+    for name in ("normal", "distance", "start", "end", "sigma", "delta", "uncertainty",
+                 "angle_variance", "distance_variance"):  # fmt: skip
+        np.testing.assert_allclose(
+            getattr(lines, name), getattr(staged, name), rtol=TOL, atol=TOL, err_msg=name
+        )
+    for name in ("n_points", "segment", "cluster"):
+        np.testing.assert_array_equal(getattr(lines, name), getattr(staged, name), err_msg=name)
+
+
 def test_a_gapless_ring_leaves_its_seam_to_the_staged_chain() -> None:
     """A 360° scan inside a closed square room has no gap: the fused front declines, and
     extract_features puts the seam on the sharpest corner as the staged chain does."""

@@ -548,8 +548,16 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     kr = ranges.take(kept_index)
 
     # 6. lines (§3.5, eq. 5–9)
-    lu, line_scale = _graded_for_lines(kr, beta[kept_index], ku, segment, scale, bases, cfg)
-    lines = fit_lines(kp, lu, segment, cluster, bases, cfg)
+    fitted = None
+    if compiled():
+        fitted = _lines_compiled(
+            kp, kr, beta.take(kept_index), ku, segment, cluster, scale, bases, cfg
+        )
+    if fitted is None:
+        lu, line_scale = _graded_for_lines(kr, beta[kept_index], ku, segment, scale, bases, cfg)
+        lines = fit_lines(kp, lu, segment, cluster, bases, cfg)
+    else:
+        lines, line_scale = fitted
     corner_idx = is_corner.nonzero()[0]
     n_kept = kp.shape[0]
     # the lines on either side of each angular point (circularly, for the ring's seam)
@@ -595,6 +603,57 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
         lines=lines,
         _corners=context,
     )
+
+
+def _lines_compiled(
+    points: FloatArray,
+    ranges: FloatArray,
+    beta: FloatArray,
+    u: FloatArray,
+    segment: IntArray,
+    cluster: IntArray,
+    scale: float,
+    bases: RuleBases,
+    cfg: Config,
+) -> tuple[Lines, float] | None:
+    """:func:`_graded_for_lines` and :func:`fit_lines` in one compiled call
+    (``_kernels.front.fit_lines``): the lines and the scale they are graded on; None where a
+    rule base is off the interpolation's path (then the staged functions run)."""
+    from ._kernels.front import fit_lines as kernel
+
+    pb, lb = bases.points, bases.lines
+    if pb._grids is None or lb._grids is None:
+        return None
+    fz = cfg.fuzzy
+    structure = fz.distance_scale != "fixed" and fz.line_distance_scale == "structure"
+    params = np.array([
+        cfg.lines.min_points, cfg.lines.min_length, _MIN_LINE_NOISE, float(structure),
+        fz.distance_scale_reference, fz.distance_scale_quantile,
+    ], dtype=np.float64)  # fmt: skip
+    line_scale, _lu, ids, table, firsts, f_line = kernel(
+        np.ascontiguousarray(points), ranges, beta, u, segment, float(scale), params,
+        (*pb._grids, pb._table, pb._centre_lo, pb._centre_hi),
+        (*lb._grids, lb._table, lb._centre_lo, lb._centre_hi),
+    )  # fmt: skip
+    if ids.size == 0:
+        return _empty_lines(), line_scale
+    start, end = table[:, 3:5].copy(), table[:, 5:7].copy()
+    lines = Lines(
+        normal=table[:, 0:2].copy(),
+        distance=table[:, 2].copy(),
+        start=start,
+        end=end,
+        centre=0.5 * (start + end),
+        n_points=table[:, 11].astype(np.int64),
+        sigma=table[:, 7].copy(),
+        delta=table[:, 8].copy(),
+        uncertainty=f_line,
+        segment=ids,
+        cluster=cluster[firsts],
+        angle_variance=table[:, 9].copy(),
+        distance_variance=table[:, 10].copy(),
+    )
+    return lines, line_scale
 
 
 def _graded_for_lines(

@@ -22,6 +22,8 @@ from .segmentation import (
     clusters,
     corner_arms,
     detection_terms,
+    finish_lines,
+    segment_sums,
     segments,
     sharpest_of_runs,
     steps,
@@ -199,3 +201,72 @@ def scan_front(
         True, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner,
         raw_seg, segment,
     )  # fmt: skip
+
+
+@kernel
+def line_distance_scale(
+    line_ranges: FloatArray, point_scale: float, reference: float, quantile: float
+) -> float:
+    """``segmentation.line_distance_scale`` with ``line_distance_scale = "structure"``: the
+    quantile of the lines' points' ranges weighted by range, over the reference, at least
+    ``point_scale``."""
+    if line_ranges.shape[0] == 0:
+        return point_scale
+    r = np.sort(line_ranges)
+    if r[-1] <= reference * point_scale:
+        return point_scale
+    w = np.cumsum(r) - 0.5 * r
+    q = float(np.interp(quantile * r.sum(), w, r))
+    return max(point_scale, q / reference)
+
+
+@kernel
+def fit_lines(
+    points: FloatArray,
+    ranges: FloatArray,
+    beta: FloatArray,
+    uncertainty: FloatArray,
+    segment: IntArray,
+    point_scale: float,
+    params: FloatArray,
+    point_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
+    line_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
+) -> tuple[float, FloatArray, IntArray, FloatArray, IntArray, FloatArray]:
+    """Step 6 of ``extract_features`` on the kept points: the scale the lines are graded on
+    (``segmentation.line_distance_scale``; ``params[3]`` 0: the points' own), the points'
+    uncertainty re-graded on it (eq. 4; ``uncertainty`` itself where the scale is the
+    points'), then the total-least-squares lines (eq. 5–8, ``segment_sums`` and
+    ``finish_lines``) and their uncertainty (eq. 9). ``params``: (min_points, min_length,
+    min_noise, structure scale on, reference, quantile). Returns the scale, the
+    uncertainties, the kept segment ids, ``finish_lines``'s table, each line's first point
+    and its uncertainty."""
+    line_scale = point_scale
+    if params[3] != 0.0:
+        count = 0
+        for i in range(segment.shape[0]):
+            count += segment[i] >= 0
+        used = np.empty(count)
+        k = 0
+        for i in range(segment.shape[0]):
+            if segment[i] >= 0:
+                used[k] = ranges[i]
+                k += 1
+        line_scale = line_distance_scale(used, point_scale, params[4], params[5])
+    lu = uncertainty
+    if line_scale != point_scale and ranges.shape[0]:
+        g1, g2, table, lo, hi = point_tables
+        lu = bilinear(ranges / line_scale, beta, g1, g2, table, lo, hi)
+    sums, first, last = segment_sums(points, lu, segment)
+    nseg = sums.shape[0]
+    normal = np.empty((nseg, 2))
+    for s in range(nseg):  # the principal direction φ of each scatter
+        phi = 0.5 * math.atan2(2.0 * sums[s, 5], sums[s, 3] - sums[s, 4])
+        normal[s, 0], normal[s, 1] = -math.sin(phi), math.cos(phi)
+    ids, out, firsts = finish_lines(
+        points, segment, sums, first, last, normal, int(params[0]), params[1], params[2]
+    )
+    f_line = np.zeros(ids.shape[0])
+    if ids.shape[0]:
+        g1, g2, table, lo, hi = line_tables
+        f_line = bilinear(out[:, 8].copy(), out[:, 7].copy(), g1, g2, table, lo, hi)
+    return line_scale, lu, ids, out, firsts, f_line
