@@ -22,7 +22,7 @@ LAYERS = (
     ("pipeline",),
     ("io", "sim"),
     ("evaluation", "plot", "graph"),
-    ("logs", "provenance", "folders"),
+    ("logs", "provenance", "folders", "tasks"),
     ("scoring", "run"),
     ("benchmark", "batch", "demo"),
     ("results",),

@@ -33,6 +33,7 @@ from .io import read_relations
 from .logs import UnknownLogError, log_kind
 from .provenance import file_sha256, write_json
 from .run import log_name, run_log
+from .tasks import ONE_THREAD_ENV, RayMissingError, TaskDone, require_ray, run_tasks
 
 __all__ = [
     "BATCH_ENV",
@@ -45,12 +46,7 @@ __all__ = [
 ]
 
 #: the environment of every run's task: one thread
-BATCH_ENV = {
-    "OMP_NUM_THREADS": "1",
-    "OPENBLAS_NUM_THREADS": "1",
-    "MKL_NUM_THREADS": "1",
-    "NUMBA_NUM_THREADS": "1",
-}
+BATCH_ENV = ONE_THREAD_ENV
 #: the first word of a CARMEN log's first non-comment line
 CARMEN_MESSAGES = frozenset(
     {"FLASER", "RLASER", "ROBOTLASER1", "ROBOTLASER2", "ODOM", "TRUEPOS", "PARAM", "SYNC"}
@@ -59,23 +55,6 @@ CARMEN_MESSAGES = frozenset(
 )
 #: ``progress(row, done, total)`` as each run finishes (first ``({}, 0, total)``)
 BatchProgress = Callable[[dict[str, Any], int, int], None]
-
-_INSTALL = "fuzzypos batch needs Ray: pip install 'fuzzypos[ray]' (or pip install 'ray>=2.9')"
-
-
-class RayMissingError(OSError):
-    """Ray (the ``ray`` extra) is not installed: the message says how to install it."""
-
-    def __init__(self, message: str = _INSTALL) -> None:
-        super().__init__(message)
-
-
-def _require_ray() -> Any:
-    try:
-        import ray
-    except ImportError:
-        raise RayMissingError() from None
-    return ray
 
 
 # -- finding the logs ------------------------------------------------------------------------
@@ -240,20 +219,6 @@ class BatchResult:
         return sum(r["status"] == "failed" for r in self.rows)
 
 
-def _start_ray(ray: Any, address: str | None, jobs: int) -> bool:
-    """Join ``address`` (or ``RAY_ADDRESS``), else start a local Ray; True when started
-    here (and to be shut down); nothing when Ray is already up in this process."""
-    if ray.is_initialized():
-        return False
-    address = address or os.environ.get("RAY_ADDRESS") or None
-    if address:
-        ray.init(address=address)
-    else:
-        os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-        ray.init(address="local", num_cpus=jobs, include_dashboard=False)
-    return True
-
-
 def _runs(
     logs: Sequence[Path], configs: Sequence[Path], out: Path, max_scans: int | None, force: bool
 ) -> list[_Run]:
@@ -297,40 +262,33 @@ def run_batch(
         raise ValueError(f"jobs must be at least 1, got {jobs}")
     if max_scans is not None and max_scans < 1:
         raise ValueError(f"max_scans must be at least 1, got {max_scans}")
-    ray = _require_ray()
+    require_ray("fuzzypos batch")
     out_dir = Path(out)
     runs = _runs(find_logs(paths), [Path(c) for c in configs], out_dir, max_scans, force)
     out_dir.mkdir(parents=True, exist_ok=True)
     json_path = out_dir / "batch.json"
-    started = _start_ray(ray, address, jobs or os.cpu_count() or 1)
-    task = ray.remote(num_cpus=1, runtime_env={"env_vars": BATCH_ENV})(_run_one)
-    pending = {task.remote(r): r for r in runs}
     rows: list[dict[str, Any]] = []
+
+    def finished(done: TaskDone) -> None:
+        run = runs[done.index]
+        if done.error is None:
+            row = done.value
+        else:  # a crashed worker, an unexpected error in the task
+            row = {"log": run.log, "config": run.config_name, "folder": run.folder}
+            row.update(status="failed", error=_error_line(done.error), seconds=None, scans=None)
+            row.update(scans_per_second=None, relations=None)
+        rows.append(row)
+        _write(json_path, rows, len(runs), False)
+        if progress is not None:
+            progress(row, len(rows), len(runs))
+
     try:
         if progress is not None:
             progress({}, 0, len(runs))
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            run = pending.pop(done[0])
-            try:
-                row = ray.get(done[0])
-            except Exception as exc:  # a crashed worker, an unexpected error in the task
-                row = {"log": run.log, "config": run.config_name, "folder": run.folder}
-                row.update(status="failed", error=_error_line(exc), seconds=None, scans=None)
-                row.update(scans_per_second=None, relations=None)
-            rows.append(row)
-            _write(json_path, rows, len(runs), False)
-            if progress is not None:
-                progress(row, len(rows), len(runs))
+        run_tasks(_run_one, [(r,) for r in runs], jobs=jobs, address=address, on_done=finished)
     except KeyboardInterrupt:
-        for ref in pending:
-            with contextlib.suppress(Exception):
-                ray.cancel(ref, force=True)
         _write(json_path, rows, len(runs), True)
         raise
-    finally:
-        if started:
-            ray.shutdown()
     return BatchResult(rows, json_path)
 
 
