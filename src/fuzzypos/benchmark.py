@@ -6,8 +6,10 @@
 from __future__ import annotations
 
 import errno
+import math
 import os
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,11 +23,13 @@ from .io import Relations, read_relations, write_tum
 from .logs import open_log
 from .provenance import git_hash, json_safe, write_json
 from .run import run_log
+from .tasks import TaskDone, ray_installed, run_tasks
 
 __all__ = [
     "BENCHMARK_CONFIGS",
     "BENCHMARK_LOG_NAMES",
     "BenchmarkResult",
+    "benchmark_table",
     "find_benchmark_logs",
     "run_benchmark",
 ]
@@ -157,36 +161,49 @@ def _odometry_row(
     return row
 
 
-def _benchmark_log(
+#: a warning, as it crosses from a task: ``(message, category)``
+_Warning = tuple[str, type[Warning]]
+
+
+def _config_task(
     log_path: Path,
-    rel_path: Path,
-    out: Path,
-    *,
+    label: str,
+    config: str,
+    folder: Path,
+    relations: Relations,
     max_scans: int | None,
     progress: BenchmarkProgress | None,
     plot: bool,
-) -> list[dict[str, Any]]:
-    """The rows of one log: the odometry's, then each run's."""
-    label = log_path.name
-    try:
-        relations = read_relations(rel_path)
-    except (ValueError, OSError) as exc:
-        return [{"log": label, "config": c, "error": str(exc)} for c in BENCHMARK_CONFIGS]
-    odometry: _Odometry | None = None
-    odometry_error: str | None = None
-    run_rows: list[dict[str, Any]] = []
-    for config in ("paper", "default"):
+) -> tuple[dict[str, Any], _Odometry | str | None, list[_Warning]]:
+    """:func:`_run_config` as one call of :func:`run_tasks`, with the warnings it gave (a Ray
+    task's would not reach the caller's warning filters)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         row, odo = _run_config(
             log_path,
             label,
             config,
-            out / label / config,
+            folder,
             relations,
             max_scans=max_scans,
             progress=progress,
             plot=plot,
         )
-        run_rows.append(row)
+    return row, odo, [(str(w.message), w.category) for w in caught]
+
+
+def _log_rows(
+    log_path: Path,
+    label: str,
+    out: Path,
+    relations: Relations,
+    runs: list[tuple[dict[str, Any], _Odometry | str | None]],
+) -> list[dict[str, Any]]:
+    """The rows of one log from its runs' (paper, default): the odometry's, then each run's;
+    the odometry taken from the first run that gave it (or said why there is none)."""
+    odometry: _Odometry | None = None
+    odometry_error: str | None = None
+    for _row, odo in runs:
         if odo is not None and odometry is None and odometry_error is None:
             if isinstance(odo, str):
                 odometry_error = odo
@@ -197,7 +214,24 @@ def _benchmark_log(
     else:
         error = odometry_error or "no run gave the odometry"
         orow = {"log": label, "config": "odometry", "error": error}
-    return [orow, *run_rows]
+    return [orow, *(row for row, _ in runs)]
+
+
+def _use_ray(jobs: int) -> bool:
+    """Whether ``jobs`` runs at once go as Ray tasks: more than one and Ray installed (else a
+    warning that they go one after the other)."""
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {jobs}")
+    if jobs == 1:
+        return False
+    if not ray_installed():
+        warnings.warn(
+            f"{jobs} jobs need Ray (pip install 'fuzzypos[ray]'); the runs go one after the "
+            "other in this process",
+            stacklevel=3,
+        )
+        return False
+    return True
 
 
 def run_benchmark(
@@ -207,10 +241,18 @@ def run_benchmark(
     max_scans: int | None = None,
     progress: BenchmarkProgress | None = None,
     plot: bool = True,
+    jobs: int = 1,
 ) -> BenchmarkResult:
     """Run every log :func:`find_benchmark_logs` finds with the raw odometry, the ``paper``
-    preset and the ``default`` configuration (:data:`BENCHMARK_CONFIGS`), sequentially, and
-    score each against the log's relations.
+    preset and the ``default`` configuration (:data:`BENCHMARK_CONFIGS`) and score each
+    against the log's relations.
+
+    ``jobs`` 1: the runs go one after the other in this process. More: each run (a log with
+    ``paper`` or ``default``) is a Ray task with one thread (:func:`~fuzzypos.tasks.run_tasks`:
+    a local Ray with ``jobs`` CPUs, or the cluster of ``RAY_ADDRESS``), with the same rows;
+    without Ray installed a warning, and the runs go one after the other. ``progress`` then
+    reports each run at its start (``done`` 0, ``total`` None) and end (its scans), not
+    scan by scan.
 
     Per log ``L`` (its file name), ``out_dir/L/paper/`` and ``out_dir/L/default/`` are
     :func:`~fuzzypos.run.run_log` results folders (with ``summary["relations"]``; an earlier
@@ -234,15 +276,40 @@ def run_benchmark(
             f"{os.fspath(data_dir)}: no log with a relations file next to it "
             "(NAME.relations with NAME.clf.gz, NAME.clf or NAME.bag)"
         )
+    use_ray = _use_ray(jobs)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    rows: list[dict[str, Any]] = []
+    logs: list[tuple[Path, str, Relations | str]] = []
     for log_path, rel_path in pairs:
-        rows.extend(
-            _benchmark_log(
-                log_path, rel_path, out, max_scans=max_scans, progress=progress, plot=plot
-            )
-        )
+        try:
+            logs.append((log_path, log_path.name, read_relations(rel_path)))
+        except (ValueError, OSError) as exc:
+            logs.append((log_path, log_path.name, str(exc)))
+    calls = [
+        (path, label, c, out / label / c, rel, max_scans, None if use_ray else progress, plot)
+        for path, label, rel in logs
+        if not isinstance(rel, str)
+        for c in BENCHMARK_CONFIGS[1:]
+    ]
+
+    def finished(done: TaskDone) -> None:
+        row, _, caught = done.result()  # an unexpected error stops the benchmark
+        for message, category in caught:
+            warnings.warn(message, category, stacklevel=2)
+        if use_ray and progress is not None:
+            progress(f"{row['log']} {row['config']}", row.get("scans") or 0, row.get("scans"))
+
+    if use_ray and progress is not None:
+        for _, label, c, *_rest in calls:
+            progress(f"{label} {c}", 0, None)
+    outcomes = iter(run_tasks(_config_task, calls, ray=use_ray, jobs=jobs, on_done=finished))
+    rows: list[dict[str, Any]] = []
+    for log_path, label, rel in logs:
+        if isinstance(rel, str):
+            rows.extend({"log": label, "config": c, "error": rel} for c in BENCHMARK_CONFIGS)
+            continue
+        runs = [next(outcomes).result()[:2] for _ in BENCHMARK_CONFIGS[1:]]
+        rows.extend(_log_rows(log_path, label, out, rel, runs))
     data = {
         "fuzzypos_version": __version__,
         "git_hash": git_hash(),
@@ -253,3 +320,57 @@ def run_benchmark(
     json_path = out / "benchmark.json"
     write_json(json_path, data)
     return BenchmarkResult(rows=rows, out_dir=out, json_path=json_path, data=json_safe(data))
+
+
+def _pm(mean: float | None, std: float | None, fmt: str) -> str:
+    if mean is None or std is None or math.isnan(mean):
+        return "–"
+    return f"{mean:{fmt}}±{std:{fmt}}"
+
+
+def benchmark_table(rows: Sequence[dict[str, Any]], max_scans: int | None = None) -> Any:
+    """The rows as a :class:`rich.table.Table`, and the lines saying which run failed or was
+    not scored, and why: ``(table, lines)``."""
+    from rich.table import Table
+    from rich.text import Text
+
+    title = "relations metric" + (f" (first {max_scans} scans of each log)" if max_scans else "")
+    table = Table(title=title)
+    for col in (
+        "log",
+        "config",
+        "all trans m",
+        "all rot °",
+        "local trans m / median",
+        "local rot °",
+        "matched all/local",
+        "scans/s",
+        "degraded",
+        "jumps",
+    ):
+        left = col in ("log", "config")
+        table.add_column(col, justify="left" if left else "right", no_wrap=left)
+    problems: list[str] = []
+    for r in rows:
+        if "error" in r:
+            table.add_row(r["log"], r["config"], Text("failed (below)", style="red"), *[""] * 7)
+            problems.append(f"{r['log']} {r['config']}: {r['error']}")
+            continue
+        if "not_scored" in r:
+            problems.append(f"{r['log']} {r['config']}: not scored: {r['not_scored']}")
+        sps = r.get("scans_per_second")
+        med = r.get("local_trans_median_m")
+        table.add_row(
+            r["log"],
+            r["config"],
+            _pm(r.get("all_trans_mean_m"), r.get("all_trans_std_m"), ".3f"),
+            _pm(r.get("all_rot_mean_deg"), r.get("all_rot_std_deg"), ".2f"),
+            _pm(r.get("local_trans_mean_m"), r.get("local_trans_std_m"), ".3f")
+            + ("" if med is None else f" / {med:.3f}"),
+            _pm(r.get("local_rot_mean_deg"), r.get("local_rot_std_deg"), ".2f"),
+            f"{r.get('all_matched', 0)}/{r.get('local_matched', 0)}",
+            "–" if sps is None else f"{sps:.0f}",
+            str(r.get("scans_degraded", "")),
+            str(r.get("odometry_jumps_rejected", "")),
+        )
+    return table, problems

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import inspect
 import json
-import math
 import re
 import time
 import warnings
@@ -19,7 +18,6 @@ import typer
 from rich.console import Console
 from rich.progress import Progress, TaskID
 from rich.table import Table
-from rich.text import Text
 from typer.core import TyperArgument, TyperCommand, TyperGroup
 
 from ._version import __version__
@@ -340,12 +338,6 @@ def _progress() -> Progress:
 def _print_warnings(caught: list[warnings.WarningMessage]) -> None:
     for w in caught:
         typer.echo(f"fuzzypos: warning: {' '.join(str(w.message).split())}", err=True)
-
-
-def _pm(mean: float | None, std: float | None, fmt: str) -> str:
-    if mean is None or std is None or math.isnan(mean):
-        return "–"
-    return f"{mean:{fmt}}±{std:{fmt}}"
 
 
 def _wide() -> Console:
@@ -776,18 +768,24 @@ def benchmark(
         int | None, typer.Option("--max-scans", help="run only the first N scans of each log")
     ] = None,
     json_out: Annotated[bool, typer.Option("--json", help="print the rows as JSON")] = False,
+    jobs: Annotated[
+        int, typer.Option("--jobs", help="runs at once, each a Ray task (1: one after the other)")
+    ] = 1,
 ) -> None:
     """Score the raw odometry, the paper preset and the default on every benchmark log.
 
     Every NAME.relations under --data with NAME.clf.gz, NAME.clf or NAME.bag next to it is a
     benchmark log. Prints the relations metric of each run and writes benchmark.json and
     the runs' results folders under --out. On the full shared logs this takes minutes
-    (intel has 13,631 scans); --max-scans runs a stretch.
+    (intel has 13,631 scans); --max-scans runs a stretch. --jobs N runs N at once as Ray
+    tasks (a local Ray, or RAY_ADDRESS's cluster) where Ray is installed, with the same rows.
     """
-    from .benchmark import run_benchmark
+    from .benchmark import benchmark_table, run_benchmark
 
     if max_scans is not None and max_scans < 1:
         _fail(f"--max-scans must be at least 1, got {max_scans}")
+    if jobs < 1:
+        _fail(f"--jobs must be at least 1, got {jobs}")
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -799,7 +797,7 @@ def benchmark(
                         tasks[name] = progress.add_task(name, total=total)
                     progress.update(tasks[name], completed=done, total=total)
 
-                result = run_benchmark(data, out, max_scans=max_scans, progress=report)
+                result = run_benchmark(data, out, max_scans=max_scans, progress=report, jobs=jobs)
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
     _print_warnings(caught)
@@ -809,45 +807,7 @@ def benchmark(
         if failed:  # a run failed (not bad input): exit 1
             raise typer.Exit(code=1)
         return
-    title = "relations metric" + (f" (first {max_scans} scans of each log)" if max_scans else "")
-    table = Table(title=title)
-    for col in (
-        "log",
-        "config",
-        "all trans m",
-        "all rot °",
-        "local trans m / median",
-        "local rot °",
-        "matched all/local",
-        "scans/s",
-        "degraded",
-        "jumps",
-    ):
-        left = col in ("log", "config")
-        table.add_column(col, justify="left" if left else "right", no_wrap=left)
-    problems: list[str] = []
-    for r in result.data["rows"]:
-        if "error" in r:
-            table.add_row(r["log"], r["config"], Text("failed (below)", style="red"), *[""] * 7)
-            problems.append(f"{r['log']} {r['config']}: {r['error']}")
-            continue
-        if "not_scored" in r:
-            problems.append(f"{r['log']} {r['config']}: not scored: {r['not_scored']}")
-        sps = r.get("scans_per_second")
-        med = r.get("local_trans_median_m")
-        table.add_row(
-            r["log"],
-            r["config"],
-            _pm(r.get("all_trans_mean_m"), r.get("all_trans_std_m"), ".3f"),
-            _pm(r.get("all_rot_mean_deg"), r.get("all_rot_std_deg"), ".2f"),
-            _pm(r.get("local_trans_mean_m"), r.get("local_trans_std_m"), ".3f")
-            + ("" if med is None else f" / {med:.3f}"),
-            _pm(r.get("local_rot_mean_deg"), r.get("local_rot_std_deg"), ".2f"),
-            f"{r.get('all_matched', 0)}/{r.get('local_matched', 0)}",
-            "–" if sps is None else f"{sps:.0f}",
-            str(r.get("scans_degraded", "")),
-            str(r.get("odometry_jumps_rejected", "")),
-        )
+    table, problems = benchmark_table(result.data["rows"], max_scans)
     _wide().print(table)
     for line in problems:
         typer.echo(line)
