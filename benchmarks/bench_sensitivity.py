@@ -6,6 +6,11 @@ The long relations measure drift, which a few degrees of heading lost at one tur
 local ones measure the matcher. This shows how far apart the two kinds of figure are in
 robustness, so that a change is not judged on one lucky run.
 
+Each log and variant is a Ray task with one thread (``fuzzypos.tasks.run_tasks``, as
+``fuzzypos batch``: a local Ray with ``--jobs`` CPUs, or the cluster of ``RAY_ADDRESS``)
+where Ray (the ``ray`` extra) is installed, else the runs go one after the other in this
+process; a line on stderr says which.
+
     python benchmarks/bench_sensitivity.py [--data ../shared/data] [--jobs 2]
 """
 
@@ -15,7 +20,6 @@ import argparse
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +29,7 @@ from fuzzypos.benchmark import find_benchmark_logs
 from fuzzypos.evaluation import relations_errors
 from fuzzypos.io.relations import read_relations
 from fuzzypos.logs import open_log
+from fuzzypos.tasks import ray_installed, run_tasks
 
 VARIANTS: dict[str, dict[str, dict[str, object]]] = {
     "default": {},
@@ -46,18 +51,34 @@ def run_one(log: str, relations: str, variant: str) -> tuple[str, str, dict[str,
     return Path(log).name, variant, score, len(records) / seconds
 
 
+Row = tuple[str, str, dict[str, float], float]
+
+
+def run_all(pairs: list[tuple[Path, Path]], jobs: int, ray: bool) -> list[Row]:
+    """:func:`run_one` for every log and variant, as Ray tasks (``ray``) or one after the
+    other; the rows in the order of the logs, then the variants."""
+    calls = [(os.fspath(lg), os.fspath(rel), v) for lg, rel in pairs for v in VARIANTS]
+    return [done.result() for done in run_tasks(run_one, calls, ray=ray, jobs=jobs)]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=os.environ.get("FUZZYPOS_DATA", "../shared/data"))
-    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--jobs", type=int, default=1, help="the local Ray's CPUs")
     args = ap.parse_args()
     try:
         pairs = find_benchmark_logs(args.data)
     except FileNotFoundError:
         sys.exit(f"{args.data}: no such folder (the shared data; see --data)")
-    jobs = [(os.fspath(lg), os.fspath(rel), v) for lg, rel in pairs for v in VARIANTS]
-    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as ex:
-        rows = list(ex.map(run_one, *zip(*jobs)))
+    ray = ray_installed()
+    n = len(pairs) * len(VARIANTS)
+    if ray:
+        where = os.environ.get("RAY_ADDRESS") or f"a local Ray with {max(1, args.jobs)} CPUs"
+        note = f"{n} runs as Ray tasks, one thread each, on {where}"
+    else:
+        note = f"Ray is not installed: the {n} runs go one after the other in this process"
+    print(note, file=sys.stderr, flush=True)
+    rows = run_all(pairs, max(1, args.jobs), ray)
     print(
         "| log | variant | all trans m | all rot ° | local trans m / median | local rot ° "
         "| scans/s (Positioner) |"
