@@ -5,9 +5,12 @@ the poorer (``gate.only_where_odometry_is_better`` off), with the learned odomet
 refinement's prior or its calibration applied everywhere (``odometry_noise.in_refinement``,
 ``odometry_noise.calibrate``), and not trusting the odometry where it is the more precise
 (``odometry_noise.trust_where_better`` off), over every shared CARMEN log (the relations metric,
-as ``fuzzypos benchmark`` scores it), in parallel processes, and prints one table with the
-scans the gate rejected, the share of scans where the odometry was trusted, and the learned
-odometry noise and calibration at the end of the log.
+as ``fuzzypos benchmark`` scores it), and prints one table with the scans the gate rejected,
+the share of scans where the odometry was trusted, and the learned odometry noise and
+calibration at the end of the log. Each log and variant is a Ray task with one thread
+(``fuzzypos.tasks.run_tasks``: a local Ray with ``--jobs`` CPUs, or the cluster of
+``RAY_ADDRESS``) where Ray is installed, else the runs go one after the other in this
+process; a line on stderr says which.
 
     python benchmarks/bench_switches.py [--data DIR] [--jobs N] [--max-scans N]
 """
@@ -17,7 +20,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
-from concurrent.futures import ProcessPoolExecutor
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +31,7 @@ from fuzzypos.benchmark import find_benchmark_logs
 from fuzzypos.evaluation import relations_errors
 from fuzzypos.io.relations import read_relations
 from fuzzypos.logs import open_log
+from fuzzypos.tasks import ray_installed, run_tasks
 
 VARIANTS: dict[str, dict[str, dict[str, Any]]] = {
     "default": {},
@@ -76,8 +80,14 @@ def main() -> None:
     logs = [(str(log), str(rel)) for log, rel in find_benchmark_logs(args.data)]
     logs = [(log, rel) for log, rel in logs if not log.endswith(".bag")]
     jobs = [(v, log, rel, args.max_scans) for log, rel in logs for v in VARIANTS]
-    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        rows = list(pool.map(run, jobs))
+    if ray_installed():
+        where = os.environ.get("RAY_ADDRESS") or f"a local Ray with {max(1, args.jobs)} CPUs"
+        note = f"{len(jobs)} runs as Ray tasks, one thread each, on {where}"
+    else:
+        note = f"Ray is not installed: the {len(jobs)} runs go one after the other in this process"
+    print(note, file=sys.stderr, flush=True)
+    outcomes = run_tasks(run, [(j,) for j in jobs], ray=ray_installed(), jobs=max(1, args.jobs))
+    rows = [done.result() for done in outcomes]
     print(
         "| log | variant | all trans m | local trans m | local rot ° | gated | trusted "
         "| learned σ_t m/√m | learned σ_θ °/√m | scale | rotation factor |"
