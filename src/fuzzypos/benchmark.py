@@ -1,7 +1,8 @@
 """The benchmark over the shared logs: every log with a relations file next to it
 (:func:`find_benchmark_logs`), run with the raw odometry, the ``paper`` preset and the
 ``default`` configuration (:data:`BENCHMARK_CONFIGS`) and scored against the relations
-(:func:`run_benchmark`)."""
+(:func:`run_benchmark`), one after the other or, with ``jobs``, as Ray tasks
+(:func:`~fuzzypos.tasks.run_tasks`); :func:`benchmark_table` shows the rows."""
 
 from __future__ import annotations
 
