@@ -44,22 +44,34 @@ def _odd_fails(x: int) -> int:
 
 @pytest.fixture(scope="module")
 def ray_session() -> Iterator[None]:
+    """A local Ray without token authentication: ``tests/test_batch_cluster.py``, run before
+    in the same process, leaves Ray's driver side with authentication off, which a local Ray
+    started with it on would refuse."""
     ray = pytest.importorskip("ray", reason="Ray (the ray extra) is not installed")
     if ray.is_initialized():  # pragma: no cover - another module's session
         pytest.skip("Ray is already up in this process")
+    saved = os.environ.get("RAY_AUTH_MODE")
+    os.environ["RAY_AUTH_MODE"] = "disabled"
     try:
-        ray.init(
-            address="local",
-            num_cpus=2,
-            include_dashboard=False,
-            log_to_driver=False,
-            # this module's functions go to the workers by name
-            runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join(sys.path)}},
-        )
-    except Exception as exc:  # pragma: no cover - depends on the machine
-        pytest.skip(f"Ray cannot start here: {exc}")
-    yield
-    ray.shutdown()
+        try:
+            ray.init(
+                address="local",
+                num_cpus=2,
+                include_dashboard=False,
+                log_to_driver=False,
+                # this module's functions go to the workers by name
+                runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join(sys.path)}},
+            )
+        except Exception as exc:  # pragma: no cover - depends on the machine
+            pytest.skip(f"Ray cannot start here: {exc}")
+        yield
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+        if saved is None:
+            os.environ.pop("RAY_AUTH_MODE", None)
+        else:
+            os.environ["RAY_AUTH_MODE"] = saved
 
 
 @pytest.fixture(scope="module")
