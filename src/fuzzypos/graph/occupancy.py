@@ -1,7 +1,8 @@
-"""An occupancy grid from the keyframes' scans at their (optimised) poses, written as ROS
-map_server's ``map.pgm`` + ``map.yaml`` and as ``map.png``.
+"""An occupancy grid from scans at their (optimised) poses (a run's: every scan that moved
+``[loop_closure] map_scan_distance`` or turned ``map_scan_angle``; offline, the keyframes'),
+written as ROS map_server's ``map.pgm`` + ``map.yaml`` and as ``map.png``.
 
-Each keyframe's points (robot frame) are cast from the robot's position: the cells a beam
+Each scan's points (robot frame) are cast from the robot's position: the cells a beam
 crosses gather evidence of free space, the cell it ends in of an obstacle (log-odds, clamped);
 the laser's mount offset is neglected (centimetres against the 5 cm cells)."""
 
@@ -20,8 +21,8 @@ __all__ = ["OccupancyGrid", "occupancy_grid"]
 
 FloatArray = NDArray[np.float64]
 
-#: log-odds per hit, per pass and the bound either way: from keyframes only (a scan every metre
-#: or 30°), two passes make a cell free, one hit an obstacle
+#: log-odds per hit, per pass and the bound either way: from scans a fraction of a metre apart
+#: (or keyframes, a metre), two passes make a cell free, one hit an obstacle
 _HIT, _MISS, _CLAMP = 2.0, -0.75, 5.0
 #: map_server's thresholds (written into map.yaml) and its grey levels (free, unknown, occupied)
 OCCUPIED_THRESH, FREE_THRESH = 0.65, 0.196
@@ -86,20 +87,22 @@ def occupancy_grid(
 def _cast(
     grid: FloatArray, origin: FloatArray, pts: FloatArray, lo: FloatArray, res: float
 ) -> None:
-    """One scan's evidence: the cells along each beam (sampled every half cell, each cell once
-    per scan) free, the end cells occupied."""
+    """One scan's evidence: the cells along each beam (sampled every half cell from the
+    robot, short of the end cell) free, each cell once per scan, the end cells occupied."""
     d = pts - origin
     length = np.hypot(d[:, 0], d[:, 1])
-    steps = max(1, math.ceil(float(length.max(initial=0.0)) / (0.5 * res)))
-    f = np.linspace(0.0, 1.0, steps, endpoint=False)
-    samples = origin + f[None, :, None] * d[:, None, :]  # beams × steps × 2
-    inside = f[None, :] * length[:, None] < length[:, None] - res  # short of the end cell
-    cells = np.floor((samples[inside] - lo) / res).astype(np.int64)
+    step = 0.5 * res
+    counts = np.maximum(np.ceil((length - res) / step), 0).astype(np.int64)
+    beam = np.repeat(np.arange(len(pts)), counts)
+    along = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+    f = along * step / length[beam]
+    samples = origin + f[:, None] * d[beam]
+    cells = np.floor((samples - lo) / res).astype(np.int64)
     ends = np.floor((pts - lo) / res).astype(np.int64)
-    _n_rows, n_cols = grid.shape
-    free = np.unique(cells[:, 1] * n_cols + cells[:, 0])
-    hit = np.unique(ends[:, 1] * n_cols + ends[:, 0])
-    free = np.setdiff1d(free, hit)
+    n_cols = grid.shape[1]
+    free = cells[:, 1] * n_cols + cells[:, 0]
+    hit = ends[:, 1] * n_cols + ends[:, 0]
     flat = grid.reshape(-1)
-    flat[free] += _MISS
-    flat[hit] += _HIT
+    before = flat[hit]
+    flat[free] += _MISS  # a repeated index is added once (buffered fancy indexing)
+    flat[hit] = before + _HIT  # an end cell is not free in the same scan
