@@ -63,6 +63,7 @@ ANGLES_DEG = {
     ("loop_closure", "reoptimize_angle"): 1.0,
     ("loop_closure", "heading_floor"): 2.0,
     ("loop_closure", "closure_floor_rotation"): 0.5,
+    ("loop_closure", "map_scan_angle"): 10.0,
 }
 ANGLE_WORDS = ("angle", "rotation", "heading", "bearing", "yaw", "theta")
 SECTIONS = [

@@ -166,3 +166,27 @@ class LoopClosureConfig:
         unit=M,
         gt=0.0,
     )
+    map_scan_distance: float = _field(
+        0.25,
+        "the map is drawn from every scan whose front-end pose moved 0.25 m (or turned "
+        "map_scan_angle) since the last one drawn, at its optimised pose: four views per "
+        "keyframe (a keyframe every metre) fill in what one misses behind furniture, while "
+        "drawing every scan, at 10 a second mostly a few centimetres apart, casts ten times "
+        "as many beams for the same walls",
+        unit=M,
+        gt=0.0,
+    )
+    map_scan_angle: float = _field(
+        math.radians(10.0),
+        "or turned 10°: a scan turning on the spot sees new walls at its edges",
+        unit=RAD,
+        gt=0.0,
+    )
+    isam_extra_updates: int = _field(
+        2,
+        "online, after a closure that agrees with the graph enters ISAM2, 2 more updates: "
+        "ISAM2 relinearises only variables that moved past its threshold and solves once per "
+        "update, a closure moves a whole loop a little (one that disagrees is solved in "
+        "batch with the robust kernel instead)",
+        ge=0,
+    )

@@ -43,6 +43,7 @@ RESULT_FILES = (
     "summary.json",
     # with loop closure (fuzzypos.graph.LOOP_CLOSURE_FILES)
     "trajectory_frontend.tum",
+    "trajectory_online.tum",
     "graph.g2o",
     "map.pgm",
     "map.yaml",

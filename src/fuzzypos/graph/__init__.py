@@ -5,6 +5,8 @@ extra: ``pip install 'fuzzypos[graph]'``).
   keyframe fits and from closures; gtsam Levenberg-Marquardt, robust closures), g2o out and in.
 - :mod:`.closure`: :class:`LoopCloser` (candidates, verification against a submap, closures).
 - :mod:`.occupancy`: the occupancy map (ROS map_server's ``map.pgm`` + ``map.yaml``, ``map.png``).
+- :mod:`.online`: :class:`OnlineMapper`, loop closure online: the front end, the graph grown
+  keyframe by keyframe and kept optimised by ISAM2, the latest optimised pose after each scan.
 - :mod:`.outputs`: :func:`close_loops` after a run, and the files it adds to a results folder.
 - :mod:`._gtsam`: gtsam imported on first use, :class:`GraphDependencyError` where it is absent.
 """
@@ -14,6 +16,7 @@ from __future__ import annotations
 from ._gtsam import GraphDependencyError
 from ._gtsam import gtsam as require_gtsam
 from .closure import Closure, LoopCloser
+from .online import OnlineMapper, OnlineUpdate
 from .outputs import LOOP_CLOSURE_FILES, LoopClosureResult, close_loops
 from .pose_graph import ROBUST_KINDS, Edge, Keyframe, PoseGraph, PoseGraphError, read_g2o
 
@@ -31,4 +34,6 @@ __all__ = [
     "close_loops",
     "LoopClosureResult",
     "LOOP_CLOSURE_FILES",
+    "OnlineMapper",
+    "OnlineUpdate",
 ]

@@ -1,8 +1,9 @@
 """Loop closure after a run (``fuzzypos run --loop-closure``): the closures found on the run's
 pose graph, the optimised trajectory, and the files it adds to a results folder:
 ``trajectory_frontend.tum`` (the front end's poses; ``trajectory.tum`` then holds the
-optimised ones), ``graph.g2o`` and the occupancy map ``map.pgm`` + ``map.yaml`` (ROS
-map_server) and ``map.png``."""
+optimised ones), ``trajectory_online.tum`` (online: each scan's pose as it was first output,
+:class:`~.online.OnlineMapper`), ``graph.g2o`` and the occupancy map ``map.pgm`` +
+``map.yaml`` (ROS map_server) and ``map.png``."""
 
 from __future__ import annotations
 
@@ -20,17 +21,27 @@ from .closure import Closure, LoopCloser
 from .occupancy import occupancy_grid
 from .pose_graph import PoseGraph
 
-__all__ = ["LOOP_CLOSURE_FILES", "LoopClosureResult", "close_loops"]
+__all__ = ["LOOP_CLOSURE_FILES", "LoopClosureResult", "close_loops", "loop_closure_result"]
 
 FloatArray = NDArray[np.float64]
 
 #: the files loop closure adds to a results folder
-LOOP_CLOSURE_FILES = ("trajectory_frontend.tum", "graph.g2o", "map.pgm", "map.yaml", "map.png")
+LOOP_CLOSURE_FILES = (
+    "trajectory_frontend.tum",
+    "trajectory_online.tum",
+    "graph.g2o",
+    "map.pgm",
+    "map.yaml",
+    "map.png",
+)
 
 
 @dataclass(frozen=True, eq=False)
 class LoopClosureResult:
-    """The optimised poses of every scan, the front end's, the graph and its closures."""
+    """The optimised poses of every scan, the front end's, the graph and its closures;
+    online, each scan's pose as first output (``online``) and the scans the map is drawn
+    from (``map_scans``: scan index and its points in the robot frame; None: the
+    keyframes')."""
 
     poses: FloatArray
     frontend: FloatArray
@@ -39,35 +50,67 @@ class LoopClosureResult:
     verified: int
     seconds: float
     summary: dict[str, Any] = field(default_factory=dict)
+    online: FloatArray | None = None
+    map_scans: list[tuple[int, FloatArray]] | None = None
 
     def write(
         self, folder: Path, stamps: FloatArray, source: str, resolution: float
     ) -> dict[str, Path]:
-        """Write ``trajectory_frontend.tum``, ``graph.g2o`` and the map into ``folder``."""
+        """Write ``trajectory_frontend.tum``, ``trajectory_online.tum`` (online),
+        ``graph.g2o`` and the map into ``folder``."""
         files: dict[str, Path] = {"trajectory_frontend.tum": folder / "trajectory_frontend.tum"}
         write_tum(
             files["trajectory_frontend.tum"], stamps, self.frontend,
             header_comment=f"the front end's estimate of {source}, before loop closure",
         )  # fmt: skip
+        if self.online is not None:
+            files["trajectory_online.tum"] = folder / "trajectory_online.tum"
+            write_tum(
+                files["trajectory_online.tum"], stamps, self.online,
+                header_comment=f"loop closure online on {source}: each scan's pose as first "
+                "output",
+            )  # fmt: skip
         files["graph.g2o"] = folder / "graph.g2o"
         self.graph.write_g2o(files["graph.g2o"])
-        scans = [
-            kf.features.points if kf.features is not None else np.zeros((0, 2))
-            for kf in self.graph.keyframes
-        ]
-        files.update(occupancy_grid(self.graph.poses, scans, resolution).write(folder))
+        if self.map_scans is not None:
+            at = self.poses[[k for k, _ in self.map_scans]].reshape(-1, 3)
+            scans = [points for _, points in self.map_scans]
+        else:
+            at = self.graph.poses
+            scans = [
+                kf.features.points if kf.features is not None else np.zeros((0, 2))
+                for kf in self.graph.keyframes
+            ]
+        files.update(occupancy_grid(at, scans, resolution).write(folder))
         return files
 
 
 def close_loops(graph: PoseGraph, config: Config) -> LoopClosureResult:
     """Find, verify and add the closures of ``graph`` (its keyframes with their features) and
-    optimise it; the summary for ``summary.json``."""
+    optimise it, offline (after the front end's whole run); the summary for
+    ``summary.json``."""
     t0 = time.perf_counter()
     closer = LoopCloser(config)
+    closer.run(graph)
+    result = loop_closure_result(graph, closer, config, time.perf_counter() - t0)
+    result.summary["mode"] = "offline"
+    return result
+
+
+def loop_closure_result(
+    graph: PoseGraph,
+    closer: LoopCloser,
+    config: Config,
+    seconds: float,
+    *,
+    online: FloatArray | None = None,
+    map_scans: list[tuple[int, FloatArray]] | None = None,
+) -> LoopClosureResult:
+    """The result of loop closure on ``graph`` by ``closer`` (its closures with their final
+    weights), the optimised trajectory (blended between keyframes) and the summary."""
     frontend = graph.frontend_trajectory()
-    closures = closer.run(graph)
+    closures = closer.closures
     poses = graph.trajectory(blend=True)
-    seconds = time.perf_counter() - t0
     moved = np.hypot(*(poses[:, :2] - frontend[:, :2]).T) if len(poses) else np.zeros(1)
     summary = {
         "keyframes": len(graph),
@@ -87,5 +130,8 @@ def close_loops(graph: PoseGraph, config: Config) -> LoopClosureResult:
         "max_correction_m": float(moved.max()),
         "seconds": seconds,
         "robust": config.loop_closure.robust,
+        "map_scans": len(graph) if map_scans is None else len(map_scans),
     }
-    return LoopClosureResult(poses, frontend, graph, closures, closer.verified, seconds, summary)
+    return LoopClosureResult(
+        poses, frontend, graph, closures, closer.verified, seconds, summary, online, map_scans
+    )

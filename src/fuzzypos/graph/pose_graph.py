@@ -218,19 +218,23 @@ class PoseGraph:
             graph.add(g.BetweenFactorPose2(e.i, e.j, g.Pose2(*map(float, e.measured)), noise))
         return graph, values, factors
 
-    def trajectory(self, blend: bool = False) -> FloatArray:
-        """Every scan's pose, ``(scans, 3)``: its keyframe's current pose composed with the
-        scan's pose relative to it (the front end's). ``blend``: the correction (the current
-        pose over the front end's) blended linearly, by scan index, from the scan's keyframe's
-        to the next keyframe's, so the trajectory does not jump where the keyframe changes."""
+    def trajectory(self, blend: bool = False, poses: FloatArray | None = None) -> FloatArray:
+        """Every scan's pose, ``(scans, 3)``: its keyframe's current pose (or its row of
+        ``poses``) composed with the scan's pose relative to it (the front end's). ``blend``:
+        the correction (the keyframe's pose over the front end's) blended linearly, by scan
+        index, from the scan's keyframe's to the next keyframe's, so the trajectory does not
+        jump where the keyframe changes."""
         if not self._owner:
             return np.zeros((0, 3))
+        kf_poses = self.poses if poses is None else np.asarray(poses, dtype=float)
+        if kf_poses.shape != (len(self.keyframes), 3):
+            raise PoseGraphError(f"poses must be ({len(self.keyframes)}, 3), got {kf_poses.shape}")
         owner = np.array(self._owner)
-        follow = compose(self.poses[owner], np.array(self._offset))
+        follow = compose(kf_poses[owner], np.array(self._offset))
         if not blend or len(self.keyframes) < 2:
             return follow
         front = np.array([kf.pose for kf in self.keyframes])
-        correction = compose(self.poses, inverse(front))  # world-frame: current = C ⊕ front
+        correction = compose(kf_poses, inverse(front))  # world-frame: current = C ⊕ front
         scan_of = np.array([kf.scan for kf in self.keyframes])
         idx = np.arange(len(owner))
         nxt = np.minimum(owner + 1, len(self.keyframes) - 1)
