@@ -1,16 +1,16 @@
 """The benchmark over the shared logs: every log with a relations file next to it
 (:func:`find_benchmark_logs`), run with the raw odometry, the ``paper`` preset and the
-``default`` configuration (:data:`BENCHMARK_CONFIGS`) and scored against the relations
-(:func:`run_benchmark`), one after the other or, with ``jobs``, as Ray tasks
-(:func:`~fuzzypos.tasks.run_tasks`); :func:`benchmark_table` shows the rows."""
+``default`` configuration (:data:`BENCHMARK_CONFIGS`), and the default with loop closure
+(:data:`LOOP_CLOSURE_CONFIGS`: its optimised trajectory and its online poses), scored against
+the relations (:func:`run_benchmark`), one after the other or, with ``jobs``, as Ray tasks
+(:func:`~fuzzypos.tasks.run_tasks`)."""
 
 from __future__ import annotations
 
 import errno
-import math
 import os
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +20,7 @@ import numpy as np
 from ._version import __version__
 from .config import Config
 from .evaluation import EvaluationError, relations_errors
+from .graph import GraphDependencyError, require_gtsam
 from .io import Relations, read_relations, write_tum
 from .logs import open_log
 from .provenance import git_hash, json_safe, write_json
@@ -29,14 +30,19 @@ from .tasks import TaskDone, ray_installed, run_tasks
 __all__ = [
     "BENCHMARK_CONFIGS",
     "BENCHMARK_LOG_NAMES",
+    "LOOP_CLOSURE_CONFIGS",
     "BenchmarkResult",
-    "benchmark_table",
     "find_benchmark_logs",
     "run_benchmark",
 ]
 
 #: the runs of the benchmark, per log
 BENCHMARK_CONFIGS = ("odometry", "paper", "default")
+
+#: the rows of the loop-closure run (the default with ``[loop_closure]`` on; its front end is
+#: the ``default`` row's), per log: the optimised trajectory, and each scan's pose as first
+#: output online
+LOOP_CLOSURE_CONFIGS = ("default+loop_closure", "default+loop_closure online")
 
 #: the log files a relations file ``NAME.relations`` is looked for with, in this order
 BENCHMARK_LOG_NAMES = ("{}.clf.gz", "{}.clf", "{}.bag")
@@ -162,6 +168,51 @@ def _odometry_row(
     return row
 
 
+def _loop_closure_rows(
+    log_path: Path,
+    label: str,
+    folder: Path,
+    relations: Relations,
+    *,
+    max_scans: int | None,
+    progress: BenchmarkProgress | None,
+    plot: bool,
+) -> list[dict[str, Any]]:
+    """The loop-closure run's rows (:data:`LOOP_CLOSURE_CONFIGS`); not scored, with the
+    reason, where gtsam is not installed."""
+    try:
+        require_gtsam()
+    except GraphDependencyError as exc:
+        return [{"log": label, "config": c, "not_scored": str(exc)} for c in LOOP_CLOSURE_CONFIGS]
+    cb = None
+    if progress is not None:
+
+        def cb(done: int, total: int | None, _name: str = f"{label} loop closure") -> None:
+            progress(_name, done, total)
+
+    cfg = Config.preset("default").with_overrides({"loop_closure": {"enabled": True}})
+    try:
+        res = run_log(
+            open_log(log_path), cfg, results_dir=folder, overwrite=True, progress=cb,
+            max_scans=max_scans, preset="default", relations=relations, plot=plot,
+        )  # fmt: skip
+    except (ValueError, OSError) as exc:
+        return [{"log": label, "config": c, "error": str(exc)} for c in LOOP_CLOSURE_CONFIGS]
+    rows = []
+    for config, poses in zip(LOOP_CLOSURE_CONFIGS, (res.poses, res.online_poses)):
+        row = _score_row(label, config, res.stamps, np.asarray(poses), relations)
+        row.update(
+            scans=res.scans,
+            scans_per_second=res.scans_per_second,
+            scans_degraded=res.scans_degraded,
+            odometry_jumps_rejected=res.odometry_jumps_rejected,
+            loop_closure_seconds=res.summary["loop_closure"]["seconds"],
+            results=str(folder),
+        )
+        rows.append(row)
+    return rows
+
+
 #: a warning, as it crosses from a task: ``(message, category)``
 _Warning = tuple[str, type[Warning]]
 
@@ -175,22 +226,25 @@ def _config_task(
     max_scans: int | None,
     progress: BenchmarkProgress | None,
     plot: bool,
-) -> tuple[dict[str, Any], _Odometry | str | None, list[_Warning]]:
-    """:func:`_run_config` as one call of :func:`run_tasks`, with the warnings it gave (a Ray
-    task's would not reach the caller's warning filters)."""
+) -> tuple[list[dict[str, Any]], _Odometry | str | None, list[_Warning]]:
+    """:func:`_run_config` (or, for :data:`LOOP_CLOSURE_CONFIGS`' first, the loop-closure
+    run's rows, :func:`_loop_closure_rows`) as one call of :func:`run_tasks`, with the
+    warnings it gave (a Ray task's would not reach the caller's warning filters)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        row, odo = _run_config(
-            log_path,
-            label,
-            config,
-            folder,
-            relations,
-            max_scans=max_scans,
-            progress=progress,
-            plot=plot,
-        )
-    return row, odo, [(str(w.message), w.category) for w in caught]
+        if config == LOOP_CLOSURE_CONFIGS[0]:
+            rows = _loop_closure_rows(
+                log_path, label, folder, relations, max_scans=max_scans, progress=progress,
+                plot=plot,
+            )  # fmt: skip
+            odo: _Odometry | str | None = None
+        else:
+            row, odo = _run_config(
+                log_path, label, config, folder, relations, max_scans=max_scans,
+                progress=progress, plot=plot,
+            )  # fmt: skip
+            rows = [row]
+    return rows, odo, [(str(w.message), w.category) for w in caught]
 
 
 def _log_rows(
@@ -198,7 +252,7 @@ def _log_rows(
     label: str,
     out: Path,
     relations: Relations,
-    runs: list[tuple[dict[str, Any], _Odometry | str | None]],
+    runs: list[tuple[list[dict[str, Any]], _Odometry | str | None]],
 ) -> list[dict[str, Any]]:
     """The rows of one log from its runs' (paper, default): the odometry's, then each run's;
     the odometry taken from the first run that gave it (or said why there is none)."""
@@ -215,7 +269,7 @@ def _log_rows(
     else:
         error = odometry_error or "no run gave the odometry"
         orow = {"log": label, "config": "odometry", "error": error}
-    return [orow, *(row for row, _ in runs)]
+    return [orow, *(row for rows, _ in runs for row in rows)]
 
 
 def _use_ray(jobs: int) -> bool:
@@ -243,6 +297,7 @@ def run_benchmark(
     progress: BenchmarkProgress | None = None,
     plot: bool = True,
     jobs: int = 1,
+    loop_closure: bool = True,
 ) -> BenchmarkResult:
     """Run every log :func:`find_benchmark_logs` finds with the raw odometry, the ``paper``
     preset and the ``default`` configuration (:data:`BENCHMARK_CONFIGS`) and score each
@@ -268,7 +323,10 @@ def run_benchmark(
     ``odometry_jumps_rejected``, ``results`` (the folder); ``not_scored`` (why) instead of
     the metric where no relation could be scored (e.g. none within a short stretch); and
     only ``error`` where the run failed (the other runs still go ahead).
-    ``progress(label, done, total)``.
+    ``progress(label, done, total)``. ``loop_closure``: also run the default with loop closure
+    into ``out_dir/L/loop_closure/`` (one more task per log) and add its rows
+    (:data:`LOOP_CLOSURE_CONFIGS`: the optimised trajectory, and the online poses, with
+    ``loop_closure_seconds``; ``not_scored`` where gtsam is not installed).
     ``ValueError`` when ``data_dir`` holds no log with relations.
     """
     pairs = find_benchmark_logs(data_dir)
@@ -286,15 +344,19 @@ def run_benchmark(
             logs.append((log_path, log_path.name, read_relations(rel_path)))
         except (ValueError, OSError) as exc:
             logs.append((log_path, log_path.name, str(exc)))
+    configs = (*BENCHMARK_CONFIGS[1:], *(LOOP_CLOSURE_CONFIGS[:1] if loop_closure else ()))
+    folders = {LOOP_CLOSURE_CONFIGS[0]: "loop_closure"}
     calls = [
-        (path, label, c, out / label / c, rel, max_scans, None if use_ray else progress, plot)
+        (path, label, c, out / label / folders.get(c, c), rel, max_scans,
+         None if use_ray else progress, plot)
         for path, label, rel in logs
         if not isinstance(rel, str)
-        for c in BENCHMARK_CONFIGS[1:]
-    ]
+        for c in configs
+    ]  # fmt: skip
 
     def finished(done: TaskDone) -> None:
-        row, _, caught = done.result()  # an unexpected error stops the benchmark
+        rows, _, caught = done.result()  # an unexpected error stops the benchmark
+        row = rows[0]
         for message, category in caught:
             warnings.warn(message, category, stacklevel=2)
         if use_ray and progress is not None:
@@ -307,9 +369,10 @@ def run_benchmark(
     rows: list[dict[str, Any]] = []
     for log_path, label, rel in logs:
         if isinstance(rel, str):
-            rows.extend({"log": label, "config": c, "error": rel} for c in BENCHMARK_CONFIGS)
+            names = (*BENCHMARK_CONFIGS, *(LOOP_CLOSURE_CONFIGS if loop_closure else ()))
+            rows.extend({"log": label, "config": c, "error": rel} for c in names)
             continue
-        runs = [next(outcomes).result()[:2] for _ in BENCHMARK_CONFIGS[1:]]
+        runs = [next(outcomes).result()[:2] for _ in configs]
         rows.extend(_log_rows(log_path, label, out, rel, runs))
     data = {
         "fuzzypos_version": __version__,
@@ -321,57 +384,3 @@ def run_benchmark(
     json_path = out / "benchmark.json"
     write_json(json_path, data)
     return BenchmarkResult(rows=rows, out_dir=out, json_path=json_path, data=json_safe(data))
-
-
-def _pm(mean: float | None, std: float | None, fmt: str) -> str:
-    if mean is None or std is None or math.isnan(mean):
-        return "–"
-    return f"{mean:{fmt}}±{std:{fmt}}"
-
-
-def benchmark_table(rows: Sequence[dict[str, Any]], max_scans: int | None = None) -> Any:
-    """The rows as a :class:`rich.table.Table`, and the lines saying which run failed or was
-    not scored, and why: ``(table, lines)``."""
-    from rich.table import Table
-    from rich.text import Text
-
-    title = "relations metric" + (f" (first {max_scans} scans of each log)" if max_scans else "")
-    table = Table(title=title)
-    for col in (
-        "log",
-        "config",
-        "all trans m",
-        "all rot °",
-        "local trans m / median",
-        "local rot °",
-        "matched all/local",
-        "scans/s",
-        "degraded",
-        "jumps",
-    ):
-        left = col in ("log", "config")
-        table.add_column(col, justify="left" if left else "right", no_wrap=left)
-    problems: list[str] = []
-    for r in rows:
-        if "error" in r:
-            table.add_row(r["log"], r["config"], Text("failed (below)", style="red"), *[""] * 7)
-            problems.append(f"{r['log']} {r['config']}: {r['error']}")
-            continue
-        if "not_scored" in r:
-            problems.append(f"{r['log']} {r['config']}: not scored: {r['not_scored']}")
-        sps = r.get("scans_per_second")
-        med = r.get("local_trans_median_m")
-        table.add_row(
-            r["log"],
-            r["config"],
-            _pm(r.get("all_trans_mean_m"), r.get("all_trans_std_m"), ".3f"),
-            _pm(r.get("all_rot_mean_deg"), r.get("all_rot_std_deg"), ".2f"),
-            _pm(r.get("local_trans_mean_m"), r.get("local_trans_std_m"), ".3f")
-            + ("" if med is None else f" / {med:.3f}"),
-            _pm(r.get("local_rot_mean_deg"), r.get("local_rot_std_deg"), ".2f"),
-            f"{r.get('all_matched', 0)}/{r.get('local_matched', 0)}",
-            "–" if sps is None else f"{sps:.0f}",
-            str(r.get("scans_degraded", "")),
-            str(r.get("odometry_jumps_rejected", "")),
-        )
-    return table, problems

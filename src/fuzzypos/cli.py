@@ -20,6 +20,7 @@ from rich.progress import Progress, TaskID
 from rich.table import Table
 from typer.core import TyperArgument, TyperCommand, TyperGroup
 
+from ._cli_tables import benchmark_table, loop_closure_lines
 from ._version import __version__
 from .config import Config, ConfigError
 
@@ -601,11 +602,21 @@ def run(
         bool,
         typer.Option(
             "--loop-closure",
-            help="close loops on a pose graph of the keyframes ([loop_closure], needs "
+            help="close loops online on a pose graph of the keyframes ([loop_closure], needs "
             "pip install 'fuzzypos[graph]'): trajectory.tum optimised, trajectory_frontend.tum, "
-            "graph.g2o, map.pgm/map.yaml/map.png, the closures in summary.json",
+            "trajectory_online.tum (each scan's pose as first output), graph.g2o, "
+            "map.pgm/map.yaml/map.png, the closures in summary.json",
         ),
     ] = False,
+    relations: Annotated[
+        Path | None,
+        typer.Option(
+            "--relations",
+            help="score the trajectory against this relations file (summary.json's "
+            "relations; with --loop-closure the front end's and the online poses' too)",
+            readable=False,
+        ),
+    ] = None,
 ) -> None:
     """Position the robot along a log and write a results folder.
 
@@ -619,6 +630,7 @@ def run(
     and where the results are. A run stopped by an error or Ctrl-C keeps the scans done,
     marked "partial" in summary.json.
     """
+    from .io import read_relations
     from .run import run_log
 
     cfg = _load_config(preset, config_file)
@@ -636,6 +648,7 @@ def run(
         convention=convention,
     )
     try:
+        rel = None if relations is None else read_relations(relations)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             with _progress() as progress:
@@ -658,6 +671,7 @@ def run(
                     config_file=config_file,
                     bag_out=bag_out,
                     bag_storage=bag_storage,
+                    relations=rel,
                 )
     except KeyboardInterrupt as exc:
         typer.echo(f"fuzzypos: interrupted{_kept(exc)}", err=True)
@@ -679,6 +693,8 @@ def run(
             f"against the log's truth: final {e['final_position_error_m']:.3f} m, mean "
             f"{e['mean_position_error_m']:.3f} m, mean heading {e['mean_heading_error_deg']:.2f}°"
         )
+    for line in loop_closure_lines(s):
+        typer.echo(line)
     for note in summary.notes:
         typer.echo(f"note: {note}")
     typer.echo(
@@ -771,8 +787,17 @@ def benchmark(
     jobs: Annotated[
         int, typer.Option("--jobs", help="runs at once, each a Ray task (1: one after the other)")
     ] = 1,
+    loop_closure: Annotated[
+        bool,
+        typer.Option(
+            "--loop-closure/--no-loop-closure",
+            help="also run the default with loop closure: rows for its optimised trajectory "
+            "and its online poses (not scored without gtsam)",
+        ),
+    ] = True,
 ) -> None:
-    """Score the raw odometry, the paper preset and the default on every benchmark log.
+    """Score the raw odometry, the paper preset, the default and the default with loop
+    closure on every benchmark log.
 
     Every NAME.relations under --data with NAME.clf.gz, NAME.clf or NAME.bag next to it is a
     benchmark log. Prints the relations metric of each run and writes benchmark.json and
@@ -780,7 +805,7 @@ def benchmark(
     (intel has 13,631 scans); --max-scans runs a stretch. --jobs N runs N at once as Ray
     tasks (a local Ray, or RAY_ADDRESS's cluster) where Ray is installed, with the same rows.
     """
-    from .benchmark import benchmark_table, run_benchmark
+    from .benchmark import run_benchmark
 
     if max_scans is not None and max_scans < 1:
         _fail(f"--max-scans must be at least 1, got {max_scans}")
@@ -797,7 +822,10 @@ def benchmark(
                         tasks[name] = progress.add_task(name, total=total)
                     progress.update(tasks[name], completed=done, total=total)
 
-                result = run_benchmark(data, out, max_scans=max_scans, progress=report, jobs=jobs)
+                result = run_benchmark(
+                    data, out, max_scans=max_scans, progress=report, jobs=jobs,
+                    loop_closure=loop_closure,
+                )  # fmt: skip
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
     _print_warnings(caught)
@@ -807,7 +835,8 @@ def benchmark(
         if failed:  # a run failed (not bad input): exit 1
             raise typer.Exit(code=1)
         return
-    table, problems = benchmark_table(result.data["rows"], max_scans)
+    title = "relations metric" + (f" (first {max_scans} scans of each log)" if max_scans else "")
+    table, problems = benchmark_table(result.data["rows"], title)
     _wide().print(table)
     for line in problems:
         typer.echo(line)

@@ -68,7 +68,7 @@ from .folders import (
     log_label,
 )
 from .geometry import Pose2D, covariance_to_parent, propagate
-from .graph import PoseGraph, close_loops, require_gtsam
+from .graph import OnlineMapper, require_gtsam
 from .io import CarmenWriter, LogRecord, OdometryBagWriter, Relations, write_tum
 from .logs import OpenLog, open_log, select_records, select_stamps
 from .pipeline import Estimate, Positioner
@@ -199,6 +199,9 @@ class RunSummary:
     files: dict[str, Path]
     summary: dict[str, Any]
     notes: list[str] = field(default_factory=list)
+    #: with loop closure: each scan's pose as first output online, and the front end's
+    online_poses: np.ndarray | None = None
+    frontend_poses: np.ndarray | None = None
 
     @property
     def scans_per_second(self) -> float:
@@ -231,8 +234,9 @@ class _Track:
     #: what stopped the run before the end of the stretch (an error, Ctrl-C), and why
     stopped: BaseException | None = None
     partial_reason: str | None = None
-    #: the pose graph of the keyframes (loop closure on), with their features
-    graph: PoseGraph | None = None
+    #: loop closure online (loop closure on): the pose graph of the keyframes, with their
+    #: features, and the scans kept for the map
+    mapper: OnlineMapper | None = None
 
     def __len__(self) -> int:
         return len(self.stamps)
@@ -338,7 +342,8 @@ def _position_along(
     """Run ``positioner`` over ``records``, streaming the estimate into ``clf`` and
     ``outputs`` and keeping the :class:`_Track` of the scans done. An error or Ctrl-C stops
     the run: it is kept in ``track.stopped`` (anything else aborts both and is raised)."""
-    track = _Track(graph=PoseGraph() if positioner.config.loop_closure.enabled else None)
+    cfg = positioner.config
+    track = _Track(mapper=OnlineMapper(cfg) if cfg.loop_closure.enabled else None)
     bands = positioner.config.scanner.no_return_bands  # the map shows what the positioner saw
     t_start = time.perf_counter()
     try:
@@ -349,8 +354,8 @@ def _position_along(
             track.positioner_seconds += time.perf_counter() - t0
             pose = est.pose
             outputs.write(k, est)
-            if track.graph is not None:
-                track.graph.add(est)
+            if track.mapper is not None:
+                track.mapper.add(est)
             clf.write(scan, odom, rec.truth, pose=pose)
             track.stamps.append(scan.stamp)
             track.poses.append((pose.x, pose.y, pose.theta))
@@ -568,12 +573,13 @@ def _finish(
     notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
     a = _Arrays.of(track)
     loop = None
-    if track.graph is not None and track.partial_reason is None:
-        loop = close_loops(track.graph, cfg)
+    if track.mapper is not None and track.partial_reason is None:
+        loop = track.mapper.finish()
         a = replace(a, poses=loop.poses)
         notes.append(
             "loop closure: trajectory.tum holds the optimised poses (trajectory_frontend.tum "
-            "the front end's); trajectory.clf, covariance.csv and the bag the front end's"
+            "the front end's, trajectory_online.tum each scan's as first output online); "
+            "trajectory.clf, covariance.csv and the bag the front end's"
         )
     files = _write_results(
         out,
@@ -608,6 +614,10 @@ def _finish(
     )
     if loop is not None:
         summary["loop_closure"] = loop.summary
+        if relations is not None and loop.online is not None:
+            for name, poses in (("frontend", loop.frontend), ("online", loop.online)):
+                rel_of = _relations_errors(a.stamps, poses, relations, notes)
+                summary["loop_closure"][f"relations_{name}"] = rel_of
     write_json(files["summary.json"], summary)
     return RunSummary(
         results_dir=out,
@@ -623,6 +633,8 @@ def _finish(
         files=files,
         summary=summary,
         notes=notes,
+        online_poses=None if loop is None else loop.online,
+        frontend_poses=None if loop is None else loop.frontend,
     )
 
 
@@ -674,7 +686,11 @@ def run_log(
     ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the estimate and of the
     odometry against the log's ``TRUEPOS``, where every scan has one; else None),
     ``relations`` (or None), ``notes``, ``files``, and ``partial`` (False) with
-    ``partial_reason`` (None).
+    ``partial_reason`` (None). With ``[loop_closure] enabled`` the run closes loops online
+    (:class:`~fuzzypos.graph.OnlineMapper`): ``trajectory.tum`` and ``relations`` are the
+    optimised poses', ``loop_closure`` the closures and, with ``relations``,
+    ``relations_frontend`` and ``relations_online`` (the front end's and each scan's pose as
+    first output online, also :attr:`RunSummary.frontend_poses`, :attr:`RunSummary.online_poses`).
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
     log) or ``OSError``. An error or ``KeyboardInterrupt`` after some scans is raised once
