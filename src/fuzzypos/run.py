@@ -686,11 +686,8 @@ def run_log(
     ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the estimate and of the
     odometry against the log's ``TRUEPOS``, where every scan has one; else None),
     ``relations`` (or None), ``notes``, ``files``, and ``partial`` (False) with
-    ``partial_reason`` (None). With ``[loop_closure] enabled`` the run closes loops online
-    (:class:`~fuzzypos.graph.OnlineMapper`): ``trajectory.tum`` and ``relations`` are the
-    optimised poses', ``loop_closure`` the closures and, with ``relations``,
-    ``relations_frontend`` and ``relations_online`` (the front end's and each scan's pose as
-    first output online, also :attr:`RunSummary.frontend_poses`, :attr:`RunSummary.online_poses`).
+    ``partial_reason`` (None). Loop closure (online, :class:`~fuzzypos.graph.OnlineMapper`):
+    the optimised poses, ``loop_closure`` with ``relations_frontend`` and ``relations_online``.
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
     log) or ``OSError``. An error or ``KeyboardInterrupt`` after some scans is raised once
