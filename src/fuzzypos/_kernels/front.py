@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._jit import kernel
+from ._select import kth_smallest
 from .fuzzy import bilinear
 from .segmentation import (
     break_points,
@@ -114,7 +115,45 @@ def distance_scale(ranges: FloatArray, reference: float, quantile: float) -> flo
         within += ranges[i] <= reference
     if within >= k + 1:
         return 1.0
-    return max(1.0, np.quantile(ranges, quantile) / reference)
+    # np.quantile's linear interpolation between two order statistics (numba's own
+    # np.quantile and np.sort take seconds to compile)
+    h = quantile * (n - 1)
+    j = int(math.floor(h))
+    t = h - j
+    a = kth_smallest(ranges, j)
+    if t == 0.0 or j + 1 >= n:
+        return max(1.0, a / reference)
+    b = kth_smallest(ranges, j + 1)
+    q = a + (b - a) * t if t < 0.5 else b - (b - a) * (1.0 - t)
+    return max(1.0, q / reference)
+
+
+@kernel
+def _sorted(values: FloatArray) -> FloatArray:
+    """``np.sort`` of a float array without NaN (heapsort)."""
+    a = values.copy()
+    n = a.shape[0]
+    for start in range(n // 2 - 1, -1, -1):
+        _sift(a, start, n)
+    for end in range(n - 1, 0, -1):
+        a[0], a[end] = a[end], a[0]
+        _sift(a, 0, end)
+    return a
+
+
+@kernel
+def _sift(a: FloatArray, root: int, end: int) -> None:
+    """Move ``a[root]`` down the max-heap ``a[:end]``."""
+    while True:
+        child = 2 * root + 1
+        if child >= end:
+            return
+        if child + 1 < end and a[child] < a[child + 1]:
+            child += 1
+        if not a[root] < a[child]:
+            return
+        a[root], a[child] = a[child], a[root]
+        root = child
 
 
 @kernel
@@ -212,11 +251,27 @@ def line_distance_scale(
     ``point_scale``."""
     if line_ranges.shape[0] == 0:
         return point_scale
-    r = np.sort(line_ranges)
+    r = _sorted(line_ranges)
     if r[-1] <= reference * point_scale:
         return point_scale
-    w = np.cumsum(r) - 0.5 * r
-    q = float(np.interp(quantile * r.sum(), w, r))
+    # the weighted quantile: the range where the cumulative weight (midpoint rule) reaches q,
+    # interpolated as np.interp does (loops: numba's cumsum and interp are slow to compile)
+    n = r.shape[0]
+    w = np.empty(n)
+    acc = 0.0
+    for i in range(n):
+        acc += r[i]
+        w[i] = acc - 0.5 * r[i]
+    target = quantile * acc
+    if target <= w[0]:
+        q = r[0]
+    elif target >= w[n - 1]:
+        q = r[n - 1]
+    else:
+        j = 0
+        while w[j + 1] <= target:
+            j += 1
+        q = (r[j + 1] - r[j]) / (w[j + 1] - w[j]) * (target - w[j]) + r[j]
     return max(point_scale, q / reference)
 
 

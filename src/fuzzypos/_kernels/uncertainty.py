@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._jit import kernel
+from .refine import solve3
 
 FloatArray = NDArray[np.float64]
 
@@ -64,6 +65,107 @@ def _jacobians(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
 
 
 @kernel
+def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``np.linalg.solve`` of a 3×3 (partial pivoting, as LAPACK's; NaN where singular):
+    numba's own LAPACK bindings take seconds to compile."""
+    x = np.empty(3)
+    if not solve3(a, b, x):
+        x[:] = np.nan
+    return x
+
+
+@kernel
+def _inv(a: FloatArray) -> FloatArray:
+    """``np.linalg.inv`` of a 3×3, a column at a time by :func:`_solve`."""
+    out = np.empty((3, 3))
+    e = np.zeros(3)
+    for j in range(3):
+        e[:] = 0.0
+        e[j] = 1.0
+        col = _solve(a, e)
+        for i in range(3):
+            out[i, j] = col[i]
+    return out
+
+
+@kernel
+def _condition(a: FloatArray) -> float:
+    """``np.linalg.cond`` (2-norm) of a symmetric positive semi-definite 3×3, the ratio of its
+    largest eigenvalue to its smallest (closed form, trigonometric; inf where singular)."""
+    p1 = a[0, 1] ** 2 + a[0, 2] ** 2 + a[1, 2] ** 2
+    q = (a[0, 0] + a[1, 1] + a[2, 2]) / 3.0
+    if p1 == 0.0:  # diagonal
+        lo = min(a[0, 0], a[1, 1], a[2, 2])
+        hi = max(a[0, 0], a[1, 1], a[2, 2])
+    else:
+        p2 = (a[0, 0] - q) ** 2 + (a[1, 1] - q) ** 2 + (a[2, 2] - q) ** 2 + 2.0 * p1
+        p = math.sqrt(p2 / 6.0)
+        b = _scaled(_sub(a, _scaled(np.eye(3), q)), 1.0 / p)
+        r = 0.5 * (
+            b[0, 0] * (b[1, 1] * b[2, 2] - b[1, 2] * b[2, 1])
+            - b[0, 1] * (b[1, 0] * b[2, 2] - b[1, 2] * b[2, 0])
+            + b[0, 2] * (b[1, 0] * b[2, 1] - b[1, 1] * b[2, 0])
+        )
+        phi = math.acos(min(max(r, -1.0), 1.0)) / 3.0
+        hi = q + 2.0 * p * math.cos(phi)
+        lo = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+    hi, lo = abs(hi), abs(lo)
+    if lo == 0.0:
+        return math.inf
+    return hi / lo
+
+
+@kernel
+def _add(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a + b`` of two 3×3 (loops: numba's array expressions are slow to compile)."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, j] + b[i, j]
+    return out
+
+
+@kernel
+def _sub(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a − b`` of two 3×3."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, j] - b[i, j]
+    return out
+
+
+@kernel
+def _scaled(a: FloatArray, c: float) -> FloatArray:
+    """``c · a`` of a 3×3."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = c * a[i, j]
+    return out
+
+
+@kernel
+def _t(a: FloatArray) -> FloatArray:
+    """``a.T`` of a 3×3, a copy."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[j, i]
+    return out
+
+
+@kernel
+def _sym(a: FloatArray) -> FloatArray:
+    """``0.5 · (a + a.T)`` of a 3×3."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = 0.5 * (a[i, j] + a[j, i])
+    return out
+
+
+@kernel
 def _mm(a: FloatArray, b: FloatArray) -> FloatArray:
     """``a @ b`` of two 3×3."""
     out = np.zeros((3, 3))
@@ -78,7 +180,7 @@ def _mm(a: FloatArray, b: FloatArray) -> FloatArray:
 @kernel
 def _sandwich(a: FloatArray, b: FloatArray) -> FloatArray:
     """``a @ b @ a.T`` of two 3×3."""
-    return _mm(_mm(a, b), a.T.copy())
+    return _mm(_mm(a, b), _t(a))
 
 
 @kernel
@@ -87,9 +189,7 @@ def _local(cov: FloatArray, theta: float) -> FloatArray:
     c, s = math.cos(theta), math.sin(theta)
     g = np.zeros((3, 3))
     g[0, 0], g[0, 1], g[1, 0], g[1, 1], g[2, 2] = c, s, -s, c, 1.0
-    out = _sandwich(g, cov)
-    sym: FloatArray = 0.5 * (out + out.T)
-    return sym
+    return _sym(_sandwich(g, cov))
 
 
 @kernel
@@ -117,18 +217,18 @@ def _fit_parts(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``Uncertainty._fit_parts``: the covariance relative to the keyframe, the increment's
     share that is not the odometry's error, and the pull toward the odometry's motion."""
-    m = information + prior_information + hold_information
-    m_inv: FloatArray = np.linalg.inv(m + _TINY * np.eye(3))  # type: ignore[assignment]
-    odometric = prior_information + hold_information
+    odometric = _add(prior_information, hold_information)
+    m = _add(information, odometric)
+    m_inv = _inv(_add(m, _scaled(np.eye(3), _TINY)))
     other = np.zeros((3, 3))
     if _differs(fit_prior, key_prior):
-        other = other + prior_information
+        other = _add(other, prior_information)
     if _differs(hold_target, key_prior):
-        other = other + hold_information
-    own = point_correlation * gradient_covariance + _mm(_mm(other, feature), other)
-    kf = _mm(_mm(m_inv, own + _mm(_mm(odometric, prev + odo), odometric)), m_inv)
-    rest = m - odometric
-    scan_part = _mm(_mm(m_inv, own + _mm(_mm(rest, prev), rest)), m_inv)
+        other = _add(other, hold_information)
+    own = _add(_scaled(gradient_covariance, point_correlation), _mm(_mm(other, feature), other))
+    kf = _mm(_mm(m_inv, _add(own, _mm(_mm(odometric, _add(prev, odo)), odometric))), m_inv)
+    rest = _sub(m, odometric)
+    scan_part = _mm(_mm(m_inv, _add(own, _mm(_mm(rest, prev), rest))), m_inv)
     return kf, scan_part, _mm(m_inv, odometric)
 
 
@@ -157,7 +257,7 @@ def assess_fit(
     prev = _sandwich(ja, previous)
     odo = _sandwich(jb, prior_covariance)
     inc = _relative(t_prev, from_key)
-    jb_inv = jb.T.copy()
+    jb_inv = _t(jb)
     if has_fit:
         key_prior = _compose(t_prev, prior)
         kf, scan_part, pull = _fit_parts(
@@ -166,20 +266,20 @@ def assess_fit(
         )  # fmt: skip
     else:
         kf = feature.copy()
-        scan_part = feature + prev
+        scan_part = _add(feature, prev)
         pull = np.zeros((3, 3))
-    inc_cov = _sandwich(jb_inv, scan_part + _sandwich(pull, odo))
+    inc_cov = _sandwich(jb_inv, _add(scan_part, _sandwich(pull, odo)))
     gate = math.nan
     if gate_open:
-        k = _mm(_mm(jb_inv, pull), jb) - np.eye(3)
-        cov_d = _sandwich(jb_inv, scan_part) + _sandwich(k, prior_covariance) + floor
+        k = _sub(_mm(_mm(jb_inv, pull), jb), np.eye(3))
+        cov_d = _add(_add(_sandwich(jb_inv, scan_part), _sandwich(k, prior_covariance)), floor)
         d = _relative(prior, inc)
-        x = np.linalg.solve(cov_d, d)
+        x = _solve(cov_d, d)
         gate = d[0] * x[0] + d[1] * x[1] + d[2] * x[2]
-    new_previous = 0.5 * (kf + kf.T)
+    new_previous = _sym(kf)
     return (
-        _local(inc_cov, inc[2]) + floor,
-        _local(new_previous, from_key[2]) + floor,
+        _add(_local(inc_cov, inc[2]), floor),
+        _add(_local(new_previous, from_key[2]), floor),
         new_previous,
         gate,
     )
@@ -206,9 +306,9 @@ def scan_only(
         for j in range(3):
             if not math.isfinite(a[i, j]):
                 return False, np.zeros(3), np.zeros((3, 3))
-    if np.linalg.cond(a) > max_condition:
+    if not _condition(a) <= max_condition:
         return False, np.zeros(3), np.zeros((3, 3))
-    m = a + prior_information
+    m = _add(a, prior_information)
     p = fit_prior.copy()
     d = p[2] - increment[2]
     p[2] = increment[2] + (d - np.rint(d / math.tau) * math.tau)  # math.remainder(d, τ)
@@ -218,10 +318,10 @@ def scan_only(
         for j in range(3):
             acc += m[i, j] * increment[j] - prior_information[i, j] * p[j]
         rhs[i] = acc
-    x_s: FloatArray = np.linalg.solve(a, rhs)  # type: ignore[assignment]
-    a_inv: FloatArray = np.linalg.inv(a)  # type: ignore[assignment]
-    points = point_correlation * gradient_covariance
+    x_s = _solve(a, rhs)
+    a_inv = _inv(a)
+    points = _scaled(gradient_covariance, point_correlation)
     inc = _relative(t_prev, x_s)
     ja, jb = _jacobians(t_prev, inc)
-    cov = _mm(_mm(jb.T.copy(), _sandwich(a_inv, points) + _sandwich(ja, previous)), jb)
-    return True, inc, _local(cov, inc[2]) + floor
+    cov = _mm(_mm(_t(jb), _add(_sandwich(a_inv, points), _sandwich(ja, previous))), jb)
+    return True, inc, _add(_local(cov, inc[2]), floor)
