@@ -118,20 +118,20 @@ def distance_scale(ranges: FloatArray, reference: float, quantile: float) -> flo
     # np.quantile's linear interpolation between two order statistics (numba's own
     # np.quantile and np.sort take seconds to compile)
     h = quantile * (n - 1)
-    j = int(math.floor(h))
+    j = int(math.floor(h))  # noqa: RUF046 (numba: an int64 for the index)
     t = h - j
     a = kth_smallest(ranges, j)
     if t == 0.0 or j + 1 >= n:
         return max(1.0, a / reference)
     b = kth_smallest(ranges, j + 1)
     q = a + (b - a) * t if t < 0.5 else b - (b - a) * (1.0 - t)
-    return max(1.0, q / reference)
+    return float(max(1.0, q / reference))
 
 
 @kernel
 def _sorted(values: FloatArray) -> FloatArray:
     """``np.sort`` of a float array without NaN (heapsort)."""
-    a = values.copy()
+    a: FloatArray = values.copy()
     n = a.shape[0]
     for start in range(n // 2 - 1, -1, -1):
         _sift(a, start, n)
@@ -272,7 +272,7 @@ def line_distance_scale(
         while w[j + 1] <= target:
             j += 1
         q = (r[j + 1] - r[j]) / (w[j + 1] - w[j]) * (target - w[j]) + r[j]
-    return max(point_scale, q / reference)
+    return float(max(point_scale, q / reference))
 
 
 @kernel

@@ -112,7 +112,7 @@ def _condition(a: FloatArray) -> float:
     hi, lo = abs(hi), abs(lo)
     if lo == 0.0:
         return math.inf
-    return hi / lo
+    return float(hi / lo)
 
 
 @kernel
