@@ -167,7 +167,9 @@ def test_only_true_closures_between_twin_rooms(twins) -> None:
     run, ests = twins
     graph = PoseGraph.from_estimates(ests)
     truth = run.true_poses
-    closures = LoopCloser(Config()).run(graph)
+    closer = LoopCloser(Config())
+    closures = closer.run(graph)
+    assert closer.settings.place_recognition  # place candidates too, and none false
     assert len(closures) >= 4  # each room's loop closes
     for c in closures:
         a, b = graph.keyframes[c.i].scan, graph.keyframes[c.j].scan
@@ -178,6 +180,32 @@ def test_only_true_closures_between_twin_rooms(twins) -> None:
     after = graph.trajectory()
     mean = [float(np.mean(np.hypot(*(p[:, :2] - truth[:, :2]).T))) for p in (before, after)]
     assert mean[1] <= mean[0] + 0.005, mean
+
+
+def test_place_candidates_in_the_twin_room_are_refused(twins) -> None:
+    """Verified as a place candidate from the descriptor's guess, the second room's scans
+    match the first room's as well as a true closure (every other check passes), but the
+    chain puts the twin 14 m away, so no place closure is accepted there."""
+    from fuzzypos.graph.place import PlaceIndex
+
+    run, ests = twins
+    graph = PoseGraph.from_estimates(ests)
+    truth = run.true_poses
+    closer = LoopCloser(Config())
+    places = PlaceIndex([closer.place_of(graph, k) for k in range(len(graph))])
+    scans = np.array([kf.scan for kf in graph.keyframes])
+    accepted = []
+    for j, kf in enumerate(graph.keyframes):
+        if truth[kf.scan, 0] < TWIN_SHIFT - 2.0:
+            continue  # not in the second room
+        twin = truth[kf.scan, :2] - np.array([TWIN_SHIFT, 0.0])
+        i = int(np.argmin(np.hypot(*(truth[scans, :2] - twin).T)))
+        _, heading = places.compare(places.descriptors[j], np.array([i]), 0.5)
+        start = np.array([0.0, 0.0, heading[0]])
+        found = closer.verify(graph, i, j, start=start, source="place")
+        accepted += [found] if found is not None else []
+    assert not accepted, accepted
+    assert closer.rejections["position"] >= 3, closer.rejections
 
 
 def test_false_closures_between_twin_rooms_do_not_survive(twins) -> None:

@@ -160,6 +160,60 @@ class LoopClosureConfig:
         "'none': plain least squares, for comparison)",
         choices=("gnc", "cauchy", "none"),
     )
+    place_recognition: bool = _field(
+        True,
+        "where no keyframe within the gate verifies, keyframes whose place descriptor is most "
+        "alike are verified too (fuzzypos.graph.place): after a long stretch without a closure "
+        "the drift can put a revisit metres from the graph's guess, beyond the gate's nearest "
+        "candidates and the verification's search",
+    )
+    place_keyframes: int = _field(
+        4,
+        "a keyframe's place is its scan and those of the 4 keyframes before it, in its frame: a "
+        "scanner that sees half a turn then describes most of the place around it, and over a "
+        "few metres the front end's poses are exact to centimetres",
+        ge=0,
+    )
+    place_rings: int = _field(
+        20,
+        "the descriptor's polar grid has 20 rings out to place_range (0.5 m each at 10 m): "
+        "coarser than a viewpoint a metre away changes",
+        ge=1,
+    )
+    place_sectors: int = _field(
+        60,
+        "and 60 sectors of bearing (6°): the best shift gives the heading to a sector, well "
+        "within the verification's search_angle",
+        ge=4,
+    )
+    place_range: float = _field(
+        10.0,
+        "points beyond 10 m are left out of the descriptor: indoors they are few and, seen past "
+        "doorways, change most with the viewpoint",
+        unit=M,
+        gt=0.0,
+    )
+    place_min_overlap: float = _field(
+        0.5,
+        "two places are compared only where they share half the sectors the one that sees "
+        "fewer sees (at the best shift): otherwise they look in different directions",
+        gt=0.0,
+        le=1.0,
+    )
+    place_candidates: int = _field(
+        2,
+        "the 2 most alike places (not within submap_keyframes of each other, nor of a gate "
+        "candidate already verified) are verified: each costs a wide search",
+        ge=1,
+    )
+    place_search_distance: float = _field(
+        4.0,
+        "a place candidate is searched within ±4 m of the descriptor's guess (the two keyframes "
+        "at the same point, turned by the best shift): two keyframes whose places look alike "
+        "stand within a few metres of each other",
+        unit=M,
+        gt=0.0,
+    )
     map_resolution: float = _field(
         0.05,
         "the occupancy map's cells are 5 cm, ROS map_server's usual resolution for a 2D lidar",

@@ -4,6 +4,8 @@ extra: ``pip install 'fuzzypos[graph]'``).
 - :mod:`.pose_graph`: :class:`PoseGraph` (vertices the keyframes, edges from the front end's
   keyframe fits and from closures; gtsam Levenberg-Marquardt, robust closures), g2o out and in.
 - :mod:`.closure`: :class:`LoopCloser` (candidates, verification against a submap, closures).
+- :mod:`.place`: the place descriptor (a rotation-invariant polar occupancy grid of a
+  keyframe's surroundings) that ranks candidates where the graph's guess has drifted.
 - :mod:`.occupancy`: the occupancy map (ROS map_server's ``map.pgm`` + ``map.yaml``, ``map.png``).
 - :mod:`.online`: :class:`OnlineMapper`, loop closure online: the front end, the graph grown
   keyframe by keyframe and kept optimised by ISAM2, the latest optimised pose after each scan.

@@ -12,11 +12,24 @@ in ``i``'s frame, from the pose the graph predicts; the fit is accepted where en
 lies on the submap, the translation is constrained both ways, and refinements from starts
 ``ambiguity_distance`` away find no other answer nearly as good. Its covariance is the fit's
 M⁻¹ G M⁻¹ (the points' share of the front end's sandwich), as a right perturbation.
+
+Where none of those verifies, the other keyframes within the gate are ranked by their place
+descriptors' likeness to ``j``'s (:mod:`.place`) and the ``place_candidates`` most alike are
+verified from the descriptors' guess (the two keyframes at one point, turned by the
+descriptors' best shift) with a search of ±``place_search_distance``: after a long stretch
+without a closure the graph's guess is metres off, beyond the nearest candidates and the
+search. Such a closure is checked as strictly, but the long chain cannot vouch for its heading
+(its drift is why the gate missed it): its position must lie within the gate of the graph's
+prediction under the chain's covariance and the fit's, other answers are sought as far as the
+search went, and it is added only with another closure within ``recent_keyframes`` that agrees
+with it over the short chains between them (pairwise consistency); GNC then weighs it with
+the rest.
 """
 
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, replace
 from statistics import NormalDist
 
@@ -25,11 +38,12 @@ from numpy.typing import NDArray
 
 from ..config import Config
 from ..features import Features
-from ..geometry import relative, transform_points
+from ..geometry import compose, relative, transform_points
 from ..matching import Refinement, SurfacePoints, search_start, surface_points
 from ..pipeline import Refiner
 from ..pipeline.refine import ScanPoints
 from ..pipeline.uncertainty import local
+from .place import PlaceDescriptor, PlaceIndex, place_descriptor
 from .pose_graph import PoseGraph, PoseGraphError
 
 __all__ = ["Closure", "LoopCloser"]
@@ -42,7 +56,9 @@ IntArray = NDArray[np.intp]
 class Closure:
     """A verified loop closure: keyframe ``j``'s pose in keyframe ``i``'s frame, its covariance
     (right perturbation), the fraction of ``j``'s scan that paired with the submap, the
-    Mahalanobis distance squared of the candidate gate, and (after optimisation) its weight."""
+    Mahalanobis distance squared of the candidate gate (a place candidate's: of its measurement
+    from the graph's prediction), (after optimisation) its weight, and what proposed it:
+    ``"gate"`` (the candidate gate) or ``"place"`` (the place descriptor)."""
 
     i: int
     j: int
@@ -51,6 +67,7 @@ class Closure:
     inlier_fraction: float
     gate: float
     weight: float = 1.0
+    source: str = "gate"
 
 
 def _angle_increment(features: Features) -> float:
@@ -79,23 +96,30 @@ class LoopCloser:
         p = self.settings.gate_probability  # χ²(1) quantile: the normal's, squared
         self._chi2_1 = NormalDist().inv_cdf(0.5 + 0.5 * p) ** 2
         self._prefix_of: tuple[FloatArray, tuple[FloatArray, ...]] | None = None
+        self._places: tuple[PoseGraph, PlaceIndex] | None = None
+        #: candidates verified and refused, by the check that refused them
+        self.rejections: Counter[str] = Counter()
+        self._pending: list[Closure] = []  # place closures awaiting another that agrees
 
     def candidates(self, graph: PoseGraph, j: int) -> list[tuple[int, float]]:
         """``(i, d²)`` for every keyframe ``i`` within the gate of ``j``, nearest first, at
         most ``max_candidates``: d² the Mahalanobis distance squared of the two positions under
         the covariance of ``j`` relative to ``i`` along the chain of front-end edges between
         them (:meth:`chain_covariances`) plus ``overlap_radius``²."""
-        s = self.settings
-        last = j - s.recent_keyframes
+        return self.gated(graph, j)[: self.settings.max_candidates]
+
+    def gated(self, graph: PoseGraph, j: int) -> list[tuple[int, float]]:
+        """Every keyframe within the gate of ``j`` (:meth:`candidates`), nearest first."""
+        last = j - self.settings.recent_keyframes
         if last < 0:
             return []
         ks = np.arange(last + 1)
         cov = self.chain_covariances(graph, j, ks)
-        cov = cov + s.overlap_radius**2 * np.eye(2)
+        cov = cov + self.settings.overlap_radius**2 * np.eye(2)
         delta = graph.poses[j, :2] - graph.poses[ks, :2]
         d2 = np.einsum("ni,ni->n", delta, np.linalg.solve(cov, delta[:, :, None])[:, :, 0])
         inside = np.flatnonzero(d2 <= self._chi2)
-        order = inside[np.argsort(d2[inside], kind="stable")][: s.max_candidates]
+        order = inside[np.argsort(d2[inside], kind="stable")]
         return [(int(k), float(d2[k])) for k in order]
 
     def chain_covariances(self, graph: PoseGraph, j: int, ks: IntArray) -> FloatArray:
@@ -192,11 +216,15 @@ class LoopCloser:
         j: int,
         gate: float = 0.0,
         predicted: FloatArray | None = None,
+        start: FloatArray | None = None,
+        source: str = "gate",
     ) -> Closure | None:
         """The closure between keyframes ``i`` and ``j`` where the match of ``j``'s scan
-        against the submap around ``i`` is good and unambiguous (module docstring), else None.
-        The search starts from ``predicted`` (``j``'s pose in ``i``'s frame), by default the
-        graph's."""
+        against the submap around ``i`` is good and unambiguous (module docstring), else None
+        (the check that refused it counted in :attr:`rejections`). The search starts from
+        ``start`` (by default ``predicted``, ``j``'s pose in ``i``'s frame, by default the
+        graph's), within ``search_distance`` (a ``"place"`` candidate's: ``place_search_distance``);
+        the fit must agree with ``predicted`` in heading, a place candidate's in position too."""
         s = self.settings
         features = graph.keyframes[j].features
         if features is None:
@@ -208,18 +236,116 @@ class LoopCloser:
         self.verified += 1
         if predicted is None:
             predicted = relative(graph.poses[i], graph.poses[j])
+        place = source == "place"
         hit = search_start(
-            surface, points.xy, predicted, self.config.search,
-            half_width=s.search_angle, translation_half_width=s.search_distance,
+            surface, points.xy, predicted if start is None else start, self.config.search,
+            half_width=s.search_angle,
+            translation_half_width=s.place_search_distance if place else s.search_distance,
         )  # fmt: skip
         fit = self._fit(surface, points, hit.start)
-        if fit is None or fit.inlier_fraction < s.min_inlier_fraction:
+        reach = s.place_search_distance if place else s.ambiguity_distance
+        refusal = self._refusal(
+            graph, i, j, fit, None if place else predicted, surface, points, reach
+        )
+        if refusal is None and place and fit is not None:
+            gate = self._position_distance(graph, i, j, fit, predicted)
+            refusal = "position" if gate > self._chi2 else None
+        if refusal is not None or fit is None:
+            self.rejections[refusal or "no fit"] += 1
             return None
-        if not self._heading_agrees(graph, i, j, fit.increment, predicted):
-            return None
-        if not self._constrained(fit) or self._ambiguous(surface, points, fit):
-            return None
-        return Closure(i, j, fit.increment, self._covariance(fit), fit.inlier_fraction, gate)
+        return Closure(
+            i, j, fit.increment, self._covariance(fit), fit.inlier_fraction, gate, source=source
+        )
+
+    def _refusal(
+        self,
+        graph: PoseGraph,
+        i: int,
+        j: int,
+        fit: Refinement | None,
+        predicted: FloatArray | None,
+        surface: SurfacePoints,
+        points: ScanPoints,
+        reach: float,
+    ) -> str | None:
+        """Why the fit is no closure (``"no fit"``, ``"inliers"``, ``"heading"``,
+        ``"corridor"``, ``"ambiguous"``: other answers sought as far as ``reach``), or None;
+        the heading is checked against ``predicted`` where given."""
+        if fit is None:
+            return "no fit"
+        if fit.inlier_fraction < self.settings.min_inlier_fraction:
+            return "inliers"
+        if predicted is not None and not self._heading_agrees(
+            graph, i, j, fit.increment, predicted
+        ):
+            return "heading"
+        if not self._constrained(fit):
+            return "corridor"
+        if self._ambiguous(surface, points, fit, reach):
+            return "ambiguous"
+        return None
+
+    def _position_distance(
+        self, graph: PoseGraph, i: int, j: int, fit: Refinement, predicted: FloatArray
+    ) -> float:
+        """The Mahalanobis distance squared of the fit's position of ``j`` from the predicted
+        one, under the chain's covariance of ``j`` relative to ``i`` plus the fit's own (world
+        frame): a place candidate's closure must be one the chain's drift allows."""
+        lo, hi = min(i, j), max(i, j)
+        cov = self.chain_covariances(graph, hi, np.array([lo]))[0]
+        th = float(graph.poses[i, 2])
+        c, s_ = math.cos(th), math.sin(th)
+        rot = np.array([[c, -s_], [s_, c]])
+        cj, sj = math.cos(th + float(fit.increment[2])), math.sin(th + float(fit.increment[2]))
+        rot_j = np.array([[cj, -sj], [sj, cj]])
+        cov = cov + rot_j @ self._covariance(fit)[:2, :2] @ rot_j.T
+        d = rot @ (np.asarray(fit.increment[:2], dtype=float) - predicted[:2])
+        return float(d @ np.linalg.solve(cov, d))
+
+    def place_of(self, graph: PoseGraph, k: int) -> PlaceDescriptor:
+        """Keyframe ``k``'s place descriptor: the points of its scan and of the
+        ``place_keyframes`` before it, in its frame at the front end's poses."""
+        s = self.settings
+        pts = []
+        for m in range(max(0, k - s.place_keyframes), k + 1):
+            f = graph.keyframes[m].features
+            if f is not None:
+                rel = relative(graph.keyframes[k].pose, graph.keyframes[m].pose)
+                pts.append(transform_points(rel, f.points))
+        xy = np.concatenate(pts) if pts else np.zeros((0, 2))
+        return place_descriptor(xy, s.place_rings, s.place_sectors, s.place_range)
+
+    def place_candidates(
+        self, graph: PoseGraph, j: int, among: list[int], tried: list[int]
+    ) -> list[tuple[int, float, float]]:
+        """``(i, distance, heading)`` for the keyframes of ``among`` whose places look most
+        like ``j``'s: at most ``place_candidates``, none within ``submap_keyframes`` of another
+        or of ``tried``; ``heading`` is ``j``'s in ``i``'s frame by the descriptors' best
+        shift."""
+        s = self.settings
+        if not among or not s.place_recognition:
+            return []
+        if (
+            self._places is None
+            or self._places[0] is not graph
+            or len(self._places[1]) != len(graph)
+        ):
+            descriptors = [self.place_of(graph, k) for k in range(len(graph))]
+            self._places = (graph, PlaceIndex(descriptors))
+        index = self._places[1]
+        ks = np.array(among, dtype=np.intp)
+        distance, heading = index.compare(index.descriptors[j], ks, s.place_min_overlap)
+        out: list[tuple[int, float, float]] = []
+        taken = list(tried)
+        for n in np.argsort(distance, kind="stable"):
+            k = int(ks[n])
+            if distance[n] >= 1.0 or len(out) >= s.place_candidates:
+                break
+            if any(abs(k - t) <= s.submap_keyframes for t in taken):
+                continue
+            out.append((k, float(distance[n]), float(heading[n])))
+            taken.append(k)
+        return out
 
     def _fit(
         self, surface: SurfacePoints, points: ScanPoints, start: FloatArray
@@ -245,13 +371,19 @@ class LoopCloser:
         w = np.linalg.eigvalsh(fit.information[:2, :2])
         return bool(w[-1] > 0.0 and w[0] >= self.settings.min_constraint_ratio * w[-1])
 
-    def _ambiguous(self, surface: SurfacePoints, points: ScanPoints, fit: Refinement) -> bool:
-        """Whether a refinement from a start ``ambiguity_distance`` away on either axis ends
-        elsewhere with nearly as good a close fraction."""
+    def _ambiguous(
+        self, surface: SurfacePoints, points: ScanPoints, fit: Refinement, reach: float
+    ) -> bool:
+        """Whether a refinement from a start ``ambiguity_distance`` away on either axis (and
+        twice, four times … that, up to ``reach``) ends elsewhere with nearly as good a close
+        fraction."""
         s = self.settings
         x = np.asarray(fit.increment, dtype=float)
-        for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-            start = x + np.array([dx, dy, 0.0]) * s.ambiguity_distance
+        steps = [s.ambiguity_distance]
+        while steps[-1] * 2.0 <= reach:
+            steps.append(steps[-1] * 2.0)
+        for step, (dx, dy) in ((a, d) for a in steps for d in ((1, 0), (-1, 0), (0, 1), (0, -1))):
+            start = x + np.array([dx, dy, 0.0]) * step
             other = self._fit(surface, points, start)
             if other is None:
                 continue
@@ -273,15 +405,76 @@ class LoopCloser:
         return out
 
     def close(self, graph: PoseGraph, j: int) -> Closure | None:
-        """The first verified closure of keyframe ``j`` with a candidate, added to the graph
-        (not yet optimised), or None."""
-        for i, d2 in self.candidates(graph, j):
+        """The first verified closure of keyframe ``j``, added to the graph (not yet
+        optimised), or None: the gate's candidates first, then the place candidates, searched
+        from the descriptors' guess (the graph's may be metres off)."""
+        gated = self.gated(graph, j)
+        tried = []
+        for i, d2 in gated[: self.settings.max_candidates]:
+            tried.append(i)
             found = self.verify(graph, i, j, d2)
             if found is not None:
-                graph.add_closure(found.i, found.j, found.measured, found.covariance)
-                self.closures.append(found)
-                return found
+                return self._add(graph, found)
+        among = [i for i, _ in gated[self.settings.max_candidates :]]
+        for i, _, heading in self.place_candidates(graph, j, among, tried):
+            start = np.array([0.0, 0.0, heading])
+            found = self.verify(graph, i, j, start=start, source="place")
+            if found is not None:
+                return self._corroborated(graph, found)
         return None
+
+    def _corroborated(self, graph: PoseGraph, found: Closure) -> Closure | None:
+        """A place closure is added (with the pending one that agrees) where it agrees with a
+        closure of a keyframe among the last ``recent_keyframes`` (:meth:`agree`), else held
+        back: the long chain cannot check its heading (its drift is why the gate missed it),
+        two closures over short chains can, and one false match rarely has a consistent twin."""
+        w = self.settings.recent_keyframes
+        near = [c for c in self.closures if found.j - c.j <= w]
+        pending = [c for c in self._pending if found.j - c.j <= w]
+        self._pending = [*pending, found]
+        match = next((c for c in [*pending, *near] if self.agree(graph, c, found)), None)
+        if match is None:
+            self.rejections["uncorroborated"] += 1
+            return None
+        if match in pending:
+            self._pending.remove(match)
+            self._add(graph, match)
+        self._pending.remove(found)
+        return self._add(graph, found)
+
+    def agree(self, graph: PoseGraph, a: Closure, b: Closure) -> bool:
+        """Whether two closures agree: ``b``'s measurement against ``a``'s carried along the
+        front end's short chains ``a.i → b.i`` and ``a.j → b.j``, within the χ²(2) gate in
+        position and the χ²(1) gate in heading under both chains' and both closures'
+        covariances."""
+        kf = graph.keyframes
+        expected = compose(
+            compose(relative(kf[b.i].pose, kf[a.i].pose), a.measured),
+            relative(kf[a.j].pose, kf[b.j].pose),
+        )
+        e = relative(expected, b.measured)  # in b.j's frame (as it is predicted)
+        pos, head = np.zeros((2, 2)), 0.0
+        cs = self._prefix(graph)[3]
+        for lo, hi in sorted((a.i, b.i)), sorted((a.j, b.j)):
+            if hi > lo:
+                pos += self.chain_covariances(graph, hi, np.array([lo]))[0]
+                head += float(cs[hi] - cs[lo])
+        th = float(graph.poses[b.j, 2])
+        c, s_ = math.cos(th), math.sin(th)
+        rot = np.array([[c, -s_], [s_, c]])
+        for x, at in ((a, a.j), (b, b.j)):
+            ca, sa = math.cos(graph.poses[at, 2]), math.sin(graph.poses[at, 2])
+            ra = np.array([[ca, -sa], [sa, ca]])
+            pos += ra @ x.covariance[:2, :2] @ ra.T
+            head += float(x.covariance[2, 2])
+        d = rot @ e[:2]
+        d2 = float(d @ np.linalg.solve(pos, d))
+        return d2 <= self._chi2 and float(e[2]) ** 2 <= self._chi2_1 * head
+
+    def _add(self, graph: PoseGraph, found: Closure) -> Closure:
+        graph.add_closure(found.i, found.j, found.measured, found.covariance)
+        self.closures.append(found)
+        return found
 
     def run(self, graph: PoseGraph) -> list[Closure]:
         """Every keyframe in turn: close its loop where it can, the graph optimised after a

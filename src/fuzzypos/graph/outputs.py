@@ -123,10 +123,13 @@ def loop_closure_result(
                 "inlier_fraction": c.inlier_fraction,
                 "gate": c.gate,
                 "weight": c.weight,
+                "source": c.source,
             }
             for c in closures
         ],
         "closures_kept": sum(c.weight >= 0.5 for c in closures),
+        "closures_from_places": sum(c.source == "place" for c in closures),
+        "rejected": dict(sorted(closer.rejections.items())),
         "max_correction_m": float(moved.max()),
         "seconds": seconds,
         "robust": config.loop_closure.robust,
