@@ -134,4 +134,5 @@ def test_place_candidates_find_the_revisit_the_graph_lost(lap) -> None:
         results[place] = (closures, float(np.hypot(*(end[:2] - true_end[:2]))))
     closures, end_error = results[True]
     assert any(c.source == "place" and c.weight > 0.5 for c in closures)
+    assert all(c.agreed is not None for c in closures if c.source == "place")
     assert end_error < 0.25 and end_error < results[False][1] / 10, (results[False][1], end_error)

@@ -58,7 +58,8 @@ class Closure:
     (right perturbation), the fraction of ``j``'s scan that paired with the submap, the
     Mahalanobis distance squared of the candidate gate (a place candidate's: of its measurement
     from the graph's prediction), (after optimisation) its weight, and what proposed it:
-    ``"gate"`` (the candidate gate) or ``"place"`` (the place descriptor)."""
+    ``"gate"`` (the candidate gate) or ``"place"`` (the place descriptor), and a place
+    closure's: the keyframes ``(i, j)`` of the closure that agreed with it."""
 
     i: int
     j: int
@@ -68,6 +69,7 @@ class Closure:
     gate: float
     weight: float = 1.0
     source: str = "gate"
+    agreed: tuple[int, int] | None = None
 
 
 def _angle_increment(features: Features) -> float:
@@ -438,9 +440,9 @@ class LoopCloser:
             return None
         if match in pending:
             self._pending.remove(match)
-            self._add(graph, match)
+            self._add(graph, replace(match, agreed=(found.i, found.j)))
         self._pending.remove(found)
-        return self._add(graph, found)
+        return self._add(graph, replace(found, agreed=(match.i, match.j)))
 
     def agree(self, graph: PoseGraph, a: Closure, b: Closure) -> bool:
         """Whether two closures agree: ``b``'s measurement against ``a``'s carried along the

@@ -124,6 +124,7 @@ def loop_closure_result(
                 "gate": c.gate,
                 "weight": c.weight,
                 "source": c.source,
+                "agreed_with": None if c.agreed is None else list(c.agreed),
             }
             for c in closures
         ],
