@@ -427,14 +427,17 @@ class LoopCloser:
 
     def _corroborated(self, graph: PoseGraph, found: Closure) -> Closure | None:
         """A place closure is added (with the pending one that agrees) where it agrees with a
-        closure of a keyframe among the last ``recent_keyframes`` (:meth:`agree`), else held
-        back: the long chain cannot check its heading (its drift is why the gate missed it),
-        two closures over short chains can, and one false match rarely has a consistent twin."""
+        closure both of whose keyframes lie within ``recent_keyframes`` of its own
+        (:meth:`agree`), else held back: the long chain cannot check its heading (its drift is
+        why the gate missed it), two closures over short chains can (over a long one the check
+        is as loose as the chain: a closure 6 m off agreed with a true one 100 keyframes
+        away), and one false match rarely has a consistent twin."""
         w = self.settings.recent_keyframes
         near = [c for c in self.closures if found.j - c.j <= w]
         pending = [c for c in self._pending if found.j - c.j <= w]
         self._pending = [*pending, found]
-        match = next((c for c in [*pending, *near] if self.agree(graph, c, found)), None)
+        short = [c for c in [*pending, *near] if abs(found.i - c.i) <= w]
+        match = next((c for c in short if self.agree(graph, c, found)), None)
         if match is None:
             self.rejections["uncorroborated"] += 1
             return None
