@@ -65,6 +65,24 @@ def test_any_turn_and_a_small_step_give_the_heading_to_a_sector(seed, turn, dx, 
     assert distance[0] < distance[1:].min()
 
 
+@given(seed=st.integers(0, 10_000), pick=st.lists(st.integers(0, 4), min_size=1, max_size=5))
+def test_an_index_grown_a_keyframe_at_a_time_compares_as_one_built_at_once(seed, pick) -> None:
+    """Online the index grows by one descriptor per keyframe: the same distances and headings
+    as an index of them all, for any subset compared."""
+    ds = [place_descriptor(_room(seed + k), RINGS, SECTORS, RANGE) for k in range(5)]
+    grown = PlaceIndex(ds[:1])
+    for d in ds[1:]:
+        grown.append(d)
+    query = place_descriptor(_view(_room(seed + 2), np.array([0.1, -0.2, 0.7])), RINGS, SECTORS,
+                             RANGE)  # fmt: skip
+    among = np.array(pick, dtype=np.intp)
+    for a, b in zip(grown.compare(query, among, 0.5), PlaceIndex(ds).compare(query, among, 0.5)):
+        np.testing.assert_array_equal(a, b)
+    assert len(grown) == 5
+    with pytest.raises(ValueError, match="differ"):
+        grown.append(place_descriptor(_room(0), 10, 30, RANGE))
+
+
 def test_a_descriptor_needs_a_grid() -> None:
     with pytest.raises(ValueError, match="rings"):
         place_descriptor(np.zeros((3, 2)), 0, SECTORS, RANGE)

@@ -28,7 +28,8 @@ def best_candidate(
 ) -> tuple[int, int, float]:
     """Of every rotation ``thetas[r]`` and translation ``(tx[t], ty[t])``, the one whose
     fraction of ``points`` within ``gate`` of a grid point, less ``penalty[t]``, is highest
-    (the first of equal ones, rotation-major): ``(r, t, its fraction)``."""
+    (the first of equal ones, rotation-major): ``(r, t, its fraction)``. A candidate is left
+    as soon as its misses make it unable to beat the best so far (the result is the same)."""
     geometry, shape, start, _order, gxy = grid
     n = points.shape[0]
     rx, ry = np.empty(n), np.empty(n)
@@ -40,9 +41,17 @@ def best_candidate(
             ry[i] = s * points[i, 0] + c * points[i, 1]
         for t in range(tx.shape[0]):
             hits = 0
+            beaten = False
             for i in range(n):
                 if any_within(rx[i] + tx[t], ry[i] + ty[t], gate, geometry, shape, start, gxy):
                     hits += 1
+                elif not (hits + (n - 1 - i)) / n - penalty[t] > best_score:
+                    # even every point left a hit would not beat the best (a bound: the
+                    # branch-and-bound of correlative matching, one level deep)
+                    beaten = True
+                    break
+            if beaten:
+                continue
             fraction = hits / n
             score = fraction - penalty[t]
             if score > best_score:

@@ -330,11 +330,12 @@ class LoopCloser:
         if (
             self._places is None
             or self._places[0] is not graph
-            or len(self._places[1]) != len(graph)
+            or len(self._places[1]) > len(graph)
         ):
-            descriptors = [self.place_of(graph, k) for k in range(len(graph))]
-            self._places = (graph, PlaceIndex(descriptors))
+            self._places = (graph, PlaceIndex([self.place_of(graph, 0)]))
         index = self._places[1]
+        for k in range(len(index), len(graph)):  # a keyframe's descriptor is made once
+            index.append(self.place_of(graph, k))
         ks = np.array(among, dtype=np.intp)
         distance, heading = index.compare(index.descriptors[j], ks, s.place_min_overlap)
         out: list[tuple[int, float, float]] = []

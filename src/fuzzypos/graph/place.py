@@ -86,13 +86,26 @@ class PlaceIndex:
         sectors = {d.columns.shape for d in descriptors}
         if len(sectors) != 1:
             raise ValueError(f"the descriptors' grids differ: {sorted(sectors)}")
-        self.descriptors = list(descriptors)
-        self._columns = np.fft.rfft(np.stack([d.columns for d in descriptors]), axis=1)
-        self._seen = np.fft.rfft(np.stack([d.seen for d in descriptors]), axis=1)
+        self.descriptors: list[PlaceDescriptor] = []
+        # each descriptor's spectra along the sectors, kept apart so that the index grows by
+        # one keyframe at a time (online) without redoing the others
+        self._columns: list[NDArray[np.complex128]] = []
+        self._seen: list[NDArray[np.complex128]] = []
         self._sectors = descriptors[0].sectors
+        for d in descriptors:
+            self.append(d)
 
     def __len__(self) -> int:
         return len(self.descriptors)
+
+    def append(self, descriptor: PlaceDescriptor) -> None:
+        """One more keyframe's descriptor (the next index)."""
+        shape = self.descriptors[0].columns.shape if self.descriptors else None
+        if shape is not None and descriptor.columns.shape != shape:
+            raise ValueError(f"the descriptors' grids differ: {shape}, {descriptor.columns.shape}")
+        self.descriptors.append(descriptor)
+        self._columns.append(np.fft.rfft(descriptor.columns, axis=0))
+        self._seen.append(np.fft.rfft(descriptor.seen))
 
     def compare(
         self, query: PlaceDescriptor, among: NDArray[np.intp], min_overlap: float
@@ -105,8 +118,10 @@ class PlaceIndex:
         fq = np.fft.rfft(query.columns, axis=0)
         fs = np.fft.rfft(query.seen)
         # sim[k, m] = Σ_c <q[c], d_k[c + m]>: a turn of the query's frame by +m sectors
-        dots = np.fft.irfft((np.conj(fq)[None] * self._columns[among]).sum(axis=2), n, axis=1)
-        both = np.fft.irfft(np.conj(fs)[None] * self._seen[among], n, axis=1)
+        columns = np.stack([self._columns[k] for k in among])
+        seen = np.stack([self._seen[k] for k in among])
+        dots = np.fft.irfft((np.conj(fq)[None] * columns).sum(axis=2), n, axis=1)
+        both = np.fft.irfft(np.conj(fs)[None] * seen, n, axis=1)
         both = np.rint(both)
         either = np.minimum(query.seen.sum(), np.array([self.descriptors[k].seen.sum()
                                                          for k in among]))  # fmt: skip
