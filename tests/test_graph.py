@@ -279,3 +279,67 @@ def test_a_fit_whose_heading_the_graph_rules_out_is_refused(loop) -> None:
     loose = Config().with_overrides({"loop_closure": {"heading_floor": np.radians(90.0)}})
     found = LoopCloser(loose).verify(graph, i, j, predicted=turned)
     assert found is not None and abs(found.measured[2] - predicted[2]) < np.radians(1.0)
+
+
+def _wall_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """Each point's distance to the nearest wall segment ``[x1, y1, x2, y2]``."""
+    a, b = segments[:, :2], segments[:, 2:]
+    ab = b - a
+    t = np.einsum("pkj,kj->pk", points[:, None, :] - a[None], ab) / np.maximum(
+        np.einsum("kj,kj->k", ab, ab), 1e-12
+    )
+    foot = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
+    return np.min(np.hypot(*(points[:, None, :] - foot).transpose(2, 0, 1)), axis=1)
+
+
+def test_the_map_of_the_closed_loop_draws_the_simulated_walls(loop) -> None:
+    """The occupancy grid from the keyframes' scans at their optimised poses after the loop
+    closed by itself: its occupied cells lie on the gym's walls (within two cells), the walls
+    near the lap are drawn and free cells are not on walls; drawn 0.2 m off, it is not."""
+    from fuzzypos.graph import close_loops
+    from fuzzypos.graph.occupancy import OCCUPIED_THRESH, occupancy_grid
+
+    run, ests = loop
+    graph = PoseGraph.from_estimates(ests)
+    result = close_loops(graph, Config().with_overrides({"loop_closure": {"enabled": True}}))
+    scans = [kf.features.points for kf in graph.keyframes]
+    grid = occupancy_grid(result.graph.poses, scans, 0.05)
+    p = 1.0 - 1.0 / (1.0 + np.exp(grid.log_odds))
+    rows, cols = np.nonzero(p > OCCUPIED_THRESH)
+    centres = np.column_stack(
+        (
+            grid.origin[0] + (cols + 0.5) * grid.resolution,
+            grid.origin[1] + (rows + 0.5) * grid.resolution,
+        )
+    )
+    walls = np.asarray(sim.gym().segments)
+    assert centres.shape[0] > 500
+    off = _wall_distance(centres, walls)
+    assert np.mean(off <= 2 * grid.resolution) > 0.97, np.percentile(off, [50, 90, 99])
+    # the other way: of the samples along the walls within 4 m of the lap, most have an
+    # occupied cell within two cells (benches, boxes and pillars hide the rest: 57 %)
+    samples = np.concatenate(
+        [
+            a + np.linspace(0.0, 1.0, 50)[:, None] * (b - a)
+            for a, b in zip(walls[:, :2], walls[:, 2:])
+        ]
+    )
+    path = run.true_poses[::20, :2]
+    reach = np.min(np.hypot(*(samples[:, None, :] - path[None]).transpose(2, 0, 1)), axis=1)
+    near = samples[reach < 4.0]
+    assert near.shape[0] > 100
+    seen = _wall_distance(near, np.column_stack((centres, centres)))
+    assert np.mean(seen <= 2 * grid.resolution) > 0.5, np.percentile(seen, [50, 90])
+    free_rows, free_cols = np.nonzero(p < 0.2)
+    free = np.column_stack(
+        (grid.origin[0] + (free_cols + 0.5) * grid.resolution,
+         grid.origin[1] + (free_rows + 0.5) * grid.resolution)
+    )  # fmt: skip
+    assert np.mean(_wall_distance(free, walls) < 0.5 * grid.resolution) < 0.01
+    shifted = occupancy_grid(result.graph.poses + np.array([0.2, 0.0, 0.0]), scans, 0.05)
+    q = 1.0 - 1.0 / (1.0 + np.exp(shifted.log_odds))
+    rows, cols = np.nonzero(q > OCCUPIED_THRESH)
+    moved = np.column_stack(
+        (shifted.origin[0] + (cols + 0.5) * 0.05, shifted.origin[1] + (rows + 0.5) * 0.05)
+    )
+    assert np.mean(_wall_distance(moved, walls) <= 2 * grid.resolution) < 0.8

@@ -21,10 +21,11 @@ class LoopClosureConfig:
 
     enabled: bool = _field(
         False,
-        "off by default: it needs gtsam (the optional extra [graph]) and runs after the log, "
-        "tens of seconds to minutes on a long one; tested on simulated loops (a known closure "
-        "brings the end back, no false closure survives between two identical rooms) and "
-        "measured on real logs (README); `fuzzypos run --loop-closure` turns it on",
+        "off by default: it needs gtsam (the optional extra [graph]) and its verification "
+        "searches cost several times the front end's time on a long log; tested on simulated "
+        "loops (a known closure brings the end back, no false closure survives between two "
+        "identical rooms) and measured on the shared logs (README); `fuzzypos run "
+        "--loop-closure` turns it on",
     )
     recent_keyframes: int = _field(
         10,
