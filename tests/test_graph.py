@@ -343,3 +343,66 @@ def test_the_map_of_the_closed_loop_draws_the_simulated_walls(loop) -> None:
         (shifted.origin[0] + (cols + 0.5) * 0.05, shifted.origin[1] + (rows + 0.5) * 0.05)
     )
     assert np.mean(_wall_distance(moved, walls) <= 2 * grid.resolution) < 0.8
+
+
+def _corridor_of_doors() -> sim.World:
+    """A 26 m corridor, 2 m wide, with six identical 1 m doorways on each side, 4 m apart,
+    each into an identical empty 3 m × 2 m room: from the corridor one door is the next."""
+    polys: list[np.ndarray] = []
+    doors = [-10.0 + 4.0 * k for k in range(6)]
+    for y, side in ((1.0, 1.0), (-1.0, -1.0)):
+        xs = [-13.0, *(x for c in doors for x in (c - 0.5, c + 0.5)), 13.0]
+        polys += [np.array([[a, y], [b, y]]) for a, b in zip(xs[::2], xs[1::2])]
+        polys += [
+            np.array([[c - 1.5, y], [c - 1.5, y + 2 * side], [c + 1.5, y + 2 * side], [c + 1.5, y]])
+            for c in doors
+        ]
+    polys += [np.array([[-13.0, -1.0], [-13.0, 1.0]]), np.array([[13.0, -1.0], [13.0, 1.0]])]
+    return sim.World.from_polygons(polys, closed=False)
+
+
+@pytest.fixture(scope="module")
+def doors() -> tuple[sim.SimulatedRun, PoseGraph, object]:
+    """Down the corridor of doors and back (933 scans), its loops closed offline."""
+    from fuzzypos.graph import close_loops
+
+    path = sim.CommandedPath.waypoints([(-11, 0.3), (11, 0.3), (11, -0.3), (-11, -0.3)], speed=0.5)
+    run = sim.simulate_run(_corridor_of_doors(), path, DemoSettings().scanner, sim.SlipModel(), 0)
+    pos = Positioner(Config())
+    ests = [pos.update(s, run.odometry_pose(k)) for k, s in enumerate(run.scans)]
+    graph = PoseGraph.from_estimates(ests)
+    frontend = graph.frontend_trajectory()
+    result = close_loops(graph, Config().with_overrides({"loop_closure": {"enabled": True}}))
+    return run, graph, (frontend, result)
+
+
+def test_no_false_closure_survives_in_a_corridor_of_identical_doors(doors) -> None:
+    """Coming back down a corridor whose doors all look alike, the verification accepts a
+    match one door off (3 m: the rooms are alike); the robust optimisation gives it no weight,
+    and the end of the run comes back nearer the truth than the front end's."""
+    run, graph, (frontend, result) = doors
+    truth = run.true_poses
+    errors = []
+    for c in result.closures:
+        ti, tj = (truth[graph.keyframes[k].scan] for k in (c.i, c.j))
+        e = relative(relative(ti, tj), c.measured)
+        errors.append((float(np.hypot(e[0], e[1])), c.weight))
+    assert any(e > 1.0 for e, _ in errors), errors  # the corridor fools the verification
+    assert all(w < 0.1 for e, w in errors if e > 0.3), errors  # and no false closure survives
+    assert any(w > 0.5 for e, w in errors if e < 0.1), errors  # a true one is kept
+    assert _end_error(result.poses, truth) < _end_error(frontend, truth)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 13: a kept true closure 1.7° off in heading (its covariance says 0.57°) turns "
+    "the chain, so the middle of the run moves away from the truth (mean 0.09 → 0.16 m)",
+)
+def test_closing_the_corridor_of_doors_leaves_the_trajectory_no_worse(doors) -> None:
+    run, _graph, (frontend, result) = doors
+    truth = run.true_poses
+
+    def mean_error(poses: np.ndarray) -> float:
+        return float(np.mean(np.hypot(*(poses[:, :2] - truth[:, :2]).T)))
+
+    assert mean_error(result.poses) <= mean_error(frontend) + 0.01
