@@ -293,8 +293,16 @@ def _fit_lines_compiled(
     )  # fmt: skip
     if ids.size == 0:
         return _empty_lines()
+    f_line = bases.lines(table[:, 8].copy(), table[:, 7].copy())  # eq. 9 / Table 2: (δ, σ)
+    return _lines_of_table(table, ids, firsts, f_line, cluster)
+
+
+def _lines_of_table(
+    table: FloatArray, ids: IntArray, firsts: IntArray, f_line: FloatArray, cluster: IntArray
+) -> Lines:
+    """The :class:`Lines` of ``_kernels.segmentation.finish_lines``' table (its kept segment
+    ids and each one's first point) with their uncertainty ``f_line``."""
     start, end = table[:, 3:5].copy(), table[:, 5:7].copy()
-    sigma, delta = table[:, 7].copy(), table[:, 8].copy()
     return Lines(
         normal=table[:, 0:2].copy(),
         distance=table[:, 2].copy(),
@@ -302,9 +310,9 @@ def _fit_lines_compiled(
         end=end,
         centre=0.5 * (start + end),
         n_points=table[:, 11].astype(np.int64),
-        sigma=sigma,
-        delta=delta,
-        uncertainty=bases.lines(delta, sigma),  # eq. 9 / Table 2
+        sigma=table[:, 7].copy(),
+        delta=table[:, 8].copy(),
+        uncertainty=f_line,
         segment=ids,
         cluster=cluster[firsts],
         angle_variance=table[:, 9].copy(),
@@ -637,23 +645,7 @@ def _lines_compiled(
     )  # fmt: skip
     if ids.size == 0:
         return _empty_lines(), line_scale
-    start, end = table[:, 3:5].copy(), table[:, 5:7].copy()
-    lines = Lines(
-        normal=table[:, 0:2].copy(),
-        distance=table[:, 2].copy(),
-        start=start,
-        end=end,
-        centre=0.5 * (start + end),
-        n_points=table[:, 11].astype(np.int64),
-        sigma=table[:, 7].copy(),
-        delta=table[:, 8].copy(),
-        uncertainty=f_line,
-        segment=ids,
-        cluster=cluster[firsts],
-        angle_variance=table[:, 9].copy(),
-        distance_variance=table[:, 10].copy(),
-    )
-    return lines, line_scale
+    return _lines_of_table(table, ids, firsts, f_line, cluster), line_scale
 
 
 def _graded_for_lines(
