@@ -11,7 +11,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from ._kernels import compiled
+from ._kernels import compiled, f64
 from .config import (
     AngularPointConfig,
     Config,
@@ -45,11 +45,6 @@ __all__ = [
 ]
 
 
-def _f64(a: NDArray) -> FloatArray:
-    """A contiguous float64 array (the one type the kernels are compiled for)."""
-    return np.ascontiguousarray(a, dtype=np.float64)
-
-
 def _running_count(mask: BoolArray) -> IntArray:
     """``np.cumsum`` of a boolean mask as int64 (the ufunc on an int array is several times
     faster than np.cumsum on booleans)."""
@@ -69,7 +64,7 @@ def _steps(points: FloatArray, closed: bool) -> FloatArray:
     if compiled():
         from ._kernels import segmentation as kernel
 
-        return kernel.steps(_f64(points), bool(closed))
+        return kernel.steps(f64(points), bool(closed))
     return _steps_numpy(points, closed)
 
 
@@ -122,7 +117,7 @@ def break_points(
         from ._kernels import segmentation as kernel
 
         return kernel.break_points(
-            _f64(points), _f64(thresholds), float(gap_difference), bool(closed)
+            f64(points), f64(thresholds), float(gap_difference), bool(closed)
         )
     return _break_points_numpy(points, thresholds, gap_difference, closed)
 
@@ -162,7 +157,7 @@ def detection_angles(
         from ._kernels.segmentation import detection_terms
 
         cross, dot, isolated = detection_terms(
-            _f64(points_sensor), np.ascontiguousarray(gap_after, dtype=np.bool_), bool(closed)
+            f64(points_sensor), np.ascontiguousarray(gap_after, dtype=np.bool_), bool(closed)
         )
         beta: FloatArray = np.arctan2(cross, dot)  # numpy's, as the reference's
         beta[isolated] = 0.0
@@ -300,7 +295,7 @@ def angular_points(
         ap = cfg.angular_points
         labels = np.ascontiguousarray(cluster, dtype=np.int64)
         cross, dot, inside = corner_arms(
-            _f64(points), labels, _f64(step_spacing), float(ap.neighbour_distance),
+            f64(points), labels, f64(step_spacing), float(ap.neighbour_distance),
             int(ap.neighbour_step),
         )  # fmt: skip
         angle: FloatArray = np.abs(np.arctan2(cross, dot))  # numpy's, as the reference's

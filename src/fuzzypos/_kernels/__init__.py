@@ -15,7 +15,10 @@ from __future__ import annotations
 import importlib.util
 import os
 
-__all__ = ["compiled"]
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["compiled", "f64"]
 
 _ENABLED: bool | None = None
 
@@ -29,3 +32,9 @@ def compiled() -> bool:
         wanted = os.environ.get("FUZZYPOS_KERNELS", "numba").strip().lower() != "numpy"
         _ENABLED = wanted and importlib.util.find_spec("numba") is not None
     return _ENABLED
+
+
+def f64(a: NDArray | None) -> NDArray[np.float64]:
+    """``a`` as a contiguous float64 array, the one type the kernels are compiled for (no copy
+    where it is one already)."""
+    return np.ascontiguousarray(a, dtype=np.float64)

@@ -9,18 +9,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled
+from .._kernels import compiled, f64
 from ..features import Lines
 from ._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS, FloatArray, IntArray, index_pairs, robust_keep
 
 __all__ = ["LinePairs", "pair_lines", "increment_from_lines"]
 
 _HALF_PI = 0.5 * math.pi
-
-
-def _f64(a: FloatArray) -> FloatArray:
-    """A contiguous float64 array (the one type the kernels are compiled for)."""
-    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,7 +50,7 @@ def pair_lines(
     if compiled():
         from .._kernels import lines as kernel
 
-        f = _f64
+        f = f64
         rows, cols = kernel.pair_lines(
             f(prev.normal_angle), f(prev.distance), f(prev.normal), f(prev.centre),
             f(prev.length), f(curr.normal_angle), f(curr.distance), f(curr.centre),
@@ -152,7 +147,7 @@ def increment_from_lines(
                 OUTLIER_SIGMAS * MAD_TO_SIGMA,
             ]
         )  # fmt: skip
-        f = _f64
+        f = f64
         out: FloatArray = kernel.increment_from_lines(
             f(prev.normal_angle[P]), f(prev.distance[P]), f(curr.normal_angle[C]),
             f(curr.distance[C]), f(pa[P] + ca[C]), f(pd[P] + cd[C]), f(start), f(prior), params,

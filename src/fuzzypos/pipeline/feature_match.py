@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled
+from .._kernels import compiled, f64
 from ..config import FusionConfig, MatchingConfig
 from ..features import FeaturePoints, Features, Lines
 from ..matching import estimate_increment, increment_from_lines, pair_features, pair_lines
@@ -149,15 +149,11 @@ def _has_variances(lines: Lines) -> bool:
     return lines.angle_variance is not None and lines.distance_variance is not None
 
 
-def _f64(a: FloatArray | None) -> FloatArray:
-    return np.ascontiguousarray(a, dtype=np.float64)
-
-
 def _line_arrays(
     lines: Lines,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """What the line-matching kernel reads of a scan's lines."""
     return (
-        _f64(lines.normal_angle), _f64(lines.distance), _f64(lines.normal), _f64(lines.centre),
-        _f64(lines.length), _f64(lines.angle_variance), _f64(lines.distance_variance),
+        f64(lines.normal_angle), f64(lines.distance), f64(lines.normal), f64(lines.centre),
+        f64(lines.length), f64(lines.angle_variance), f64(lines.distance_variance),
     )  # fmt: skip

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled
+from .._kernels import compiled, f64
 from ..config import CovarianceConfig, GateConfig
 from ..geometry import compose, compose_jacobians, relative
 from ..matching import Refinement
@@ -43,11 +43,6 @@ _EYE.flags.writeable = False
 #: what keeps the fit's information invertible
 _TINY = 1e-12 * np.eye(3)
 _TINY.flags.writeable = False
-
-
-def _f64(a: FloatArray) -> FloatArray:
-    """A contiguous float64 array (the one type the kernels are compiled for)."""
-    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _read_only(a: FloatArray) -> FloatArray:
@@ -172,7 +167,7 @@ class Uncertainty:
             poses[0] = fit.prior
             poses[1] = fit.start if fit.hold_on_start else compose(t_prev, prior)
         inc_cov, kf, previous, gate = assess_fit(
-            _f64(t_prev), _f64(prior), _f64(prior_covariance), self._previous, _f64(from_key),
+            f64(t_prev), f64(prior), f64(prior_covariance), self._previous, f64(from_key),
             self._feature, self.floor, fit is not None, matrices, poses,
             float(self.settings.point_correlation), bool(gate_open),
         )  # fmt: skip
@@ -273,9 +268,9 @@ class Uncertainty:
             from .._kernels.uncertainty import scan_only
 
             ok, inc, cov = scan_only(
-                _f64(fit.information), _f64(fit.prior_information),
-                _f64(fit.gradient_covariance), _f64(fit.increment), _f64(fit.prior),
-                _f64(t_prev), self._previous, self.floor,
+                f64(fit.information), f64(fit.prior_information),
+                f64(fit.gradient_covariance), f64(fit.increment), f64(fit.prior),
+                f64(t_prev), self._previous, self.floor,
                 float(self.settings.point_correlation), _MAX_CONDITION,
             )  # fmt: skip
             return (inc, cov) if ok else None
