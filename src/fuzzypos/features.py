@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._kernels import compiled
-from .config import Config, FuzzyConfig
+from .config import Config, FuzzyConfig, LineConfig
 from .fuzzy import RuleBases
 from .geometry import stack_columns
 from .scan import LaserScan
@@ -556,16 +556,9 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     kr = ranges.take(kept_index)
 
     # 6. lines (§3.5, eq. 5–9)
-    fitted = None
-    if compiled():
-        fitted = _lines_compiled(
-            kp, kr, beta.take(kept_index), ku, segment, cluster, scale, bases, cfg
-        )
-    if fitted is None:
-        lu, line_scale = _graded_for_lines(kr, beta[kept_index], ku, segment, scale, bases, cfg)
-        lines = fit_lines(kp, lu, segment, cluster, bases, cfg)
-    else:
-        lines, line_scale = fitted
+    lines, line_scale = _graded_lines(
+        kp, kr, beta.take(kept_index), ku, segment, cluster, scale, bases, cfg
+    )
     corner_idx = is_corner.nonzero()[0]
     n_kept = kp.shape[0]
     # the lines on either side of each angular point (circularly, for the ring's seam)
@@ -613,6 +606,28 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     )
 
 
+def _graded_lines(
+    points: FloatArray,
+    ranges: FloatArray,
+    beta: FloatArray,
+    u: FloatArray,
+    segment: IntArray,
+    cluster: IntArray,
+    scale: float,
+    bases: RuleBases,
+    cfg: Config,
+) -> tuple[Lines, float]:
+    """Step 6 on the kept points: the scale the lines are graded on and the lines fitted on
+    it, in one compiled call where the kernels are on (:func:`_lines_compiled`), else by
+    :func:`_graded_for_lines` and :func:`fit_lines`."""
+    if compiled():
+        fitted = _lines_compiled(points, ranges, beta, u, segment, cluster, scale, bases, cfg)
+        if fitted is not None:
+            return fitted
+    lu, line_scale = _graded_for_lines(ranges, beta, u, segment, scale, bases, cfg)
+    return fit_lines(points, lu, segment, cluster, bases, cfg), line_scale
+
+
 def _lines_compiled(
     points: FloatArray,
     ranges: FloatArray,
@@ -632,20 +647,26 @@ def _lines_compiled(
     pb, lb = bases.points, bases.lines
     if pb._grids is None or lb._grids is None:
         return None
-    fz = cfg.fuzzy
-    structure = fz.distance_scale != "fixed" and fz.line_distance_scale == "structure"
-    params = np.array([
-        cfg.lines.min_points, cfg.lines.min_length, _MIN_LINE_NOISE, float(structure),
-        fz.distance_scale_reference, fz.distance_scale_quantile,
-    ], dtype=np.float64)  # fmt: skip
     line_scale, _lu, ids, table, firsts, f_line = kernel(
-        np.ascontiguousarray(points), ranges, beta, u, segment, float(scale), params,
+        np.ascontiguousarray(points), ranges, beta, u, segment, float(scale),
+        _line_params(cfg.lines, cfg.fuzzy),
         (*pb._grids, pb._table, pb._centre_lo, pb._centre_hi),
         (*lb._grids, lb._table, lb._centre_lo, lb._centre_hi),
     )  # fmt: skip
     if ids.size == 0:
         return _empty_lines(), line_scale
     return _lines_of_table(table, ids, firsts, f_line, cluster), line_scale
+
+
+@lru_cache(maxsize=16)
+def _line_params(lines: LineConfig, fz: FuzzyConfig) -> FloatArray:
+    """``_kernels.front.fit_lines``' params of a config's sections (cached; not to be written
+    to)."""
+    structure = fz.distance_scale != "fixed" and fz.line_distance_scale == "structure"
+    return np.array([
+        lines.min_points, lines.min_length, _MIN_LINE_NOISE, float(structure),
+        fz.distance_scale_reference, fz.distance_scale_quantile,
+    ], dtype=np.float64)  # fmt: skip
 
 
 def _graded_for_lines(

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,6 +43,7 @@ __all__ = [
     "raw_segment_ids",
     "segment_ids",
     "segment_scan",
+    "ScanSegments",
 ]
 
 
@@ -446,13 +448,10 @@ def raw_segment_ids(cluster: IntArray, is_corner: BoolArray) -> IntArray:
 # ---------------------------------------------------------------------------------------------
 # the front of feature extraction: §3.1–3.4 and the segments of §3.5 on one scan
 # ---------------------------------------------------------------------------------------------
-def segment_scan(scan: LaserScan, bases: RuleBases, cfg: Config) -> _Front:
+def segment_scan(scan: LaserScan, bases: RuleBases, cfg: Config) -> ScanSegments:
     """Steps 1–5 of :func:`fuzzypos.features.extract_features` and the segments lines are
-    fitted to: the scan's usable points (beam indices, ranges, points in the robot frame),
-    the distance scale, β, the uncertainty, the kept mask and indices, the break points, the
-    field of view's edges, the clusters, the angular points, the raw and line segment ids and
-    whether a gapless ring's seam sits on its sharpest corner. Compiled in two calls where
-    the kernels are on (a gapless 360° ring takes the staged chain)."""
+    fitted to (:class:`ScanSegments`). Compiled in two calls where the kernels are on (a
+    gapless 360° ring takes the staged chain)."""
     closed = bool(scan.is_full_circle)
     if compiled():
         front = segment_scan_compiled(scan, closed, bases, cfg)
@@ -461,27 +460,35 @@ def segment_scan(scan: LaserScan, bases: RuleBases, cfg: Config) -> _Front:
     return segment_scan_staged(scan, closed, bases, cfg)
 
 
-#: what the front of the chain (steps 1–5 and the segment ids) gives the rest
-_Front = tuple[
-    IntArray,
-    FloatArray,
-    FloatArray,
-    float,
-    FloatArray,
-    FloatArray,
-    BoolArray,
-    IntArray,
-    BoolArray,
-    BoolArray,
-    IntArray,
-    BoolArray,
-    IntArray,
-    IntArray,
-    bool,
-]
+class ScanSegments(NamedTuple):
+    """What the front of the chain (steps 1–5 and the segment ids, :func:`segment_scan`)
+    gives the rest: per usable reading ``beam_index``, ``ranges``, ``points`` (robot frame),
+    ``detection_angle`` (β) and ``uncertainty``, with the ``distance_scale``; which were
+    ``kept`` and ``kept_index`` (in the sequence's order); per kept point ``is_break_point``,
+    ``is_field_of_view_edge``, ``cluster``, ``is_angular_point``, ``raw_segment`` and
+    ``segment`` (the line fits'; −1 none); ``ring_corner``: a gapless ring's seam sits on its
+    sharpest corner."""
+
+    beam_index: IntArray
+    ranges: FloatArray
+    points: FloatArray
+    distance_scale: float
+    detection_angle: FloatArray
+    uncertainty: FloatArray
+    kept: BoolArray
+    kept_index: IntArray
+    is_break_point: BoolArray
+    is_field_of_view_edge: BoolArray
+    cluster: IntArray
+    is_angular_point: BoolArray
+    raw_segment: IntArray
+    segment: IntArray
+    ring_corner: bool
 
 
-def segment_scan_staged(scan: LaserScan, closed: bool, bases: RuleBases, cfg: Config) -> _Front:
+def segment_scan_staged(
+    scan: LaserScan, closed: bool, bases: RuleBases, cfg: Config
+) -> ScanSegments:
     """Steps 1–5 of :func:`extract_features` and the segments of step 6, stage by stage:
     the usable points, their β, uncertainty, filtering, break points, clusters, angular
     points, segment ids (the reference of :func:`segment_scan_compiled`)."""
@@ -527,7 +534,7 @@ def segment_scan_staged(scan: LaserScan, closed: bool, bases: RuleBases, cfg: Co
         is_corner[0] = True  # the seam of a gapless ring sits on its sharpest corner
 
     raw_seg, segment = segment_ids(cluster, is_corner, cfg.lines.corner_exclusion, ring_corner)
-    return (
+    return ScanSegments(
         beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
         cluster, is_corner, raw_seg, segment, ring_corner,
     )  # fmt: skip
@@ -535,7 +542,7 @@ def segment_scan_staged(scan: LaserScan, closed: bool, bases: RuleBases, cfg: Co
 
 def segment_scan_compiled(
     scan: LaserScan, closed: bool, bases: RuleBases, cfg: Config
-) -> _Front | None:
+) -> ScanSegments | None:
     """:func:`segment_scan_staged` in two compiled calls (``_kernels.front``); None for a gapless
     360° ring (its seam is the staged chain's) or rule bases off the interpolation's path."""
     from ._kernels import front as kernel
@@ -559,7 +566,7 @@ def segment_scan_compiled(
     )  # fmt: skip
     if not done:
         return None
-    return (
+    return ScanSegments(
         beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
         cluster, is_corner, raw, seg, False,
     )  # fmt: skip
