@@ -24,7 +24,7 @@ from .graph import GraphDependencyError, require_gtsam
 from .io import Relations, read_relations, write_tum
 from .logs import open_log
 from .provenance import git_hash, json_safe, write_json
-from .run import run_log
+from .run import RunSummary, run_log
 from .tasks import TaskDone, ray_installed, run_tasks
 
 __all__ = [
@@ -98,6 +98,54 @@ def _score_row(
     return row
 
 
+def _run(
+    log_path: Path,
+    name: str,
+    cfg: Config,
+    preset: str,
+    folder: Path,
+    relations: Relations,
+    *,
+    max_scans: int | None,
+    progress: BenchmarkProgress | None,
+    plot: bool,
+) -> RunSummary:
+    """One run of the log with ``cfg`` (from ``preset``) into its benchmark folder, its
+    progress reported as ``name``."""
+    cb = None
+    if progress is not None:
+
+        def cb(done: int, total: int | None, _name: str = name) -> None:
+            progress(_name, done, total)
+
+    return run_log(
+        open_log(log_path),
+        cfg,
+        results_dir=folder,
+        overwrite=True,  # the benchmark's own folder, from its last run
+        progress=cb,
+        max_scans=max_scans,
+        preset=preset,
+        relations=relations,
+        plot=plot,
+    )
+
+
+def _run_row(
+    label: str, config: str, res: RunSummary, poses: Any, relations: Relations, folder: Path
+) -> dict[str, Any]:
+    """A run's row: ``poses`` scored on the relations, with the run's counts."""
+    row = _score_row(label, config, res.stamps, np.asarray(poses), relations)
+    row.update(
+        scans=res.scans,
+        scans_per_second=res.scans_per_second,
+        scans_degraded=res.scans_degraded,
+        odometry_jumps_rejected=res.odometry_jumps_rejected,
+        results=str(folder),
+    )
+    return row
+
+
 def _run_config(
     log_path: Path,
     label: str,
@@ -111,36 +159,15 @@ def _run_config(
 ) -> tuple[dict[str, Any], _Odometry | str | None]:
     """One configuration's run and row; and the odometry of its scans (or why there is none;
     None when the run failed)."""
-    cb = None
-    if progress is not None:
-
-        def cb(done: int, total: int | None, _name: str = f"{label} {config}") -> None:
-            progress(_name, done, total)
-
     try:
-        log = open_log(log_path)
-        res = run_log(
-            log,
-            Config.preset(config),
-            results_dir=folder,
-            overwrite=True,  # the benchmark's own folder, from its last run
-            progress=cb,
-            max_scans=max_scans,
-            preset=config,
-            relations=relations,
-            plot=plot,
-        )
+        res = _run(
+            log_path, f"{label} {config}", Config.preset(config), config, folder, relations,
+            max_scans=max_scans, progress=progress, plot=plot,
+        )  # fmt: skip
     except (ValueError, OSError) as exc:
         return {"log": label, "config": config, "error": str(exc)}, None
-    row = _score_row(label, config, res.stamps, res.poses, relations)
-    row.update(
-        scans=res.scans,
-        scans_per_second=res.scans_per_second,
-        positioner_ms_per_scan=1000.0 * res.positioner_seconds / res.scans,
-        scans_degraded=res.scans_degraded,
-        odometry_jumps_rejected=res.odometry_jumps_rejected,
-        results=str(folder),
-    )
+    row = _run_row(label, config, res, res.poses, relations, folder)
+    row["positioner_ms_per_scan"] = 1000.0 * res.positioner_seconds / res.scans
     if res.odometry is None or not np.isfinite(res.odometry).all():
         return row, "the log has no odometry for every scan"
     return row, (res.stamps, res.odometry)
@@ -184,31 +211,18 @@ def _loop_closure_rows(
         require_gtsam()
     except GraphDependencyError as exc:
         return [{"log": label, "config": c, "not_scored": str(exc)} for c in LOOP_CLOSURE_CONFIGS]
-    cb = None
-    if progress is not None:
-
-        def cb(done: int, total: int | None, _name: str = f"{label} loop closure") -> None:
-            progress(_name, done, total)
-
     cfg = Config.preset("default").with_overrides({"loop_closure": {"enabled": True}})
     try:
-        res = run_log(
-            open_log(log_path), cfg, results_dir=folder, overwrite=True, progress=cb,
-            max_scans=max_scans, preset="default", relations=relations, plot=plot,
+        res = _run(
+            log_path, f"{label} loop closure", cfg, "default", folder, relations,
+            max_scans=max_scans, progress=progress, plot=plot,
         )  # fmt: skip
     except (ValueError, OSError) as exc:
         return [{"log": label, "config": c, "error": str(exc)} for c in LOOP_CLOSURE_CONFIGS]
     rows = []
     for config, poses in zip(LOOP_CLOSURE_CONFIGS, (res.poses, res.online_poses)):
-        row = _score_row(label, config, res.stamps, np.asarray(poses), relations)
-        row.update(
-            scans=res.scans,
-            scans_per_second=res.scans_per_second,
-            scans_degraded=res.scans_degraded,
-            odometry_jumps_rejected=res.odometry_jumps_rejected,
-            loop_closure_seconds=res.summary["loop_closure"]["seconds"],
-            results=str(folder),
-        )
+        row = _run_row(label, config, res, poses, relations, folder)
+        row["loop_closure_seconds"] = res.summary["loop_closure"]["seconds"]
         rows.append(row)
     return rows
 
