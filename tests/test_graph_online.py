@@ -6,6 +6,7 @@ closure, and a false closure does not bend it."""
 from __future__ import annotations
 
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -129,3 +130,31 @@ def test_update_checks_its_inputs_and_gtsam(monkeypatch) -> None:
     monkeypatch.setitem(sys.modules, "gtsam", None)  # import gtsam now raises ImportError
     with pytest.raises(GraphDependencyError, match=r"pip install 'fuzzypos\[graph\]'"):
         OnlineMapper(Config())
+
+
+def test_every_closure_the_closer_adds_goes_into_isam2() -> None:
+    """A place closure is added with the closure it agreed with, two edges at once: both go
+    into ISAM2 (its factors: the anchor, the chain and every closure), not only the last."""
+    run = sim.simulate_run(
+        sim.gym(), sim.CommandedPath.circle(4.0, 1.0, 0.5), DemoSettings().scanner,
+        sim.SlipModel(), 0,
+    )  # fmt: skip
+    mapper = OnlineMapper(Config())
+    added: list[tuple[int, int]] = []
+
+    def close_twice(graph: PoseGraph, j: int) -> SimpleNamespace | None:
+        """Two closures of keyframe ``j`` that agree with the graph (no batch re-solve)."""
+        if j < 5 or added:
+            return None
+        for i in (j - 3, j - 2):
+            graph.add_closure(i, j, relative(graph.poses[i], graph.poses[j]), np.eye(3) * 1e-4)
+            added.append((i, j))
+        return SimpleNamespace(i=j - 2, j=j, measured=relative(graph.poses[j - 2], graph.poses[j]))
+
+    mapper.closer.close = close_twice  # type: ignore[method-assign]
+    for k, s in enumerate(run.scans[:150]):
+        mapper.update(s, run.odometry_pose(k))
+    assert len(added) == 2
+    factors = mapper._isam.getFactorsUnsafe()
+    n_factors = sum(1 for f in range(factors.size()) if factors.at(f) is not None)
+    assert n_factors == 1 + len(mapper.graph.edges), (n_factors, len(mapper.graph.edges))

@@ -132,6 +132,7 @@ class OnlineMapper:
     def _close(self, j: int) -> Closure | None:
         """A closure of keyframe ``j`` where one verifies: into ISAM2 where it agrees with the
         graph's poses, else a batch robust optimisation and ISAM2 restarted from it."""
+        before = len(self.graph.edges)
         found = self.closer.close(self.graph, j)
         if found is None:
             return None
@@ -144,7 +145,8 @@ class OnlineMapper:
             self.batch_optimisations += 1
             self._restart()
             return found
-        self._isam_update(self._factor_graph([self.graph.edges[-1]]), self._g.Values())
+        # every closure the closer added: a place closure comes with the one it agreed with
+        self._isam_update(self._factor_graph(self.graph.edges[before:]), self._g.Values())
         for _ in range(s.isam_extra_updates):
             self._isam_update(self._g.NonlinearFactorGraph(), self._g.Values())
         return found
