@@ -160,7 +160,9 @@ def test_an_odometry_jump_is_rejected_and_the_motion_found() -> None:
 
 
 def test_plausible_fast_motion_is_not_a_jump() -> None:
-    prior = OdometryPrior(CFG.odometry, CFG.odometry_noise.stale_periods)
+    prior = OdometryPrior(
+        CFG.odometry, CFG.odometry_noise.stale_periods, CFG.odometry_noise.stale_quantile
+    )
     # 0.3 m and 25° in 0.5 s: 0.6 m/s and 0.87 rad/s
     assert not prior.is_jump(np.array([0.3, 0.0, math.radians(25.0)]), 0.5)
     assert prior.is_jump(np.array([0.38, 0.0, math.radians(-60.6)]), 0.16)

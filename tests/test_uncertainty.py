@@ -406,3 +406,74 @@ def test_running_window_median_with_nan_is_the_sorted_median(values, maxlen):
         window.append(v)
         plain.append(v)
         np.testing.assert_equal(window.median(), median_of(plain))
+
+
+@given(
+    st.lists(st.floats(-10, 10), min_size=1, max_size=60),
+    st.integers(1, 12),
+    st.floats(0.0, 1.0),
+)
+def test_running_window_quantile_is_numpy_s_higher_quantile(values, maxlen, q):
+    from collections import deque
+
+    from fuzzypos.pipeline._window import Window, quantile_of
+
+    window, plain = Window(maxlen), deque(maxlen=maxlen)
+    for v in values:
+        window.append(v)
+        plain.append(v)
+        expected = float(np.quantile(np.array(plain), q, method="higher"))
+        assert window.quantile(q) == expected == quantile_of(plain, q)
+
+
+def logger_stamps(n: int, period: float = 0.2, flush: float = 0.6) -> list[float]:
+    """Scans taken every ``period`` s but stamped when a logger's buffer is written, every
+    ``flush`` s (a millisecond apart within a write): steps of 1 ms and of ``flush`` s, the
+    bursts of intel's logger stamps."""
+    out = []
+    for k in range(n):
+        t = period * k
+        written = math.ceil(t / flush + 1e-9) * flush
+        out.append(written + 0.001 * (round(t / period) % round(flush / period)))
+    return out
+
+
+def test_bursts_of_logger_stamps_are_not_gaps_but_a_gap_is() -> None:
+    """Stamps that come in bursts: the steps' spread is usual (the 90th percentile is the
+    usual period), so the odometry is never stale; a 3 s gap after them still is. Taken as
+    the median (1 ms), every write of the buffer would have looked like a gap."""
+    from fuzzypos.pipeline import OdometryPrior
+
+    stamps = logger_stamps(120)
+    stamps += [stamps[-1] + 3.0 + 0.2 * k for k in range(3)]
+    odo = [Pose2D(0.05 * k, 0.0, 0.0) for k in range(len(stamps))]
+
+    def stale(quantile: float) -> list[float]:
+        prior = OdometryPrior(CFG.odometry, CFG.odometry_noise.stale_periods, quantile)
+        prior.start(stamps[0], odo[0])
+        return [prior.predict(t, o).stale for t, o in zip(stamps[1:], odo[1:])]
+
+    usual = stale(CFG.odometry_noise.stale_quantile)
+    assert usual[-3] > 1.0 and not any(usual[:-3]) and not any(usual[-2:])
+    assert sum(s > 0.0 for s in stale(0.5)[:-3]) > 30
+
+
+def test_bursts_of_logger_stamps_leave_the_covariances_as_even_stamps_do() -> None:
+    """The same simulated arc stamped evenly and by a logger's bursts: the covariance of each
+    scan relative to its keyframe is the same, not that of odometry stale for half a second
+    at every write."""
+    world = sim.furnished_room(1)
+    truth = sim.arc_path(Pose2D(-1.0, -0.5, 0.2), 60, 0.03, 1.0)
+    rng = np.random.default_rng(0)
+    scans = [sim.simulate_scan(world, p, scanner(0.005, 360, 360.0), rng) for p in truth]
+
+    def spread(stamps: list[float], config: Config) -> float:
+        pos = Positioner(config)
+        est = [pos.update(replace(s, stamp=t), o) for s, t, o in zip(scans, stamps, truth)]
+        return max(float(np.sqrt(e.keyframe_covariance[0, 0])) for e in est)
+
+    even = spread([0.2 * k for k in range(60)], CFG)
+    bursts = spread(logger_stamps(60), CFG)
+    assert bursts == pytest.approx(even, rel=0.05)
+    as_median = CFG.with_overrides({"odometry_noise": {"stale_quantile": 0.5}})
+    assert spread(logger_stamps(60), as_median) > 3.0 * even

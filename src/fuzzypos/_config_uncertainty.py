@@ -177,6 +177,15 @@ class OdometryNoiseConfig:
         "the previous one follows a gap: the time beyond that counts as stale",
         ge=1.0,
     )
+    stale_quantile: float = _field(
+        0.9,
+        "the usual scan period is the 90th percentile of the last 51 time steps, not their "
+        "median: where a log's stamps are logger times that come in bursts (a millisecond "
+        "apart, then half a second), the long steps are as usual as the short ones and the "
+        "odometry moved one usual step in each; on even stamps it is the period",
+        ge=0.5,
+        le=1.0,
+    )
     in_refinement: bool = _field(
         False,
         "once learned, the refinement's prior is everywhere the odometry's motion with its "

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-__all__ = ["Window", "median_of"]
+__all__ = ["Window", "median_of", "quantile_of"]
 
 
 def median_of(values: deque[float] | list[float]) -> float:
@@ -18,6 +18,12 @@ def median_of(values: deque[float] | list[float]) -> float:
     a = np.sort(np.fromiter(values, dtype=float, count=len(values)))
     n = len(a)
     return float(a[n // 2]) if n % 2 else float(0.5 * (a[n // 2 - 1] + a[n // 2]))
+
+
+def quantile_of(values: deque[float] | list[float], q: float) -> float:
+    """``np.quantile(values, q, method="higher")`` (the reference of :meth:`Window.quantile`)."""
+    a = np.fromiter(values, dtype=float, count=len(values))
+    return float(np.quantile(a, q, method="higher"))
 
 
 class Window:
@@ -61,3 +67,11 @@ class Window:
                 a, n = self._sorted, len(self._sorted)
                 self._median = a[n // 2] if n % 2 else 0.5 * (a[n // 2 - 1] + a[n // 2])
         return self._median
+
+    def quantile(self, q: float) -> float:
+        """The ``q``-quantile of the (non-empty) window, the higher of the two values it lies
+        between (as :func:`quantile_of` gives it; q in [0, 1])."""
+        if self._nans:
+            return quantile_of(self._values, q)
+        a = self._sorted
+        return a[int(math.ceil(q * (len(a) - 1)))]

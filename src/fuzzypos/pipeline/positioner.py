@@ -62,7 +62,8 @@ class Positioner:
     def __init__(self, config: Config | None = None) -> None:
         self.config = config if config is not None else Config()
         cfg = self.config
-        self.odometry_prior = OdometryPrior(cfg.odometry, cfg.odometry_noise.stale_periods)
+        noise = cfg.odometry_noise
+        self.odometry_prior = OdometryPrior(cfg.odometry, noise.stale_periods, noise.stale_quantile)
         self.odometry_noise = OdometryNoise(cfg.odometry_noise)
         self.local_map = LocalMap(cfg.matching, cfg.refinement)
         self.feature_matcher = FeatureMatcher(cfg.matching, cfg.fusion)

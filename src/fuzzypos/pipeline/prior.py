@@ -16,8 +16,11 @@ __all__ = ["OdometryPrior", "Prior"]
 
 FloatArray = NDArray[np.float64]
 
-#: the usual scan period is the median of this many last time steps
+#: the usual scan period is a quantile of this many last time steps
 _STEPS = 51
+#: and is known once this many have been seen (a quantile of fewer is one of the few; before
+#: it, no time step counts as a gap)
+_MIN_STEPS = 10
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,8 +33,8 @@ class Prior:
     without odometry. ``dt``: seconds since the previous scan (never negative).
     ``odometry_rejected``: the odometry increment was a jump. ``standing_still``: the odometry
     pose did not change at all (the wheels did not turn). ``stale``: seconds of ``dt`` beyond
-    ``stale_periods`` usual scan periods (the running median of the time steps): time the
-    odometry was not updated (0 for a scan on time).
+    ``stale_periods`` usual scan periods (the running ``stale_quantile`` of the time steps):
+    time the odometry was not updated (0 for a scan on time).
     """
 
     increment: FloatArray
@@ -50,9 +53,12 @@ class Prior:
 class OdometryPrior:
     """Turns the odometry poses into the prior of each scan's motion (``[odometry]``)."""
 
-    def __init__(self, settings: OdometryConfig, stale_periods: float) -> None:
+    def __init__(
+        self, settings: OdometryConfig, stale_periods: float, stale_quantile: float
+    ) -> None:
         self.settings = settings
         self.stale_periods = stale_periods
+        self.stale_quantile = stale_quantile
         self.reset()
 
     def reset(self) -> None:
@@ -94,8 +100,8 @@ class OdometryPrior:
         )
         self._prev_odom = odom
         stale = 0.0
-        if len(self._steps):
-            usual = self._steps.median()
+        if len(self._steps) >= _MIN_STEPS:
+            usual = self._steps.quantile(self.stale_quantile)
             stale = max(0.0, dt - self.stale_periods * usual)
         if dt > 0.0:
             self._steps.append(dt)
