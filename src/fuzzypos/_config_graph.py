@@ -65,19 +65,23 @@ class LoopClosureConfig:
         le=1.0,
     )
     closure_floor_rotation: float = _field(
-        math.radians(0.5),
-        "and at least (0.5°)² in rotation, for the same reason (fits claim 0.05–0.2°, lie "
-        "about 0.4° off)",
+        math.radians(2.0),
+        "and at least (2°)² in rotation, for the same reason: fits claim 0.05–0.6°, and lie "
+        "0.4° off on average but up to 1.7° where the submap is alike along its length (a "
+        "corridor of alike doors); a closure that claims more turns the chain toward its own "
+        "error, and the local headings with it",
         unit=RAD,
         gt=0.0,
         le=math.radians(10.0),
     )
     heading_floor: float = _field(
-        math.radians(2.0),
+        math.radians(4.0),
         "a verified fit's heading must lie within the χ²(1) gate (gate_probability) of the "
-        "graph's predicted heading under the chain's heading variance plus (2°)²: a false match "
+        "graph's predicted heading under the chain's heading variance plus (4°)²: a false match "
         "in a symmetric place turns the scan by many degrees where a short chain knows the "
-        "heading to a fraction of one; the floor allows for the front end's overconfidence",
+        "heading to a fraction of one; the floor allows for the front end's overconfidence "
+        "over long chains (its heading drifts by more than its covariances add up to: a "
+        "smaller floor refuses true closures a lap apart)",
         unit=RAD,
         gt=0.0,
     )
