@@ -74,4 +74,4 @@ class Window:
         if self._nans:
             return quantile_of(self._values, q)
         a = self._sorted
-        return a[int(math.ceil(q * (len(a) - 1)))]
+        return a[math.ceil(q * (len(a) - 1))]
