@@ -83,6 +83,27 @@ def test_a_known_closure_brings_the_end_back(loop, tmp_path: Path) -> None:
     assert read_graph.size() == len(graph.edges) and initial.size() == len(graph)
 
 
+@pytest.mark.parametrize("mu_step", [1.4, 2.0, 3.0])
+def test_gnc_s_step_keeps_the_true_closures_and_drops_the_false(loop, mu_step: float) -> None:
+    """Three true closures and one 2 m off: GNC keeps the true and drops the false whatever
+    its μ step (``loop_closure.gnc_mu_step``: a larger step takes fewer iterations to the
+    same weights), and the end comes back."""
+    run, ests = loop
+    truth = run.true_poses
+    graph = PoseGraph.from_estimates(ests)
+    scans = [kf.scan for kf in graph.keyframes]
+    n = len(graph)
+    cov = np.diag([1e-4, 1e-4, np.radians(0.2) ** 2])
+    for i, j in ((0, n - 1), (1, n - 2), (2, n - 1)):
+        graph.add_closure(i, j, relative(truth[scans[i]], truth[scans[j]]), cov)
+    k = n // 2
+    false = compose(relative(truth[scans[0]], truth[scans[k]]), np.array([2.0, 0.0, 0.0]))
+    graph.add_closure(0, k, false, cov)
+    graph.optimize(gnc_mu_step=mu_step)
+    assert [w >= 0.5 for w in graph.closure_weights] == [True, True, True, False]
+    assert _end_error(graph.trajectory(), truth) < 0.015
+
+
 def test_a_keyframe_without_a_covariance_is_refused(loop) -> None:
     from dataclasses import replace
 

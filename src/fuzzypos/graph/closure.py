@@ -496,9 +496,9 @@ class LoopCloser:
             if math.hypot(off[0], off[1]) >= s.reoptimize_distance or abs(off[2]) >= (
                 s.reoptimize_angle
             ):
-                graph.optimize(s.robust)
+                graph.optimize(s.robust, gnc_mu_step=s.gnc_mu_step)
         if self.closures:
-            graph.optimize(s.robust)
+            graph.optimize(s.robust, gnc_mu_step=s.gnc_mu_step)
         mine = [e for e in graph.edges if e.closure]
         weights = dict(zip(((e.i, e.j) for e in mine), graph.closure_weights))
         self.closures = [replace(c, weight=weights.get((c.i, c.j), 1.0)) for c in self.closures]

@@ -141,7 +141,7 @@ class OnlineMapper:
         if math.hypot(off[0], off[1]) >= s.reoptimize_distance or abs(off[2]) >= (
             s.reoptimize_angle
         ):
-            self.graph.optimize(s.robust)
+            self.graph.optimize(s.robust, gnc_mu_step=s.gnc_mu_step)
             self.batch_optimisations += 1
             self._restart()
             return found
@@ -222,7 +222,7 @@ class OnlineMapper:
         path's last step), set the closures' weights, and the result for a results folder."""
         t0 = time.perf_counter()
         if self.closures:
-            self.graph.optimize(self.settings.robust)
+            self.graph.optimize(self.settings.robust, gnc_mu_step=self.settings.gnc_mu_step)
             self.batch_optimisations += 1
             self._restart()
             self._estimate = self.graph.poses  # the batch solution is the answer

@@ -152,13 +152,16 @@ class PoseGraph:
         self.edges.append(edge)
         return edge
 
-    def optimize(self, robust: str = "gnc", cauchy_scale: float = 1.0) -> FloatArray:
+    def optimize(
+        self, robust: str = "gnc", cauchy_scale: float = 1.0, gnc_mu_step: float = 1.4
+    ) -> FloatArray:
         """The keyframes' poses that best explain every edge (Levenberg-Marquardt from the
         current poses, the first keyframe held); closures robust by ``robust`` (``ROBUST_KINDS``;
         ``cauchy_scale``: the Cauchy kernel's, in standard deviations). With ``"gnc"`` the
         closures GNC (started from the plain solution with every closure) weighs below one half
         are left out and the rest kept whole in a last plain solve from the current poses
-        (GNC stops once its weights settle, before solving with them). Sets
+        (GNC stops once its weights settle, before solving with them); ``gnc_mu_step``: the
+        factor GNC's control parameter changes by per iteration (gtsam's default 1.4). Sets
         :attr:`poses` and :attr:`closure_weights`."""
         if robust not in ROBUST_KINDS:
             raise PoseGraphError(f"robust must be one of {ROBUST_KINDS}, got {robust!r}")
@@ -175,6 +178,7 @@ class PoseGraph:
                 graph, values, g.LevenbergMarquardtParams()
             ).optimize()
             params = g.GncLMParams(g.LevenbergMarquardtParams())
+            params.setLambdaStep(gnc_mu_step)  # GncParams::muStep in the Python wrapper
             params.setKnownInliers([k for k in range(graph.size()) if k not in set(factors)])
             optimizer = g.GncLMOptimizer(graph, values, params)
             optimizer.setInlierCostThresholdsAtProbability(0.99)
