@@ -275,3 +275,6 @@ def test_single_pose_paths_are_the_arrays_arithmetic(a, b):
     inv = [-(c * pa[0] + s * pa[1]), s * pa[0] - c * pa[1]]
     np.testing.assert_array_equal(inverse(pa)[:2], inv)
     np.testing.assert_array_equal(relative(pa, pb), compose(inverse(pa), pb))
+    # the float64 fast path and the converting path (lists) agree to the bit
+    np.testing.assert_array_equal(compose(pa, pb), compose(pa.tolist(), pb.tolist()))
+    np.testing.assert_array_equal(relative(pa, pb), relative(pa.tolist(), pb.tolist()))

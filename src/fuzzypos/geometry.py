@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import TypeGuard
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -68,6 +69,16 @@ def _wrap_scalar(a: float) -> float:
     return float(wrap_angle(a))
 
 
+#: the dtype of the pose arrays the fast paths of :func:`compose` and :func:`relative` take
+_FLOAT64 = np.dtype(np.float64)
+
+
+def _one_pose(p: ArrayLike) -> TypeGuard[FloatArray]:
+    """Whether ``p`` is one pose as a float64 array (the pipeline's own: its floats need no
+    conversion)."""
+    return type(p) is np.ndarray and p.shape == (3,) and p.dtype is _FLOAT64
+
+
 def _as_poses(p: ArrayLike) -> FloatArray:
     arr = np.asarray(p, dtype=float)
     if arr.shape[-1:] != (3,):
@@ -93,6 +104,8 @@ def rotation_matrix(theta: ArrayLike) -> FloatArray:
 
 def compose(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """``a ⊕ b``: the pose ``b`` (given in the frame of ``a``) in the frame ``a`` is given in."""
+    if _one_pose(a) and _one_pose(b):  # one pose each, float64 already: no conversions
+        return np.array(_compose_floats(*a.tolist(), *b.tolist()))
     a = _as_poses(a)
     b = _as_poses(b)
     if a.ndim == 1 and b.ndim == 1:  # one pose each: scalar arithmetic, far fewer calls
@@ -117,6 +130,9 @@ def inverse(a: ArrayLike) -> FloatArray:
 
 def relative(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """``⊖a ⊕ b``: the pose ``b`` in the frame of ``a`` (e.g. the odometry increment)."""
+    if _one_pose(a) and _one_pose(b):  # one pose each, float64 already: no conversions
+        ia = _inverse_floats(*a.tolist())
+        return np.array(_compose_floats(*ia, *b.tolist()))
     a = _as_poses(a)
     b = _as_poses(b)
     if a.ndim == 1 and b.ndim == 1:  # as compose(inverse(a), b), without the arrays between
