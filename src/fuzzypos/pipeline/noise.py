@@ -49,26 +49,32 @@ class OdometryNoise:
         # the matches' own variance per unit of travel, beside the disagreements
         self._translation_own = Window(s.window)
         self._rotation_own = Window(s.window)
-        # least squares of the matched against the odometry's motion: Σ m·o and Σ o²
-        self._scale_sums = np.zeros(2)
-        self._turn_sums = np.zeros(2)
+        # least squares of the matched against the odometry's motion: Σ m·o and Σ o² (floats:
+        # the same sums as float64 arrays', without an array operation per sample)
+        self._scale_sums = (0.0, 0.0)
+        self._turn_sums = (0.0, 0.0)
         self._better: bool | None = None  # better_than_matching, until the next sample
+        self._warm = self._is_warm()  # warm, until the next sample
+        self._factors: tuple[float, float] | None = None  # (scale, rotation_factor), likewise
 
-    @property
-    def warm(self) -> bool:
-        """Whether the noise is known: learned from ``min_samples`` matches (or not learned)."""
+    def _is_warm(self) -> bool:
         s = self.settings
         return not s.learn or min(len(self._translation), len(self._rotation)) >= s.min_samples
 
     @property
+    def warm(self) -> bool:
+        """Whether the noise is known: learned from ``min_samples`` matches (or not learned)."""
+        return self._warm
+
+    @property
     def scale(self) -> float:
         """The odometry's translation scale factor (the matched distance over the odometry's)."""
-        return self._factor(self._scale_sums)
+        return self._calibration()[0]
 
     @property
     def rotation_factor(self) -> float:
         """The odometry's rotation factor (the matched rotation over the odometry's)."""
-        return self._factor(self._turn_sums)
+        return self._calibration()[1]
 
     @property
     def trusted(self) -> bool:
@@ -77,7 +83,13 @@ class OdometryNoise:
         ``trust_where_better`` where the learned odometry is the more precise."""
         return self.settings.trust_where_better and self.warm and self.better_than_matching
 
-    def _factor(self, sums: FloatArray) -> float:
+    def _calibration(self) -> tuple[float, float]:
+        """(:attr:`scale`, :attr:`rotation_factor`), computed once per sample."""
+        if self._factors is None:
+            self._factors = (self._factor(self._scale_sums), self._factor(self._turn_sums))
+        return self._factors
+
+    def _factor(self, sums: tuple[float, float]) -> float:
         s = self.settings
         if not (s.calibrate or self.trusted) or sums[1] <= 0.0:
             return 1.0
@@ -86,7 +98,7 @@ class OdometryNoise:
 
     def calibrated(self, increment: FloatArray) -> FloatArray:
         """The odometry ``increment`` corrected by the calibration factors."""
-        k, r = self.scale, self.rotation_factor
+        k, r = self._calibration()
         if k == 1.0 and r == 1.0:
             return increment
         return np.array([increment[0] * k, increment[1] * k, increment[2] * r])
@@ -102,7 +114,7 @@ class OdometryNoise:
         if stale > 0.0:
             var_t += (s.stale_speed * stale) ** 2
             var_r += (s.stale_turn_rate * stale) ** 2
-        return np.diag([var_t, var_t, var_r])
+        return np.array([[var_t, 0.0, 0.0], [0.0, var_t, 0.0], [0.0, 0.0, var_r]])
 
     def learn(
         self,
@@ -121,8 +133,12 @@ class OdometryNoise:
             return
         if s.calibrate or s.trust_where_better:
             dm = math.hypot(float(matched[0]), float(matched[1]))
-            self._scale_sums += (dm * d, d * d)
-            self._turn_sums += (float(matched[2]) * float(odometry[2]), float(odometry[2]) ** 2)
+            mo, oo = self._scale_sums
+            self._scale_sums = (mo + dm * d, oo + d * d)
+            mo, oo = self._turn_sums
+            turn = float(odometry[2])
+            self._turn_sums = (mo + float(matched[2]) * turn, oo + turn**2)
+            self._factors = None
         if not s.learn:
             return
         err = relative(self.calibrated(odometry), matched)
@@ -158,6 +174,8 @@ class OdometryNoise:
 
     def _update(self) -> None:
         self._better = None
+        self._factors = None
+        self._warm = self._is_warm()
         s = self.settings
         if len(self._translation) >= s.min_samples:
             own = self._translation_own.median() if len(self._translation_own) else 0.0
