@@ -1119,3 +1119,22 @@ def test_cli_reasons_print_unit_and_bounds() -> None:
     assert len(lines) == len(SCHEMA)
     assert any(line.startswith("matching.pairing_distance [m, > 0]: ") for line in lines)
     assert any(line.startswith("search.max_points [>= 1]: ") for line in lines)
+
+
+def test_same_as_last_call_by_identity_only():
+    from fuzzypos.config import same_as_last_call
+
+    calls = []
+
+    @same_as_last_call
+    def derived(section, scale):
+        calls.append(section)
+        return (section.min_distance * scale,)
+
+    a = Config().refinement
+    first = derived(a, 2.0)
+    assert derived(a, 2.0) is first and len(calls) == 1  # the very same objects: remembered
+    b = replace(a, min_distance=0.2)
+    assert derived(b, 2.0) == (0.4,) and len(calls) == 2  # another section: computed
+    assert derived(a, 3.0) == (a.min_distance * 3.0,) and len(calls) == 3
+    assert derived(a, scale=3.0) == (a.min_distance * 3.0,)  # keywords: always computed

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._kernels import compiled
-from .config import Config, FuzzyConfig, LineConfig
+from .config import Config, FuzzyConfig, LineConfig, same_as_last_call
 from .fuzzy import RuleBases
 from .geometry import stack_columns
 from .scan import LaserScan
@@ -74,6 +74,7 @@ VIRTUAL_ANGULAR_POINT = 2
 KIND_NAMES = ("break point", "angular point", "virtual angular point")
 
 
+@same_as_last_call
 @lru_cache(maxsize=16)
 def rule_bases(cfg: FuzzyConfig) -> RuleBases:
     """The three fuzzy systems for a fuzzy config, built once and cached."""
@@ -658,6 +659,7 @@ def _lines_compiled(
     return _lines_of_table(table, ids, firsts, f_line, cluster), line_scale
 
 
+@same_as_last_call
 @lru_cache(maxsize=16)
 def _line_params(lines: LineConfig, fz: FuzzyConfig) -> FloatArray:
     """``_kernels.front.fit_lines``' params of a config's sections (cached; not to be written

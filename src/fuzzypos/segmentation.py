@@ -19,7 +19,9 @@ from .config import (
     FilterConfig,
     FuzzyConfig,
     LineConfig,
+    ScannerConfig,
     SegmentationConfig,
+    same_as_last_call,
 )
 from .fuzzy import RuleBases
 from .geometry import stack_columns, transform_points
@@ -550,7 +552,7 @@ def segment_scan_compiled(
     base = bases.points
     if base._grids is None:
         return None
-    lo, hi = _band_bounds_cached(tuple(tuple(band) for band in cfg.scanner.no_return_bands))
+    lo, hi = _band_bounds_of(cfg.scanner)
     sp = scan.sensor_pose
     beam_index, ranges, _p_sensor, points = kernel.valid_points(
         np.asarray(scan.ranges), scan.angles, scan.valid, lo, hi, float(scan.angle_increment),
@@ -572,6 +574,13 @@ def segment_scan_compiled(
     )  # fmt: skip
 
 
+@same_as_last_call
+def _band_bounds_of(scanner: ScannerConfig) -> tuple[FloatArray, FloatArray]:
+    """The bounds of the scanner section's "no return" bands (read-only)."""
+    return _band_bounds_cached(tuple(tuple(band) for band in scanner.no_return_bands))
+
+
+@same_as_last_call
 @lru_cache(maxsize=16)
 def _front_params(
     seg: SegmentationConfig,

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from .._kernels import compiled
-from ..config import RefinementConfig
+from ..config import RefinementConfig, same_as_last_call
 from ..geometry import stack_columns
 from ._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS, FloatArray, IntArray
 
@@ -283,6 +283,7 @@ def _refine_compiled(
     )
 
 
+@same_as_last_call
 @lru_cache(maxsize=64)
 def _kernel_settings(
     cfg: RefinementConfig, max_distance: float, prior_scale: float
