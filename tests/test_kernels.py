@@ -670,6 +670,81 @@ def test_the_compiled_front_of_the_chain_is_the_staged_one(
             assert x == pytest.approx(y, abs=TOL), k
 
 
+def _same_features(f: Any, g: Any) -> None:
+    """Two scans' features equal to the bit: every array of the features, of their lines and
+    of the corners' context, and the scales."""
+    for obj_f, obj_g in ((f, g), (f.lines, g.lines), (f._corners, g._corners)):
+        for name, x in vars(obj_f).items():
+            y = getattr(obj_g, name)
+            if isinstance(x, np.ndarray):
+                assert x.dtype == y.dtype, name
+                np.testing.assert_array_equal(x, y, err_msg=name)
+            elif isinstance(x, float | int):
+                assert x == y, name
+            elif x is None:
+                assert y is None, name
+
+
+@BUDGET
+@given(
+    pose=poses,
+    seed=st.integers(0, 1000),
+    beams=st.sampled_from([180, 360]),
+    clockwise=st.booleans(),
+    offset=st.booleans(),
+    bands=st.booleans(),
+)
+def test_the_whole_compiled_chain_is_its_calls_one_by_one(
+    pose, seed, beams, clockwise, offset, bands
+) -> None:
+    """extract_features in one compiled call (``_kernels.front.scan_features``) against the
+    compiled front, line stage and corner joins called one by one with numpy between them
+    (themselves checked against the numpy references above): the same features to the bit,
+    on scans read clockwise, off the robot's centre and with "no return" bands."""
+    scan = scan_at(pose, seed, beams)
+    ranges = np.asarray(scan.ranges)
+    if clockwise:
+        scan = replace(
+            scan, ranges=ranges[::-1].copy(),
+            angle_min=scan.angle_min + (ranges.shape[0] - 1) * scan.angle_increment,
+            angle_increment=-scan.angle_increment,
+        )  # fmt: skip
+    if offset:
+        scan = replace(scan, sensor_pose=Pose2D(0.12, -0.03, 0.05))
+    cfg = CFG
+    if bands:
+        mid = float(np.median(ranges[np.isfinite(ranges)]))
+        cfg = CFG.with_overrides(
+            {"scanner": {"no_return_bands": ((max(mid - 0.2, 0.0), mid + 0.2),)}}
+        )
+    kernels._ENABLED = True
+    fused = features_module._extract_compiled(scan, rule_bases(cfg.fuzzy), cfg)
+    assert fused is not None
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(features_module, "_extract_compiled", lambda *args: None)
+        one_by_one = extract_features(scan, cfg)
+    _same_features(fused, one_by_one)
+
+
+def test_the_whole_compiled_chain_without_lines() -> None:
+    """A scan of a few scattered readings (an angular point, no line) is the calls' one by
+    one too; a gapless ring the one compiled call leaves to the staged chain."""
+    scan = scan_at((0.0, 0.0, 0.0), 1, 180)
+    ranges = np.full(np.asarray(scan.ranges).shape, np.inf)
+    ranges[::40] = 2.0
+    sparse = replace(scan, ranges=ranges)
+    kernels._ENABLED = True
+    f = features_module._extract_compiled(sparse, rule_bases(CFG.fuzzy), CFG)
+    assert f is not None and len(f.lines) == 0 and f.lines.angle_variance is None
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(features_module, "_extract_compiled", lambda *args: None)
+        _same_features(f, extract_features(sparse, CFG))
+    room = sim.World.from_polygons([sim.worlds.box_polygon(0.0, 0.0, 6.0, 6.0)])
+    ring = sim.simulate_scan(room, Pose2D(0.3, -0.2, 0.4), scanner(360, noise=0.002),
+                             rng=np.random.default_rng(1))  # fmt: skip
+    assert features_module._extract_compiled(ring, rule_bases(CFG.fuzzy), CFG) is None
+
+
 GYM = sim.gym()
 
 

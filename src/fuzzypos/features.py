@@ -28,6 +28,8 @@ from .fuzzy import RuleBases
 from .geometry import stack_columns
 from .scan import LaserScan
 from .segmentation import (
+    _band_bounds_of,
+    _front_params,
     _strict_upper,
     angular_points,
     break_points,
@@ -548,6 +550,10 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     """Run every stage of §3.1–3.6 on one scan and keep each intermediate result."""
     cfg = config if config is not None else Config()
     bases = rule_bases(cfg.fuzzy)
+    if compiled():
+        fused = _extract_compiled(scan, bases, cfg)
+        if fused is not None:
+            return fused
     inc = scan.angle_increment
     front = segment_scan(scan, bases, cfg)
     (beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
@@ -605,6 +611,75 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
         lines=lines,
         _corners=context,
     )
+
+
+@same_as_last_call
+def _chain_inputs(
+    cfg: Config, bases: RuleBases
+) -> (
+    tuple[
+        FloatArray, FloatArray, FloatArray, FloatArray, float,
+        tuple[FloatArray, FloatArray, FloatArray, float, float],
+        tuple[FloatArray, FloatArray, FloatArray, float, float],
+    ]
+    | None
+):  # fmt: skip
+    """``_kernels.front.scan_features``' inputs of a config and its rule bases (not to be
+    written to): the no-return bands' bounds, the front's and the lines' params, the sine of
+    the least angle lines are joined at, and the point and line rule bases' tables; None where
+    a rule base is off the interpolation's path."""
+    pb, lb = bases.points, bases.lines
+    if pb._grids is None or lb._grids is None:
+        return None
+    lo, hi = _band_bounds_of(cfg.scanner)
+    front = _front_params(cfg.segmentation, cfg.angular_points, cfg.fuzzy, cfg.filtering, cfg.lines)
+    return (
+        lo, hi, front, _line_params(cfg.lines, cfg.fuzzy),
+        math.sin(cfg.virtual_points.min_intersection_angle),
+        (*pb._grids, pb._table, pb._centre_lo, pb._centre_hi),
+        (*lb._grids, lb._table, lb._centre_lo, lb._centre_hi),
+    )  # fmt: skip
+
+
+def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Features | None:
+    """:func:`extract_features` in one compiled call (``_kernels.front.scan_features``: the
+    front, the lines and their joins at the angular points, which the staged chain computes
+    in four calls with numpy between them); None for a gapless 360° ring or rule bases off
+    the interpolation's path (then the staged chain runs)."""
+    from ._kernels.front import scan_features
+
+    inputs = _chain_inputs(cfg, bases)
+    if inputs is None:
+        return None
+    lo, hi, front_params, line_params, min_sine, point_tables, line_tables = inputs
+    sp = scan.sensor_pose
+    done, front, kept, fitted, corners = scan_features(
+        np.asarray(scan.ranges), scan.angles, scan.valid, lo, hi, float(scan.angle_increment),
+        np.array([sp.x, sp.y, sp.theta]), bool(scan.is_full_circle), front_params,
+        point_tables, line_params, line_tables, min_sine,
+    )  # fmt: skip
+    if not done:
+        return None
+    (beam_index, ranges, points, scale, beta, u, kept_mask, kept_index, is_break, fov_edge,
+     cluster, is_corner, segment) = front  # fmt: skip
+    kp, ku, kr = kept
+    (line_scale, normal, distance, start, end, centre, n_points, sigma, delta, f_line, ids,
+     line_cluster, angle_variance, distance_variance) = fitted  # fmt: skip
+    lines = _empty_lines()
+    if ids.shape[0]:
+        lines = Lines(
+            normal, distance, start, end, centre, n_points, sigma, delta, f_line, ids,
+            line_cluster, angle_variance, distance_variance,
+        )  # fmt: skip
+    corner_idx, corner_xy, joined, corner_a, corner_b, corner_dv, before, after, breaks = corners
+    context = _CornerContext(
+        cfg, bases, lines, kp, ku, kr, scan.angle_increment, corner_idx, corner_xy, joined,
+        corner_a, corner_b, corner_dv, scale, line_scale, before, after, breaks,
+    )  # fmt: skip
+    return Features(
+        scan.stamp, beam_index, points, ranges, beta, u, kept_mask, kept_index, is_break,
+        fov_edge, cluster, is_corner, segment, lines, context,
+    )  # fmt: skip
 
 
 def _graded_lines(

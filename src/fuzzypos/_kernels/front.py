@@ -24,6 +24,7 @@ from .segmentation import (
     corner_arms,
     detection_terms,
     finish_lines,
+    join_at_corners,
     segment_sums,
     segments,
     sharpest_of_runs,
@@ -325,3 +326,125 @@ def fit_lines(
         g1, g2, table, lo, hi = line_tables
         f_line = bilinear(out[:, 8].copy(), out[:, 7].copy(), g1, g2, table, lo, hi)
     return line_scale, lu, ids, out, firsts, f_line
+
+
+#: :func:`scan_features`' front: ``segmentation.ScanSegments`` without the raw segments and
+#: the ring's corner
+ChainFront = tuple[
+    IntArray, FloatArray, FloatArray, float, FloatArray, FloatArray, BoolArray, IntArray,
+    BoolArray, BoolArray, IntArray, BoolArray, IntArray,
+]  # fmt: skip
+#: its lines: the grading scale and the arrays of ``features.Lines``, in their order
+ChainLines = tuple[
+    float, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, IntArray, FloatArray,
+    FloatArray, FloatArray, IntArray, IntArray, FloatArray, FloatArray,
+]  # fmt: skip
+#: its corners: the angular points, their intersections, which were joined, the joined
+#: ones' line indices and d_v, the segments on either side of each, the break points' mask
+ChainCorners = tuple[
+    IntArray, FloatArray, BoolArray, IntArray, IntArray, FloatArray, IntArray, IntArray,
+    BoolArray,
+]  # fmt: skip
+
+
+@kernel
+def scan_features(
+    ranges: FloatArray,
+    angles: FloatArray,
+    valid: BoolArray,
+    band_lo: FloatArray,
+    band_hi: FloatArray,
+    angle_increment: float,
+    sensor_pose: FloatArray,
+    closed: bool,
+    front_params: FloatArray,
+    point_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
+    line_params: FloatArray,
+    line_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
+    min_sine: float,
+) -> tuple[bool, ChainFront, tuple[FloatArray, FloatArray, FloatArray], ChainLines, ChainCorners]:
+    """The whole compiled chain of ``fuzzypos.features.extract_features`` in one call:
+    :func:`valid_points`, :func:`scan_front`, the kept points, :func:`fit_lines` and the
+    lines' arrays (``features._lines_of_table``), the lines on either side of each angular
+    point and ``_kernels.segmentation.join_at_corners`` (§3.5 b)), with nothing but glue
+    between them (what ``extract_features`` did in numpy between the four calls). Returns
+    whether it is done (False: a gapless 360° ring, the staged chain's), the front's arrays
+    (``segmentation.ScanSegments`` without the raw segments), the kept points, uncertainty
+    and ranges, the lines' grading scale and arrays (``features.Lines``, joined at the
+    corners) and the corners' context (``features._CornerContext``)."""
+    beam_index, rng, p_sensor, points = valid_points(
+        ranges, angles, valid, band_lo, band_hi, angle_increment, sensor_pose
+    )
+    g1, g2, table, lo, hi = point_tables
+    done, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg = (
+        scan_front(p_sensor, points, rng, angle_increment, closed, front_params, g1, g2, table,
+                   lo, hi)
+    )  # fmt: skip
+    n_kept = kept_index.shape[0]
+    kp, ku = np.empty((n_kept, 2)), np.empty(n_kept)
+    kr, kb = np.empty(n_kept), np.empty(n_kept)
+    if done:
+        for j in range(n_kept):
+            i = kept_index[j]
+            kp[j, 0], kp[j, 1] = points[i, 0], points[i, 1]
+            ku[j], kr[j], kb[j] = u[i], rng[i], beta[i]
+        line_scale, _lu, ids, lt, firsts, f_line = fit_lines(
+            kp, kr, kb, ku, seg, scale, line_params, point_tables, line_tables
+        )
+    else:
+        line_scale, ids, lt = scale, np.zeros(0, dtype=np.int64), np.zeros((0, 12))
+        firsts, f_line = np.zeros(0, dtype=np.int64), np.zeros(0)
+    # the lines' arrays (``features._lines_of_table``)
+    n_lines = ids.shape[0]
+    normal, distance = np.empty((n_lines, 2)), np.empty(n_lines)
+    start, end, centre = np.empty((n_lines, 2)), np.empty((n_lines, 2)), np.empty((n_lines, 2))
+    n_points, line_cluster = np.empty(n_lines, dtype=np.int64), np.empty(n_lines, dtype=np.int64)
+    sigma, delta = np.empty(n_lines), np.empty(n_lines)
+    angle_variance, distance_variance = np.empty(n_lines), np.empty(n_lines)
+    for k in range(n_lines):
+        normal[k, 0], normal[k, 1], distance[k] = lt[k, 0], lt[k, 1], lt[k, 2]
+        start[k, 0], start[k, 1], end[k, 0], end[k, 1] = lt[k, 3], lt[k, 4], lt[k, 5], lt[k, 6]
+        centre[k, 0] = 0.5 * (start[k, 0] + end[k, 0])
+        centre[k, 1] = 0.5 * (start[k, 1] + end[k, 1])
+        sigma[k], delta[k] = lt[k, 7], lt[k, 8]
+        angle_variance[k], distance_variance[k] = lt[k, 9], lt[k, 10]
+        n_points[k] = int(lt[k, 11])
+        line_cluster[k] = cluster[firsts[k]]
+    # the lines on either side of each angular point (circularly, for the ring's seam)
+    n_corners = 0
+    for j in range(n_kept):
+        n_corners += is_corner[j]
+    corner_index = np.empty(n_corners, dtype=np.int64)
+    before, after = np.empty(n_corners, dtype=np.int64), np.empty(n_corners, dtype=np.int64)
+    c = 0
+    wrap = max(n_kept, 1)
+    for j in range(n_kept):
+        if is_corner[j]:
+            corner_index[c] = j
+            before[c], after[c] = raw[(j - 1) % wrap], raw[(j + 1) % wrap]
+            c += 1
+    corner_xy = np.full((n_corners, 2), np.nan)
+    joined = np.zeros(n_corners, dtype=np.bool_)
+    corner_a, corner_b = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    corner_dv = np.zeros(0)
+    if n_corners and n_lines >= 2:
+        have, new_start, new_end, new_centre, xy, ok, ia, ib, dv = join_at_corners(
+            normal, distance, start, end, ids, before, after, min_sine
+        )
+        corner_xy, joined = xy, ok
+        if have:
+            start, end, centre = new_start, new_end, new_centre
+            corner_a, corner_b, corner_dv = ia, ib, dv
+    break_mask = np.empty(n_kept, dtype=np.bool_)
+    for j in range(n_kept):
+        break_mask[j] = is_break[j] and not fov_edge[j] and cluster[j] >= 0
+    return (
+        done,
+        (beam_index, rng, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
+         cluster, is_corner, seg),
+        (kp, ku, kr),
+        (line_scale, normal, distance, start, end, centre, n_points, sigma, delta, f_line, ids,
+         line_cluster, angle_variance, distance_variance),
+        (corner_index, corner_xy, joined, corner_a, corner_b, corner_dv, before, after,
+         break_mask),
+    )  # fmt: skip
