@@ -203,3 +203,28 @@ def test_fewer_than_two_pairs_give_nothing() -> None:
     one = make_lines([0.0], [4.0])
     assert solve(one, one, np.zeros(3)) is None
     assert solve(ROOM, make_lines([1.0], [9.0]), np.zeros(3)) is None
+
+
+def test_the_matcher_reads_a_keyframes_lines_once() -> None:
+    """The line-matching kernel's arrays of the keyframe's lines are built once for every
+    scan matched against it (and of a scan's, for when it becomes the keyframe): the same
+    arrays, the same motion as a matcher that builds them afresh each time."""
+    from fuzzypos.config import Config
+    from fuzzypos.pipeline.feature_match import FeatureMatcher, _line_arrays
+
+    cfg = Config()
+    keyframe = ROOM
+    scans = [seen_from(ROOM, np.array([0.05 * k, 0.02 * k, 0.01 * k])) for k in range(1, 4)]
+    matcher = FeatureMatcher(cfg.matching, cfg.fusion)
+    for k, scan in enumerate(scans, start=1):
+        prior = np.array([0.05 * k, 0.02 * k, 0.01 * k]) + 0.01
+        got = matcher.match_lines(keyframe, scan, None, prior)
+        fresh = FeatureMatcher(cfg.matching, cfg.fusion).match_lines(keyframe, scan, None, prior)
+        assert got[1] == fresh[1]
+        np.testing.assert_array_equal(got[0], fresh[0])
+        first = matcher._arrays_of(keyframe)
+        assert matcher._arrays_of(keyframe) is first
+        for x, y in zip(first, _line_arrays(keyframe)):
+            np.testing.assert_array_equal(x, y)
+    kept = [arrays for lines, arrays in matcher._recent if lines is scans[-1]]
+    assert kept and matcher._arrays_of(scans[-1]) is kept[0]  # were it the next keyframe

@@ -38,6 +38,38 @@ class FeatureMatcher:
     def __init__(self, matching: MatchingConfig, fusion: FusionConfig) -> None:
         self.matching = matching
         self.fusion = fusion
+        m = matching
+        # the line-matching kernel's settings from the prior (True) or from a start (False)
+        # and its params: the section's alone
+        self._line_settings = {
+            from_prior: np.array([
+                *((m.line_angle_gate_prior, m.line_distance_gate_prior) if from_prior
+                  else (m.line_angle_gate, m.line_distance_gate)),
+                m.line_angle_gate, m.line_distance_gate, m.line_overlap_margin,
+                m.line_repair_fraction,
+            ])
+            for from_prior in (True, False)
+        }  # fmt: skip
+        self._line_params = np.array([
+            m.line_prior_sigma, m.line_trim_angle, m.line_inlier_distance,
+            math.sin(m.line_consensus_angle), OUTLIER_SIGMAS * MAD_TO_SIGMA,
+        ])  # fmt: skip
+        # the kernel's arrays of the last two scans' lines (the keyframe's among them: every
+        # scan matched against it reads them), the most recently read first
+        self._recent: list[tuple[Lines, _LineArrays]] = []
+
+    def _arrays_of(self, lines: Lines) -> _LineArrays:
+        """:func:`_line_arrays` of ``lines``, built once while they are among the last two."""
+        recent = self._recent
+        for k, (seen, arrays) in enumerate(recent):
+            if seen is lines:
+                if k:
+                    recent.insert(0, recent.pop(k))
+                return arrays
+        arrays = _line_arrays(lines)
+        recent.insert(0, (lines, arrays))
+        del recent[2:]
+        return arrays
 
     def match(self, prev: Features, curr: Features, prior: FloatArray) -> FeatureMatch:
         """The motion from ``prev`` to ``curr``: line matching from ``prior`` first (where
@@ -82,7 +114,7 @@ class FeatureMatcher:
         else:
             pose, gates = start, (m.line_angle_gate, m.line_distance_gate)
         if compiled() and _has_variances(prev) and _has_variances(curr):
-            return self._match_lines_compiled(prev, curr, pose, gates, prior)
+            return self._match_lines_compiled(prev, curr, pose, start is None, prior)
         est, n_pairs = None, 0
         for _ in range(m.line_passes):
             pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
@@ -116,30 +148,20 @@ class FeatureMatcher:
         prev: Lines,
         curr: Lines,
         pose: FloatArray,
-        gates: tuple[float, float],
+        from_prior: bool,
         prior: FloatArray,
     ) -> tuple[FloatArray | None, int]:
-        """:meth:`match_lines`' passes as one compiled loop (``_kernels.lines.match_lines``)."""
+        """:meth:`match_lines`' passes as one compiled loop (``_kernels.lines.match_lines``),
+        with the prior's gates (``from_prior``) or the start's."""
         from .._kernels.lines import match_lines
 
         m = self.matching
         if len(prev) == 0 or len(curr) == 0:
             return None, 0
-        settings = np.array(
-            [
-                gates[0], gates[1], m.line_angle_gate, m.line_distance_gate,
-                m.line_overlap_margin, m.line_repair_fraction,
-            ]
-        )  # fmt: skip
-        params = np.array(
-            [
-                m.line_prior_sigma, m.line_trim_angle, m.line_inlier_distance,
-                math.sin(m.line_consensus_angle), OUTLIER_SIGMAS * MAD_TO_SIGMA,
-            ]
-        )  # fmt: skip
+        settings = self._line_settings[from_prior]
         found, est, n_pairs = match_lines(
-            _line_arrays(prev), _line_arrays(curr), np.array(pose, dtype=np.float64),
-            np.array(prior, dtype=np.float64), settings, params, int(m.line_passes),
+            self._arrays_of(prev), self._arrays_of(curr), np.array(pose, dtype=np.float64),
+            np.array(prior, dtype=np.float64), settings, self._line_params, int(m.line_passes),
             int(m.line_min_pairs),
         )  # fmt: skip
         return (est if found else None), int(n_pairs)
@@ -149,9 +171,12 @@ def _has_variances(lines: Lines) -> bool:
     return lines.angle_variance is not None and lines.distance_variance is not None
 
 
-def _line_arrays(
-    lines: Lines,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+_LineArrays = tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray
+]
+
+
+def _line_arrays(lines: Lines) -> _LineArrays:
     """What the line-matching kernel reads of a scan's lines."""
     return (
         f64(lines.normal_angle), f64(lines.distance), f64(lines.normal), f64(lines.centre),
