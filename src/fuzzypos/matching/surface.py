@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .._kernels import compiled
+from .._kernels import compiled, f64
 from ..config import RefinementConfig, same_as_last_call
 from ..geometry import stack_columns
 from ._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS, FloatArray, IntArray
@@ -252,18 +252,13 @@ def _refine_compiled(
     start = np.array(start, dtype=np.float64)
     prior = np.array(prior, dtype=np.float64)
     gates, params, info_prior, diagonal = _kernel_settings(cfg, max_distance, prior_scale)
-    prior_info = (
-        diagonal if prior_information is None else np.asarray(prior_information) / prior_scale**2
-    )
+    prior_info = diagonal if prior_information is None else f64(prior_information) / prior_scale**2
     xy, normal, weight = reference.arrays
+    # (the hold's x and y: the kernel reads those two of the pose)
     status, pose, paired, close, info, hold_info, on_start, gradient, variance = kernel.refine(
-        reference.grid, xy, normal, weight,
-        np.ascontiguousarray(points, dtype=np.float64),
-        np.ascontiguousarray(weights, dtype=np.float64),
-        start, prior, np.array(hold[:2], dtype=np.float64),
-        gates, _NO_SPACING if spacing is None else np.ascontiguousarray(spacing, dtype=np.float64),
-        params, int(cfg.iterations), info_prior,
-        np.ascontiguousarray(prior_info, dtype=np.float64), prior_information is not None,
+        reference.grid, xy, normal, weight, f64(points), f64(weights), start, prior, f64(hold),
+        gates, _NO_SPACING if spacing is None else f64(spacing), params, int(cfg.iterations),
+        info_prior, prior_info, prior_information is not None,
     )  # fmt: skip
     if status != kernel.OK:
         return None
