@@ -152,7 +152,11 @@ class Positioner:
         increment = self.odometry_noise.calibrated(prior.increment)
         if increment is prior.increment:  # no calibration to apply
             return prior
-        return replace(prior, increment=increment)
+        # (the constructor, not dataclasses.replace: a few µs less per scan)
+        return Prior(
+            increment, prior.odometry, prior.dt, prior.odometry_rejected, prior.standing_still,
+            prior.stale,
+        )  # fmt: skip
 
     def _prior_covariance(self, prior: Prior) -> FloatArray:
         """The covariance of the prior: the odometry's learned noise (grown by the time it was
@@ -231,12 +235,10 @@ class Positioner:
             return None
         start = key_prior if match.increment is None else match.increment
         from_features = match.increment is not None and r.prior_from_features
-        starts = Starts(start=start, prior=start if from_features else key_prior, hold=key_prior)
-        if information is not None:  # the learned odometry is the prior, the features the start
-            starts = replace(
-                starts, prior=key_prior, prior_information=information[1],
-                odometry_information=information[1],
-            )  # fmt: skip
+        if information is None:
+            starts = Starts(start, start if from_features else key_prior, key_prior)
+        else:  # the learned odometry is the prior, the features the start
+            starts = Starts(start, key_prior, key_prior, information[1], information[1])
         wide = prior.odometry_rejected
         best = self.refiner.refine(surface, points, starts, wide)
         if wide or best is None:
