@@ -36,6 +36,9 @@ class LocalMap:
         self._surface: SurfacePoints | None = None
         self._recent: list[tuple[SurfacePoints, FloatArray]] = []
         self._previous: tuple[Features, FloatArray] | None = None
+        # the last pose from_keyframe was asked about, the keyframe it was seen from and
+        # that pose relative to it (the positioner asks twice per scan, about one pose)
+        self._relative: tuple[FloatArray, FloatArray, FloatArray] | None = None
 
     @property
     def features(self) -> Features:
@@ -52,7 +55,12 @@ class LocalMap:
     def from_keyframe(self, pose: FloatArray, increment: FloatArray) -> FloatArray:
         """The motion ``increment`` from ``pose`` expressed from the keyframe: what was
         estimated up to ``pose``, then ``increment``."""
-        return compose(relative(self._pose, pose), increment)
+        seen = self._relative
+        if seen is not None and seen[0] is pose and seen[1] is self._pose:
+            return compose(seen[2], increment)
+        rel = relative(self._pose, pose)
+        self._relative = (pose, self._pose, rel)
+        return compose(rel, increment)
 
     def pose_of(self, from_keyframe: FloatArray) -> FloatArray:
         """The pose at ``from_keyframe`` seen from the keyframe."""

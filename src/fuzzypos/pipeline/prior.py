@@ -63,6 +63,7 @@ class OdometryPrior:
 
     def reset(self) -> None:
         self._prev_odom: Pose2D | None = None
+        self._prev_array: FloatArray | None = None  # its array (None: not built yet)
         self._prev_stamp = 0.0
         self._last_increment: FloatArray = np.zeros(3)
         self._last_dt = 0.0
@@ -73,6 +74,7 @@ class OdometryPrior:
     def start(self, stamp: float, odom: Pose2D | None) -> None:
         """The first scan: nothing to predict yet."""
         self._prev_odom = odom
+        self._prev_array = None
         self._prev_stamp = stamp
 
     def predict(self, stamp: float, odom: Pose2D | None) -> Prior:
@@ -80,8 +82,12 @@ class OdometryPrior:
         rejected = False
         odo_inc = None
         dt = max(0.0, stamp - self._prev_stamp)
-        if odom is not None and self._prev_odom is not None:
-            odo_inc = relative(self._prev_odom.as_array(), odom.as_array())
+        odom_array = None if odom is None else odom.as_array()
+        if odom_array is not None and self._prev_odom is not None:
+            prev = self._prev_array
+            if prev is None:
+                prev = self._prev_odom.as_array()
+            odo_inc = relative(prev, odom_array)
             rejected = self.is_jump(odo_inc, dt)
         self._prev_stamp = stamp
         if odo_inc is not None and not rejected:
@@ -98,7 +104,7 @@ class OdometryPrior:
             and self.settings.trust_stand_still
             and odom == self._prev_odom  # the very same pose: the wheels did not turn
         )
-        self._prev_odom = odom
+        self._prev_odom, self._prev_array = odom, odom_array
         stale = 0.0
         if len(self._steps) >= _MIN_STEPS:
             usual = self._steps.quantile(self.stale_quantile)
