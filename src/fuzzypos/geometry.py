@@ -145,13 +145,19 @@ def _compose_floats(
 ) -> tuple[float, float, float]:
     """:func:`compose` of one pose each, in floats (the very arithmetic of the arrays')."""
     c, s = math.cos(at), math.sin(at)
-    return ax + c * bx - s * by, ay + s * bx + c * by, _wrap_scalar(at + bt)
+    t = at + bt
+    if not -math.pi <= t < math.pi:  # (_wrap_scalar, inlined: the range check is the common case)
+        t = float(wrap_angle(t))
+    return ax + c * bx - s * by, ay + s * bx + c * by, t
 
 
 def _inverse_floats(ax: float, ay: float, at: float) -> tuple[float, float, float]:
     """:func:`inverse` of one pose, in floats."""
     c, s = math.cos(at), math.sin(at)
-    return -(c * ax + s * ay), s * ax - c * ay, _wrap_scalar(-at)
+    t = -at
+    if not -math.pi <= t < math.pi:  # (_wrap_scalar, inlined)
+        t = float(wrap_angle(t))
+    return -(c * ax + s * ay), s * ax - c * ay, t
 
 
 def transform_points(pose: ArrayLike, points: ArrayLike) -> FloatArray:
