@@ -242,17 +242,21 @@ def assess_fit(
     feature: FloatArray,
     floor: FloatArray,
     has_fit: bool,
-    fit_matrices: FloatArray,
-    fit_poses: FloatArray,
+    information: FloatArray,
+    prior_information: FloatArray,
+    hold_information: FloatArray,
+    gradient_covariance: FloatArray,
+    fit_prior: FloatArray,
+    hold_target: FloatArray,
     point_correlation: float,
     gate_open: bool,
 ) -> tuple[FloatArray, FloatArray, FloatArray, float]:
     """``Uncertainty.assess`` of a match ``from_key`` (by a fit where ``has_fit``, else the
     features alone): the increment's covariance, the covariance relative to the keyframe (both
     right perturbations, the floor added), the new previous scan's additive covariance and
-    the gate's Mahalanobis distance squared (NaN where the gate is closed). ``fit_matrices``
-    (4, 3, 3): the fit's information, prior and hold information and gradient covariance;
-    ``fit_poses`` (2, 3): its prior and the hold's target."""
+    the gate's Mahalanobis distance squared (NaN where the gate is closed). The fit's
+    information, prior and hold information, gradient covariance, prior and the hold's target
+    (each read only where ``has_fit``)."""
     ja, jb = _jacobians(t_prev, prior)
     prev = _sandwich(ja, previous)
     odo = _sandwich(jb, prior_covariance)
@@ -261,8 +265,8 @@ def assess_fit(
     if has_fit:
         key_prior = _compose(t_prev, prior)
         kf, scan_part, pull = _fit_parts(
-            fit_matrices[0], fit_matrices[1], fit_matrices[2], fit_poses[0], fit_poses[1],
-            fit_matrices[3], point_correlation, key_prior, prev, odo, feature,
+            information, prior_information, hold_information, fit_prior, hold_target,
+            gradient_covariance, point_correlation, key_prior, prev, odo, feature,
         )  # fmt: skip
     else:
         kf = feature.copy()

@@ -94,8 +94,8 @@ class Uncertainty:
         self._feature = _read_only(
             np.diag([f.feature_translation**2] * 2 + [f.feature_rotation**2])
         )
-        # the compiled assessment's inputs from a fit: its four matrices and two poses
-        self._fit_matrices, self._fit_poses = np.zeros((4, 3, 3)), np.zeros((2, 3))
+        # the compiled assessment's stand-ins for a fit's matrices and poses, without a fit
+        self._no_fit = (np.zeros((3, 3)), np.zeros(3))
         self.reset()
 
     def reset(self) -> None:
@@ -160,15 +160,16 @@ class Uncertainty:
         """:meth:`assess` of a match through the compiled kernel (the fallback, rare, in numpy)."""
         from .._kernels.uncertainty import assess_fit
 
-        matrices, poses = self._fit_matrices, self._fit_poses
-        if fit is not None:  # the fit's matrices and poses into the kernel's buffers
-            matrices[0], matrices[1] = fit.information, fit.prior_information
-            matrices[2], matrices[3] = fit.hold_information, fit.gradient_covariance
-            poses[0] = fit.prior
-            poses[1] = fit.start if fit.hold_on_start else compose(t_prev, prior)
+        if fit is None:
+            zero, none = self._no_fit
+            matrices, poses = (zero, zero, zero, zero), (none, none)
+        else:  # (the fit's own arrays, float64 already)
+            matrices = (fit.information, fit.prior_information, fit.hold_information,
+                        fit.gradient_covariance)  # fmt: skip
+            poses = (fit.prior, fit.start if fit.hold_on_start else compose(t_prev, prior))
         inc_cov, kf, previous, gate = assess_fit(
             f64(t_prev), f64(prior), f64(prior_covariance), self._previous, f64(from_key),
-            self._feature, self.floor, fit is not None, matrices, poses,
+            self._feature, self.floor, fit is not None, *matrices, *poses,
             float(self.settings.point_correlation), bool(gate_open),
         )  # fmt: skip
         if gate_open and gate > self.threshold:
