@@ -242,7 +242,7 @@ def _add_prior(
 
 
 @kernel
-def _weights(
+def _weigh(
     rows: FloatArray,
     m: int,
     weights: FloatArray,
@@ -251,14 +251,51 @@ def _weights(
     sigma2: float,
     w: FloatArray,
     absr: FloatArray,
-) -> None:
-    """Each pair's weight: both points' certainty times Huber's at ``scale``, over σ²."""
+    H: FloatArray,
+    g: FloatArray,
+    trimming: bool,
+) -> tuple[float, float, float]:
+    """Each pair's weight (both points' certainty times Huber's at ``scale``, over σ²), the
+    translation block ``(a, b, c)`` of the weighted pairs and, unless ``trimming`` (whose
+    cut needs every weight first), :func:`_normal_equations`' ``H`` and ``g``: one pass over
+    the pairs (the same sums in the same order as pass by pass)."""
+    a, b, c = 0.0, 0.0, 0.0
+    h00 = h01 = h02 = h10 = h11 = h12 = h20 = h21 = h22 = 0.0
+    g0 = g1 = g2 = 0.0
     for k in range(m):
         r = abs(rows[k, 3])
         absr[k] = r
         huber = 1.0 if r <= scale else scale / max(r, 1e-12)
         i, j = int(rows[k, 4]), int(rows[k, 5])
-        w[k] = weights[i] * ref_weight[j] * huber / sigma2
+        wk = weights[i] * ref_weight[j] * huber / sigma2
+        w[k] = wk
+        j0, j1, j2 = rows[k, 0], rows[k, 1], rows[k, 2]
+        a += wk * j0 * j0
+        b += wk * j0 * j1
+        c += wk * j1 * j1
+        if not trimming:
+            res = rows[k, 3]
+            ja = wk * j0
+            g0 += ja * res
+            h00 += ja * j0
+            h01 += ja * j1
+            h02 += ja * j2
+            ja = wk * j1
+            g1 += ja * res
+            h10 += ja * j0
+            h11 += ja * j1
+            h12 += ja * j2
+            ja = wk * j2
+            g2 += ja * res
+            h20 += ja * j0
+            h21 += ja * j1
+            h22 += ja * j2
+    if not trimming:
+        H[0, 0], H[0, 1], H[0, 2] = h00, h01, h02
+        H[1, 0], H[1, 1], H[1, 2] = h10, h11, h12
+        H[2, 0], H[2, 1], H[2, 2] = h20, h21, h22
+        g[0], g[1], g[2] = g0, g1, g2
+    return a, b, c
 
 
 @kernel
@@ -321,15 +358,10 @@ def refine(
         m = _pair(points, pose, gate, reach, grid, ref_xy, ref_normal, rows, state, last, moved)
         if m < 3:
             return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info, 0.0
-        _weights(rows, m, weights, ref_weight, scale, sigma2, w, absr)
-        a, b, c = 0.0, 0.0, 0.0
-        for k in range(m):  # the translation block before trimming
-            a += w[k] * rows[k, 0] * rows[k, 0]
-            b += w[k] * rows[k, 0] * rows[k, 1]
-            c += w[k] * rows[k, 1] * rows[k, 1]
+        a, b, c = _weigh(rows, m, weights, ref_weight, scale, sigma2, w, absr, H, g, trimming)
         if trimming:
             _trim(w, absr, m, trim_sigmas, trim_floor)
-        _normal_equations(rows, w, m, H, g, False)
+            _normal_equations(rows, w, m, H, g, False)
         for i in range(3):
             for j in range(3):
                 info[i, j] = H[i, j]
