@@ -103,6 +103,11 @@ def test_an_unreadable_file_is_the_one_line_error(tmp_path) -> None:
     try:
         d.chmod(0o777)
         drop = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+        probe = subprocess.run(
+            [*drop, sys.executable, "-c", "import fuzzypos"], capture_output=True, timeout=120
+        )
+        if probe.returncode != 0:  # e.g. a checkout under a folder only root may enter
+            pytest.skip("user nobody cannot import fuzzypos from this checkout")
         main = "import sys; from fuzzypos.cli import app; sys.argv[0] = 'fuzzypos'; app()"
         env = {**os.environ, "HOME": str(d), "MPLCONFIGDIR": str(d / "mpl")}
         for args, path in _unreadable_cases(d):
