@@ -490,3 +490,35 @@ def test_sparse_far_structure_pairs_within_the_points_own_beam_spacing() -> None
     assert math.hypot(err[0], err[1]) < 0.03 and abs(err[2]) < math.radians(0.1), err
     fixed = fit(replace(R, pairing_spacing=0.0))
     assert fixed is None or fixed.inlier_fraction < R.min_inlier_fraction, fixed
+
+
+def _turn_in_place(config: Config) -> list:
+    """A 30° scanner turning on the spot 8° per scan in a furnished room, its odometry
+    over-reading the turns by 8 %: by the fourth scan (24° from the keyframe) a fifth of
+    the scan overlaps the keyframe's, two thirds the previous scan's."""
+    world = sim.furnished_room(1)
+    model = sim.ScannerModel(
+        n_beams=60, field_of_view_deg=30.0, angle_min_deg=-15.0, range_max=8.0,
+        range_noise_std=0.005,
+    )  # fmt: skip
+    rng = np.random.default_rng(0)
+    truth = [Pose2D(0.5, 0.2, math.radians(8.0 * k)) for k in range(5)]
+    odom = [Pose2D(0.5, 0.2, math.radians(8.0 * 1.08 * k)) for k in range(5)]
+    pos = Positioner(config)
+    out = []
+    for k, (p, o) in enumerate(zip(truth, odom)):
+        out.append((p, pos.update(sim.simulate_scan(world, p, model, rng, stamp=0.2 * k), o)))
+    return out
+
+
+def test_where_the_keyframe_is_out_of_sight_the_previous_scan_is_refined_against() -> None:
+    off = _turn_in_place(CFG)  # (off by default)
+    on = _turn_in_place(CFG.with_overrides({"refinement": {"with_previous_scan": True}}))
+    assert all(e.refined for _, e in on[1:])
+    assert not off[3][1].refined and off[3][1].keyframe  # it fell back and became the keyframe
+    truth, est = on[3]
+    err_on = abs(relative(truth.as_array(), est.pose.as_array())[2])
+    err_off = abs(relative(truth.as_array(), off[3][1].pose.as_array())[2])
+    assert err_on < 0.8 * err_off and math.degrees(err_on) < 1.0, (err_on, err_off)
+    # its pose relative to the keyframe carries the previous scan's error too
+    assert est.keyframe_covariance[2, 2] > on[2][1].keyframe_covariance[2, 2]

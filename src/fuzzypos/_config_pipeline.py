@@ -298,6 +298,17 @@ class RefinementConfig:
         ge=0.0,
         le=1.0,
     )
+    with_previous_scan: bool = _field(
+        False,
+        "where nothing fits against the local map (the scan has moved so far from the "
+        "keyframes that too little of it pairs), refine once more against the local map and "
+        "the previous scan, whose view overlaps most, instead of falling back on the features' "
+        "motion from a few pairs (or the prior), which at the keyframe distance becomes the "
+        "keyframe the next scans are matched against. Off: it moves the keyframes, and in a "
+        "corridor of alike doors the loop closer then accepts two false closures that agree "
+        "with each other (its verification prefers a door along the corridor that the submap "
+        "covers over the true place, whose view it does not)",
+    )
     also_from_odometry: bool = _field(
         True,
         "where the features' motion and the odometry's differ by more than both_distance or "

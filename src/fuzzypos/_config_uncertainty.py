@@ -186,6 +186,24 @@ class OdometryNoiseConfig:
         ge=0.5,
         le=1.0,
     )
+    learn_stale: bool = _field(
+        True,
+        "learn the stale rates from the matches after gaps (with learn): stale_speed and "
+        "stale_turn_rate stand until stale_min_samples such matches, then each is the robust "
+        "fit to how far the last window of them disagreed with the odometry beyond its "
+        "on-time noise, bounded by odometry.max_speed and max_turn_rate. Where the odometry "
+        "rides with each scan (CARMEN's FLASER lines) a gap in the scans is none in the "
+        "odometry, and the configured rates make every edge of the pose graph after a logger "
+        "gap claim degrees of heading, where loop closure then bends the trajectory; where the "
+        "odometry stalls in gaps, the learned rates stay high",
+    )
+    stale_min_samples: int = _field(
+        10,
+        "the configured stale rates stand until 10 matches after gaps have been seen: each "
+        "rate is one number, fitted robustly, and gaps are rare (a log may have a hundred in "
+        "ten thousand scans, the noise's min_samples of them only near its end)",
+        ge=1,
+    )
     in_refinement: bool = _field(
         False,
         "once learned, the refinement's prior is everywhere the odometry's motion with its "

@@ -100,6 +100,11 @@ class LocalMap:
             self._surface = parts[0][0] if len(parts) == 1 else self._map_of(parts)
         return self._surface
 
+    @property
+    def has_previous(self) -> bool:
+        """Whether the previous scan (with points) is not the keyframe itself."""
+        return self._previous is not None and self._previous[0].points.shape[0] > 0
+
     def search_surface(self) -> SurfacePoints:
         """The local map and the previous scan (where it is not the keyframe): after a jump
         or a gap the latest view of the place overlaps most with the new scan."""

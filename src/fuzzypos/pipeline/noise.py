@@ -10,8 +10,9 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ..config import OdometryNoiseConfig
+from ..config import OdometryConfig, OdometryNoiseConfig
 from ..geometry import relative
+from ._stale import StaleRates
 from ._window import Window
 
 __all__ = ["OdometryNoise"]
@@ -33,11 +34,21 @@ class OdometryNoise:
     length d turning Δθ, ``stale`` seconds of it without odometry. α_t and α_r start at the
     configured values; once ``min_samples`` confident matches have been seen, each is the
     median over the last ``window`` of their disagreement with the odometry, normalised by
-    the travel, kept between its floor and ceiling.
+    the travel, kept between its floor and ceiling. The stale rates likewise, from the matches
+    after gaps once ``stale_min_samples`` have been seen (``learn_stale``, :mod:`._stale`),
+    bounded by ``odometry``'s ``max_speed`` and ``max_turn_rate``.
     """
 
-    def __init__(self, settings: OdometryNoiseConfig) -> None:
+    def __init__(
+        self, settings: OdometryNoiseConfig, odometry: OdometryConfig | None = None
+    ) -> None:
         self.settings = settings
+        bounds = odometry if odometry is not None else OdometryConfig()
+        #: the stale odometry's rates (m/s, rad/s): configured, then learned after gaps
+        self.stale = StaleRates(
+            settings.stale_speed, settings.stale_turn_rate, bounds.max_speed,
+            bounds.max_turn_rate, settings.window, settings.stale_min_samples,
+        )  # fmt: skip
         self.reset()
 
     def reset(self) -> None:
@@ -56,6 +67,7 @@ class OdometryNoise:
         self._better: bool | None = None  # better_than_matching, until the next sample
         self._warm = self._is_warm()  # warm, until the next sample
         self._factors: tuple[float, float] | None = None  # (scale, rotation_factor), likewise
+        self.stale.reset()
 
     def _is_warm(self) -> bool:
         s = self.settings
@@ -112,8 +124,8 @@ class OdometryNoise:
         var_t = s.floor_translation**2 + self.alpha_translation**2 * d
         var_r = s.floor_rotation**2 + self.alpha_rotation**2 * (d + s.turning_distance * turn)
         if stale > 0.0:
-            var_t += (s.stale_speed * stale) ** 2
-            var_r += (s.stale_turn_rate * stale) ** 2
+            var_t += (self.stale.speed * stale) ** 2
+            var_r += (self.stale.turn_rate * stale) ** 2
         return np.array([[var_t, 0.0, 0.0], [0.0, var_t, 0.0], [0.0, 0.0, var_r]])
 
     def learn(
@@ -155,6 +167,26 @@ class OdometryNoise:
         if own is not None:
             self._rotation_own.append(float(own[2]) / travel)
         self._update()
+
+    def learn_stale(
+        self,
+        odometry: FloatArray,
+        matched: FloatArray,
+        matched_covariance: FloatArray,
+        stale: float,
+    ) -> None:
+        """A match ``matched`` (with its own covariance) of an increment the odometry says was
+        ``odometry`` after a gap of ``stale`` seconds: their disagreement beyond what it is on
+        time teaches the stale rates (``learn_stale``)."""
+        if not (self.settings.learn and self.settings.learn_stale):
+            return
+        err = relative(self.calibrated(odometry), matched)
+        on_time = np.diag(self.covariance(odometry)) + np.diag(matched_covariance)
+        self.stale.learn(
+            (float(err[0]), float(err[1]), float(err[2])),
+            (float(on_time[0]), float(on_time[1]), float(on_time[2])),
+            stale,
+        )
 
     @property
     def better_than_matching(self) -> bool:

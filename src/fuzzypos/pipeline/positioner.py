@@ -64,7 +64,7 @@ class Positioner:
         cfg = self.config
         noise = cfg.odometry_noise
         self.odometry_prior = OdometryPrior(cfg.odometry, noise.stale_periods, noise.stale_quantile)
-        self.odometry_noise = OdometryNoise(cfg.odometry_noise)
+        self.odometry_noise = OdometryNoise(cfg.odometry_noise, cfg.odometry)
         self.local_map = LocalMap(cfg.matching, cfg.refinement)
         self.feature_matcher = FeatureMatcher(cfg.matching, cfg.fusion)
         self.refiner = Refiner(cfg.refinement, cfg.search)
@@ -114,11 +114,17 @@ class Positioner:
         match = self.feature_matcher.match(self.local_map.features, features, key_prior)
         prior_cov = self._prior_covariance(prior)
         information = self._prior_information(t_prev, prior, prior_cov)
-        fit = self._refine(features, match, key_prior, prior, scan.angle_increment, information)
+        fit, on_previous = self._refine(
+            features, match, key_prior, prior, scan.angle_increment, information
+        )
         from_key = match.increment if fit is None else fit.increment
+        previous_cov = self.uncertainty.previous_covariance() if on_previous else None
         judged = self.uncertainty.assess(
             t_prev, prior.increment, prior_cov, from_key, fit, gate_open=self._gate_open(prior)
         )
+        if previous_cov is not None and from_key is not None and not judged.rejected:
+            # the fit placed the previous scan's points by its estimate: their error too
+            judged = self.uncertainty.widened(judged, previous_cov, float(from_key[2]))
         if judged.rejected:  # too unlikely under both covariances: the odometry stands
             from_key = None
         if from_key is None:  # fall back to the prior, and start afresh from this scan
@@ -127,7 +133,7 @@ class Positioner:
         else:
             pose = self.local_map.pose_of(from_key)
             increment = relative(self._pose, pose)
-        self._learn(prior, t_prev, fit if from_key is not None else None)
+        self._learn(prior, t_prev, fit, accepted=from_key is not None)
         renewed = self.local_map.add(features, pose, from_key)
         if renewed:
             self.uncertainty.renewed()
@@ -190,14 +196,25 @@ class Positioner:
             return False
         return noise.better_than_matching or not gate.only_where_odometry_is_better
 
-    def _learn(self, prior: Prior, t_prev: FloatArray, fit: Refinement | None) -> None:
-        """A refined match on time teaches the odometry's noise and calibration: the scan's
-        own motion (the fit without its prior), never the fused one, which would teach the
-        odometry its own weight back."""
-        if fit is None or not prior.from_odometry or prior.stale != 0.0 or prior.odometry is None:
+    def _learn(
+        self, prior: Prior, t_prev: FloatArray, fit: Refinement | None, accepted: bool
+    ) -> None:
+        """A refined match on time, ``accepted`` by the gate, teaches the odometry's noise and
+        calibration: the scan's own motion (the fit without its prior), never the fused one,
+        which would teach the odometry its own weight back. A refined match after a gap
+        teaches the stale rates, accepted or not: the gate is drawn with those rates, and
+        learning only from what it let through would keep rates learned low on a log whose
+        odometry stalls in later gaps (the median stands against the false matches)."""
+        if fit is None or not prior.from_odometry or prior.odometry is None:
+            return
+        if not accepted and prior.stale == 0.0:
             return
         scan = self.uncertainty.scan_only(fit, t_prev)
-        if scan is not None:
+        if scan is None:
+            return
+        if prior.stale != 0.0:  # after a gap: how stale the odometry was
+            self.odometry_noise.learn_stale(prior.odometry, *scan, prior.stale)
+        else:
             self.odometry_noise.learn(prior.odometry, *scan)
 
     def _first(self, scan: LaserScan, odom: Pose2D | None) -> Estimate:
@@ -222,17 +239,19 @@ class Positioner:
         prior: Prior,
         angle_increment: float,
         information: tuple[FloatArray, FloatArray] | None,
-    ) -> Refinement | None:
+    ) -> tuple[Refinement | None, bool]:
         """The refinement of the features' motion (else the prior's) against the local map,
         and the search where the prior cannot be trusted (after an odometry jump), or where the
-        refinement fails (a wider one after a gap in time). None where nothing fits."""
+        refinement fails (a wider one after a gap in time); where still nothing fits, the
+        refinement against the local map and the previous scan (``with_previous_scan``). None
+        where nothing fits; and whether that last refinement gave it."""
         r = self.config.refinement
         if not r.enabled:
-            return None
+            return None, False
         surface = self.local_map.surface()
         points = self.refiner.points(features, angle_increment)
         if points is None:
-            return None
+            return None, False
         start = key_prior if match.increment is None else match.increment
         from_features = match.increment is not None and r.prior_from_features
         if information is None:
@@ -244,7 +263,10 @@ class Positioner:
         if wide or best is None:
             full = wide or prior.dt > self.config.search.after_gap
             best = self.relocaliser.relocalise(self.local_map, points, starts, best, full)
-        return best
+        if best is None and not wide and r.with_previous_scan and self.local_map.has_previous:
+            best = self.refiner.refine(self.local_map.search_surface(), points, starts, False)
+            return best, best is not None
+        return best, False
 
     def run(
         self,

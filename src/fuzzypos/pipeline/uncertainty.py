@@ -22,7 +22,7 @@ points do not constrain a direction (a corridor) the covariance along it is the 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -316,6 +316,19 @@ class Uncertainty:
         return Assessment(
             0.5 * (prior_covariance + prior_covariance.T) + self.floor, kf, gate, gate is not None
         )
+
+    def previous_covariance(self) -> FloatArray:
+        """The additive covariance, in the keyframe's frame, of the previous scan's pose
+        relative to the keyframe (a copy)."""
+        out: FloatArray = self._previous.copy()
+        return out
+
+    def widened(self, judged: Assessment, extra: FloatArray, theta: float) -> Assessment:
+        """``judged`` of a fit against points placed by an estimate whose additive covariance
+        in the keyframe's frame is ``extra`` (the previous scan's): the pose relative to the
+        keyframe carries that error too; the increment, from the previous scan, does not."""
+        self._previous = self._previous + extra
+        return replace(judged, keyframe_covariance=judged.keyframe_covariance + local(extra, theta))
 
     def renewed(self) -> None:
         """The scan just assessed became the keyframe: the next scan's prior starts from it."""
