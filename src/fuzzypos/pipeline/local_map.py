@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from ..config import MatchingConfig, RefinementConfig
 from ..features import Features
-from ..geometry import compose, relative, transform_points
+from ..geometry import Pose3, compose3, relative, relative3, transform_points
 from ..matching import SurfacePoints, surface_points
 
 __all__ = ["LocalMap"]
@@ -38,7 +38,7 @@ class LocalMap:
         self._previous: tuple[Features, FloatArray] | None = None
         # the last pose from_keyframe was asked about, the keyframe it was seen from and
         # that pose relative to it (the positioner asks twice per scan, about one pose)
-        self._relative: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        self._relative: tuple[FloatArray, FloatArray, Pose3] | None = None
 
     @property
     def features(self) -> Features:
@@ -55,27 +55,31 @@ class LocalMap:
     def from_keyframe(self, pose: FloatArray, increment: FloatArray) -> FloatArray:
         """The motion ``increment`` from ``pose`` expressed from the keyframe: what was
         estimated up to ``pose``, then ``increment``."""
+        # in floats (compose3/relative3: the arithmetic of compose/relative without an array
+        # per step), one array for the result
         seen = self._relative
         if seen is not None and seen[0] is pose and seen[1] is self._pose:
-            return compose(seen[2], increment)
-        rel = relative(self._pose, pose)
-        self._relative = (pose, self._pose, rel)
-        return compose(rel, increment)
+            rel = seen[2]
+        else:
+            rel = relative3(self._pose.tolist(), pose.tolist())
+            self._relative = (pose, self._pose, rel)
+        return np.array(compose3(rel, increment.tolist()))
 
     def pose_of(self, from_keyframe: FloatArray) -> FloatArray:
         """The pose at ``from_keyframe`` seen from the keyframe."""
-        return compose(self._pose, from_keyframe)
+        return np.array(compose3(self._pose.tolist(), from_keyframe.tolist()))
 
     def add(self, features: Features, pose: FloatArray, from_keyframe: FloatArray | None) -> bool:
         """The scan just estimated: it becomes the keyframe where matching it failed
         (``from_keyframe`` None: start afresh from it) or it lies far enough from the
         keyframe, else it is kept as the previous scan. Whether it became the keyframe."""
         m = self.matching
-        if (
-            from_keyframe is None
-            or math.hypot(from_keyframe[0], from_keyframe[1]) >= m.keyframe_distance
-            or abs(from_keyframe[2]) >= m.keyframe_angle
-        ):
+        if from_keyframe is None:
+            renew = True
+        else:
+            x, y, theta = from_keyframe.tolist()
+            renew = math.hypot(x, y) >= m.keyframe_distance or abs(theta) >= m.keyframe_angle
+        if renew:
             self.set_keyframe(features, pose)
             return True
         self._previous = (features, pose)

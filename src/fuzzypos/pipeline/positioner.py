@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from ..config import Config
 from ..features import Features, extract_features
-from ..geometry import Pose2D, compose, relative
+from ..geometry import Pose2D, compose3, relative3
 from ..matching import Refinement
 from ..scan import LaserScan
 from .estimate import Estimate, Reason
@@ -43,7 +43,7 @@ _NO_MOTION.flags.writeable = False
 
 def _pose(a: FloatArray) -> Pose2D:
     """A Pose2D from a pose array the pipeline computed (finite, angle wrapped by compose)."""
-    x, y, th = float(a[0]), float(a[1]), float(a[2])
+    x, y, th = a.tolist()
     if not (math.isfinite(x) and math.isfinite(y) and -math.pi <= th < math.pi):
         return Pose2D(x, y, th)  # validates and wraps
     return Pose2D._trusted(x, y, th)
@@ -123,10 +123,10 @@ class Positioner:
             from_key = None
         if from_key is None:  # fall back to the prior, and start afresh from this scan
             increment = np.asarray(prior.increment, dtype=float)
-            pose = compose(self._pose, increment)
+            pose = np.array(compose3(self._pose.tolist(), increment.tolist()))
         else:
             pose = self.local_map.pose_of(from_key)
-            increment = relative(self._pose, pose)
+            increment = np.array(relative3(self._pose.tolist(), pose.tolist()))
         self._learn(prior, t_prev, fit if from_key is not None else None)
         renewed = self.local_map.add(features, pose, from_key)
         if renewed:
