@@ -3,8 +3,11 @@ feature points (§3.7, §4) refined by line matching."""
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,6 +22,13 @@ from .estimate import Reason
 __all__ = ["FeatureMatch", "FeatureMatcher"]
 
 FloatArray = NDArray[np.float64]
+
+
+@functools.cache
+def _kernels() -> ModuleType:
+    """The compiled kernels (``_kernels.lines``), imported with numba on first use and kept:
+    an import statement in the per-scan path costs over a microsecond a call."""
+    return importlib.import_module("fuzzypos._kernels.lines")
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,13 +163,11 @@ class FeatureMatcher:
     ) -> tuple[FloatArray | None, int]:
         """:meth:`match_lines`' passes as one compiled loop (``_kernels.lines.match_lines``),
         with the prior's gates (``from_prior``) or the start's."""
-        from .._kernels.lines import match_lines
-
         m = self.matching
         if len(prev) == 0 or len(curr) == 0:
             return None, 0
         settings = self._line_settings[from_prior]
-        found, est, n_pairs = match_lines(
+        found, est, n_pairs = _kernels().match_lines(
             self._arrays_of(prev), self._arrays_of(curr), np.array(pose, dtype=np.float64),
             np.array(prior, dtype=np.float64), settings, self._line_params, int(m.line_passes),
             int(m.line_min_pairs),

@@ -4,8 +4,11 @@ disagrees with the odometry's, from the odometry's too."""
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,6 +22,13 @@ from ..matching._robust import median as _median
 __all__ = ["Refiner", "ScanPoints", "Starts"]
 
 FloatArray = NDArray[np.float64]
+
+
+@functools.cache
+def _kernels() -> ModuleType:
+    """The compiled kernels (``_kernels.refine``), imported with numba on first use and kept:
+    an import statement in the per-scan path costs over a microsecond a call."""
+    return importlib.import_module("fuzzypos._kernels.refine")
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,9 +73,7 @@ class Refiner:
             return None
         spacing = features.ranges * abs(float(angle_increment))
         if compiled():
-            from .._kernels.refine import scan_weights
-
-            weights = scan_weights(
+            weights = _kernels().scan_weights(
                 np.ascontiguousarray(pts, dtype=np.float64),
                 np.ascontiguousarray(features.ranges, dtype=np.float64),
                 np.ascontiguousarray(features.uncertainty, dtype=np.float64),

@@ -21,8 +21,11 @@ points do not constrain a direction (a corridor) the covariance along it is the 
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,6 +46,13 @@ _EYE.flags.writeable = False
 #: what keeps the fit's information invertible
 _TINY = 1e-12 * np.eye(3)
 _TINY.flags.writeable = False
+
+
+@functools.cache
+def _kernels() -> ModuleType:
+    """The compiled kernels (``_kernels.uncertainty``), imported with numba on first use and kept:
+    an import statement in the per-scan path costs over a microsecond a call."""
+    return importlib.import_module("fuzzypos._kernels.uncertainty")
 
 
 def _read_only(a: FloatArray) -> FloatArray:
@@ -158,8 +168,6 @@ class Uncertainty:
         gate_open: bool,
     ) -> Assessment:
         """:meth:`assess` of a match through the compiled kernel (the fallback, rare, in numpy)."""
-        from .._kernels.uncertainty import assess_fit
-
         if fit is None:
             zero, none = self._no_fit
             matrices, poses = (zero, zero, zero, zero), (none, none)
@@ -167,7 +175,7 @@ class Uncertainty:
             matrices = (fit.information, fit.prior_information, fit.hold_information,
                         fit.gradient_covariance)  # fmt: skip
             poses = (fit.prior, fit.start if fit.hold_on_start else compose(t_prev, prior))
-        inc_cov, kf, previous, gate = assess_fit(
+        inc_cov, kf, previous, gate = _kernels().assess_fit(
             f64(t_prev), f64(prior), f64(prior_covariance), self._previous, f64(from_key),
             self._feature, self.floor, fit is not None, *matrices, *poses,
             float(self.settings.point_correlation), bool(gate_open),
@@ -266,9 +274,7 @@ class Uncertainty:
         if fit.hold_information.any():
             return None
         if compiled():
-            from .._kernels.uncertainty import scan_only
-
-            ok, inc, cov = scan_only(
+            ok, inc, cov = _kernels().scan_only(
                 f64(fit.information), f64(fit.prior_information),
                 f64(fit.gradient_covariance), f64(fit.increment), f64(fit.prior),
                 f64(t_prev), self._previous, self.floor,
