@@ -107,14 +107,19 @@ class OdometryNoise:
         """The 3×3 covariance of an odometry ``increment`` (x, y, θ in its start's frame),
         ``stale`` seconds of it without odometry."""
         s = self.settings
-        d = math.hypot(float(increment[0]), float(increment[1]))
-        turn = abs(float(increment[2]))
+        x, y, theta = increment.tolist()
+        d = math.hypot(x, y)
+        turn = abs(theta)
         var_t = s.floor_translation**2 + self.alpha_translation**2 * d
         var_r = s.floor_rotation**2 + self.alpha_rotation**2 * (d + s.turning_distance * turn)
         if stale > 0.0:
             var_t += (s.stale_speed * stale) ** 2
             var_r += (s.stale_turn_rate * stale) ** 2
-        return np.array([[var_t, 0.0, 0.0], [0.0, var_t, 0.0], [0.0, 0.0, var_r]])
+        # (filled in place: a nested list of nine floats makes a slower array)
+        out = np.zeros((3, 3))
+        out[0, 0] = out[1, 1] = var_t
+        out[2, 2] = var_r
+        return out
 
     def learn(
         self,

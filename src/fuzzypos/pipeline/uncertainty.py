@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from .._kernels import compiled, f64
 from ..config import CovarianceConfig, GateConfig
-from ..geometry import compose, compose_jacobians, relative
+from ..geometry import compose3, compose_jacobians, relative
 from ..matching import Refinement
 
 __all__ = ["Assessment", "Uncertainty", "local"]
@@ -58,6 +58,11 @@ def _kernels() -> ModuleType:
 def _read_only(a: FloatArray) -> FloatArray:
     a.flags.writeable = False
     return a
+
+
+def _compose(a: FloatArray, b: FloatArray) -> FloatArray:
+    """:func:`~fuzzypos.geometry.compose` of one pose each, in floats (bit-identical)."""
+    return np.array(compose3(a.tolist(), b.tolist()))
 
 
 def local(cov: FloatArray, theta: float) -> FloatArray:
@@ -106,6 +111,7 @@ class Uncertainty:
         )
         # the compiled assessment's stand-ins for a fit's matrices and poses, without a fit
         self._no_fit = (np.zeros((3, 3)), np.zeros(3))
+        self._point_correlation = float(f.point_correlation)
         self.reset()
 
     def reset(self) -> None:
@@ -174,11 +180,12 @@ class Uncertainty:
         else:  # (the fit's own arrays, float64 already)
             matrices = (fit.information, fit.prior_information, fit.hold_information,
                         fit.gradient_covariance)  # fmt: skip
-            poses = (fit.prior, fit.start if fit.hold_on_start else compose(t_prev, prior))
+            key_prior = fit.start if fit.hold_on_start else _compose(t_prev, prior)
+            poses = (fit.prior, key_prior)
         inc_cov, kf, previous, gate = _kernels().assess_fit(
             f64(t_prev), f64(prior), f64(prior_covariance), self._previous, f64(from_key),
             self._feature, self.floor, fit is not None, *matrices, *poses,
-            float(self.settings.point_correlation), bool(gate_open),
+            self._point_correlation, bool(gate_open),
         )  # fmt: skip
         if gate_open and gate > self.threshold:
             return self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
@@ -209,7 +216,7 @@ class Uncertainty:
             scan_part = feature + prev
             pull = np.zeros((3, 3))
         else:
-            kf, scan_part, pull = self._fit_parts(fit, compose(t_prev, prior), prev, odo, feature)
+            kf, scan_part, pull = self._fit_parts(fit, _compose(t_prev, prior), prev, odo, feature)
         inc_cov = jb_inv @ (scan_part + pull @ odo @ pull.T) @ jb_inv.T
         gate, rejected = None, False
         if gate_open:
@@ -271,14 +278,14 @@ class Uncertainty:
         covariance A⁻¹ G A⁻¹ carried on from the previous scan. What the odometry's noise is
         learned from: the fused increment would teach it its own weight back. None where the
         points alone do not fix the motion (a corridor held, or too little information)."""
-        if fit.hold_information.any():
+        if np.count_nonzero(fit.hold_information):  # (an .any() costs a microsecond)
             return None
         if compiled():
             ok, inc, cov = _kernels().scan_only(
                 f64(fit.information), f64(fit.prior_information),
                 f64(fit.gradient_covariance), f64(fit.increment), f64(fit.prior),
                 f64(t_prev), self._previous, self.floor,
-                float(self.settings.point_correlation), _MAX_CONDITION,
+                self._point_correlation, _MAX_CONDITION,
             )  # fmt: skip
             return (inc, cov) if ok else None
         return self._scan_only_numpy(fit, t_prev)
