@@ -300,9 +300,10 @@ class Pose2D:
     def _trusted(cls, x: float, y: float, theta: float) -> Pose2D:
         """Build from finite floats with ``theta`` already wrapped (no checks: internal use)."""
         p = object.__new__(cls)
-        object.__setattr__(p, "x", x)
-        object.__setattr__(p, "y", y)
-        object.__setattr__(p, "theta", theta)
+        # straight into the instance's dict (the frozen __setattr__ would refuse; going
+        # around it with object.__setattr__ takes longer, three times a scan)
+        fields = p.__dict__
+        fields["x"], fields["y"], fields["theta"] = x, y, theta
         return p
 
     @classmethod
