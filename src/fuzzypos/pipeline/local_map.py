@@ -3,19 +3,30 @@ keyframes, and the previous scan."""
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._kernels import compiled, f64
 from ..config import MatchingConfig, RefinementConfig
 from ..features import Features
-from ..geometry import Pose3, compose3, relative, relative3, transform_points
+from ..geometry import Pose3, compose3, relative3, stack_columns
 from ..matching import SurfacePoints, surface_points
 
 __all__ = ["LocalMap"]
 
 FloatArray = NDArray[np.float64]
+
+
+@functools.cache
+def _kernels() -> ModuleType:
+    """The compiled kernels (``_kernels.pipeline``), imported with numba on first use and kept:
+    an import statement in the per-scan path costs over a microsecond a call."""
+    return importlib.import_module("fuzzypos._kernels.pipeline")
 
 
 class LocalMap:
@@ -120,14 +131,33 @@ class LocalMap:
     def _map_of(self, parts: list[tuple[SurfacePoints, FloatArray]]) -> SurfacePoints:
         """Surface points seen from the given poses, in the keyframe's frame (one grid or
         KD-tree over them all, built on first use)."""
-        xy, normal, weight = [], [], []
+        key = self._pose.tolist()
+        moves, ends, n = [], [], 0
         for surf, pose in parts:
-            rel = relative(self._pose, pose)
-            xy.append(transform_points(rel, surf.xy))
-            c, s_ = math.cos(rel[2]), math.sin(rel[2])
-            n = surf.normal
-            normal.append(
-                np.stack((c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]), axis=1)
-            )
-            weight.append(surf.weight)
-        return SurfacePoints(np.concatenate(xy), np.concatenate(normal), np.concatenate(weight))
+            x, y, theta = relative3(key, pose.tolist())
+            moves.append((x, y, math.cos(theta), math.sin(theta)))
+            n += surf.xy.shape[0]
+            ends.append(n)
+        weight = np.concatenate([surf.weight for surf, _ in parts])
+        if compiled():  # every part moved in one loop (the numpy below, a few calls a part)
+            xy, normal = _kernels().move_surfaces(
+                f64(np.concatenate([surf.xy for surf, _ in parts])),
+                f64(np.concatenate([surf.normal for surf, _ in parts])),
+                np.array(moves), np.array(ends, dtype=np.int64),
+            )  # fmt: skip
+            return SurfacePoints(xy, normal, weight)
+        return SurfacePoints(*_moved_numpy(parts, moves), weight)
+
+
+def _moved_numpy(
+    parts: list[tuple[SurfacePoints, FloatArray]], moves: list[tuple[float, float, float, float]]
+) -> tuple[FloatArray, FloatArray]:
+    """The parts' points and normals, each part moved by its ``(x, y, cos θ, sin θ)`` (the
+    reference of the kernel ``move_surfaces``)."""
+    xy, normal = [], []
+    for (surf, _), (x, y, c, s_) in zip(parts, moves):
+        p = surf.xy
+        xy.append(stack_columns(x + c * p[:, 0] - s_ * p[:, 1], y + s_ * p[:, 0] + c * p[:, 1]))
+        n = surf.normal
+        normal.append(np.stack((c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]), axis=1))
+    return np.concatenate(xy), np.concatenate(normal)
