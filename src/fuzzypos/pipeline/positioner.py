@@ -29,7 +29,7 @@ from .noise import OdometryNoise
 from .prior import OdometryPrior, Prior
 from .refine import Refiner, Starts
 from .search import Relocaliser
-from .uncertainty import Uncertainty
+from .uncertainty import Assessment, Uncertainty
 
 __all__ = ["Positioner"]
 
@@ -117,7 +117,13 @@ class Positioner:
         fit = self._refine(features, match, key_prior, prior, scan.angle_increment, information)
         from_key = match.increment if fit is None else fit.increment
         judged = self.uncertainty.assess(
-            t_prev, prior.increment, prior_cov, from_key, fit, gate_open=self._gate_open(prior)
+            t_prev,
+            prior.increment,
+            prior_cov,
+            from_key,
+            fit,
+            gate_open=self._gate_open(prior),
+            with_scan_only=self._learns_from(prior, fit),
         )
         if judged.rejected:  # too unlikely under both covariances: the odometry stands
             from_key = None
@@ -127,7 +133,7 @@ class Positioner:
         else:
             pose = self.local_map.pose_of(from_key)
             increment = np.array(relative3(self._pose.tolist(), pose.tolist()))
-        self._learn(prior, t_prev, fit if from_key is not None else None)
+        self._learn(prior, judged)
         renewed = self.local_map.add(features, pose, from_key)
         if renewed:
             self.uncertainty.renewed()
@@ -190,15 +196,24 @@ class Positioner:
             return False
         return noise.better_than_matching or not gate.only_where_odometry_is_better
 
-    def _learn(self, prior: Prior, t_prev: FloatArray, fit: Refinement | None) -> None:
-        """A refined match on time teaches the odometry's noise and calibration: the scan's
-        own motion (the fit without its prior), never the fused one, which would teach the
-        odometry its own weight back."""
-        if fit is None or not prior.from_odometry or prior.stale != 0.0 or prior.odometry is None:
-            return
-        scan = self.uncertainty.scan_only(fit, t_prev)
-        if scan is not None:
-            self.odometry_noise.learn(prior.odometry, *scan)
+    @staticmethod
+    def _learns_from(prior: Prior, fit: Refinement | None) -> bool:
+        """Whether a refined match on time (its prior the odometry's, not stale) would teach
+        the odometry's noise and calibration, where it stands: the assessment then gives the
+        scan's own motion with it (one compiled call for both)."""
+        return (
+            fit is not None
+            and prior.from_odometry
+            and prior.stale == 0.0
+            and prior.odometry is not None
+        )
+
+    def _learn(self, prior: Prior, judged: Assessment) -> None:
+        """A refined match on time that stands teaches the odometry's noise and calibration:
+        the scan's own motion (the fit without its prior, ``judged.scan_only``), never the
+        fused one, which would teach the odometry its own weight back."""
+        if judged.scan_only is not None and prior.odometry is not None:
+            self.odometry_noise.learn(prior.odometry, *judged.scan_only)
 
     def _first(self, scan: LaserScan, odom: Pose2D | None) -> Estimate:
         """The first scan: the trajectory starts at its odometry pose, or the origin."""
