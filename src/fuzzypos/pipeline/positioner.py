@@ -141,7 +141,7 @@ class Positioner:
         self.odometry_prior.accept(increment, prior.dt)
         reason = Reason.GATED if judged.rejected else match.reason
         refined = fit is not None and from_key is not None
-        return Estimate(
+        return Estimate._trusted(
             stamp=scan.stamp, pose=_pose(pose), increment=_pose(increment),
             prior=_pose(prior.increment), n_pairs=match.n_pairs, degraded=from_key is None,
             features=features, reason=Reason.MATCHED if from_key is not None else reason,
