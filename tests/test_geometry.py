@@ -14,8 +14,10 @@ from fuzzypos.geometry import (
     Pose2D,
     circular_mean,
     compose,
+    compose3,
     inverse,
     relative,
+    relative3,
     rotation_matrix,
     transform_points,
     wrap_angle,
@@ -123,6 +125,15 @@ def test_relative_recovers_increment(a, b):
     ab = compose(a.as_array(), b.as_array())
     assert_pose_close(relative(a.as_array(), ab), b.as_array(), atol=1e-7)
     assert_pose_close((a @ b).relative_to(a).as_array(), b.as_array(), atol=1e-7)
+
+
+@given(poses, poses)
+def test_float_triples_are_bit_identical_to_the_arrays(a, b):
+    """compose3/relative3 (the pipeline's float fast paths) give the very floats of
+    compose/relative on the arrays."""
+    ta, tb = (a.x, a.y, a.theta), (b.x, b.y, b.theta)
+    assert compose3(ta, tb) == tuple(compose(a.as_array(), b.as_array()).tolist())
+    assert relative3(ta, tb) == tuple(relative(a.as_array(), b.as_array()).tolist())
 
 
 @given(poses, poses, points)

@@ -228,3 +228,14 @@ def test_the_matcher_reads_a_keyframes_lines_once() -> None:
             np.testing.assert_array_equal(x, y)
     kept = [arrays for lines, arrays in matcher._recent if lines is scans[-1]]
     assert kept and matcher._arrays_of(scans[-1]) is kept[0]  # were it the next keyframe
+
+
+def test_the_matchers_line_arrays_are_the_lines_own() -> None:
+    """The matcher computes the normals' angles and the lengths itself (not through the
+    cached properties): the very values of ``Lines.normal_angle`` and ``Lines.length``."""
+    from fuzzypos.pipeline.feature_match import _line_arrays
+
+    for lines in (ROOM, seen_from(ROOM, np.array([0.3, -0.2, 2.5]))):
+        arrays = _line_arrays(lines)
+        assert arrays[0].tobytes() == lines.normal_angle.tobytes()
+        assert arrays[4].tobytes() == lines.length.tobytes()

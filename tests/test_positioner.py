@@ -509,3 +509,26 @@ def test_a_refined_estimate_is_matched_even_where_the_point_pairs_were_too_few(
     est = pos.run(scans, poses)
     assert est[1].refined and not est[1].degraded and est[1].n_pairs == 3
     assert est[1].reason is Reason.MATCHED
+
+
+def test_the_positioners_fast_estimate_is_the_constructors() -> None:
+    """``Estimate._trusted`` (the positioner's way round the frozen ``__init__``) builds the
+    very estimate the constructor does: the same fields, frozen, and ``replace`` works."""
+    import dataclasses
+
+    from fuzzypos.pipeline.estimate import Estimate, Reason
+
+    values = dict(
+        stamp=1.5, pose=Pose2D(1.0, 2.0, 0.5), increment=Pose2D(0.1, 0.0, 0.01),
+        prior=Pose2D(0.1, 0.0, 0.0), n_pairs=7, degraded=False, features=None,
+        reason=Reason.MATCHED, odometry_rejected=False, refined=True,
+        covariance=np.eye(3), keyframe_covariance=2.0 * np.eye(3), gate=0.25, keyframe=True,
+    )  # fmt: skip
+    fast, slow = Estimate._trusted(**values), Estimate(**values)
+    assert [f.name for f in dataclasses.fields(Estimate)] == list(values)
+    for name in values:
+        assert getattr(fast, name) is getattr(slow, name)
+    assert vars(fast) == vars(slow)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fast.n_pairs = 3  # type: ignore[misc]
+    assert dataclasses.replace(fast, features=None).n_pairs == 7

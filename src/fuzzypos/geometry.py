@@ -32,6 +32,8 @@ __all__ = [
     "compose",
     "inverse",
     "relative",
+    "compose3",
+    "relative3",
     "transform_points",
     "rotation_matrix",
     "circular_mean",
@@ -138,6 +140,23 @@ def relative(a: ArrayLike, b: ArrayLike) -> FloatArray:
     if a.ndim == 1 and b.ndim == 1:  # as compose(inverse(a), b), without the arrays between
         return np.array(_compose_floats(*_inverse_floats(*a.tolist()), *b.tolist()))
     return compose(inverse(a), b)
+
+
+#: one pose as three floats ``(x, y, theta)``: what the per-scan pipeline computes with where
+#: an array per pose would cost more than the arithmetic
+Pose3 = tuple[float, float, float]
+
+
+def compose3(a: Pose3, b: Pose3) -> Pose3:
+    """:func:`compose` of one pose each as float triples (bit-identical to it; no checks: the
+    pipeline's own finite poses)."""
+    return _compose_floats(a[0], a[1], a[2], b[0], b[1], b[2])
+
+
+def relative3(a: Pose3, b: Pose3) -> Pose3:
+    """:func:`relative` of one pose each as float triples (bit-identical to it; no checks)."""
+    ix, iy, it = _inverse_floats(a[0], a[1], a[2])
+    return _compose_floats(ix, iy, it, b[0], b[1], b[2])
 
 
 def _compose_floats(
@@ -281,9 +300,10 @@ class Pose2D:
     def _trusted(cls, x: float, y: float, theta: float) -> Pose2D:
         """Build from finite floats with ``theta`` already wrapped (no checks: internal use)."""
         p = object.__new__(cls)
-        object.__setattr__(p, "x", x)
-        object.__setattr__(p, "y", y)
-        object.__setattr__(p, "theta", theta)
+        # straight into the instance's dict (the frozen __setattr__ would refuse; going
+        # around it with object.__setattr__ takes longer, three times a scan)
+        fields = p.__dict__
+        fields["x"], fields["y"], fields["theta"] = x, y, theta
         return p
 
     @classmethod

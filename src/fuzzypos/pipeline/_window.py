@@ -44,18 +44,19 @@ class Window:
 
     def append(self, value: float) -> None:
         value = float(value)
-        values = self._values
+        values, ordered = self._values, self._sorted
+        # (x != x: NaN, without math.isnan's lookups; four appends a scan)
         if len(values) == values.maxlen:
             old = values[0]
-            if math.isnan(old):
+            if old != old:
                 self._nans -= 1
             else:
-                del self._sorted[bisect.bisect_left(self._sorted, old)]
+                del ordered[bisect.bisect_left(ordered, old)]
         values.append(value)
-        if math.isnan(value):
+        if value != value:
             self._nans += 1
         else:
-            bisect.insort(self._sorted, value)
+            bisect.insort(ordered, value)
         self._median = None
 
     def median(self) -> float:

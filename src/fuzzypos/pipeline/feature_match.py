@@ -3,8 +3,11 @@ feature points (§3.7, §4) refined by line matching."""
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,6 +22,13 @@ from .estimate import Reason
 __all__ = ["FeatureMatch", "FeatureMatcher"]
 
 FloatArray = NDArray[np.float64]
+
+
+@functools.cache
+def _kernels() -> ModuleType:
+    """The compiled kernels (``_kernels.lines``), imported with numba on first use and kept:
+    an import statement in the per-scan path costs over a microsecond a call."""
+    return importlib.import_module("fuzzypos._kernels.lines")
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,13 +163,11 @@ class FeatureMatcher:
     ) -> tuple[FloatArray | None, int]:
         """:meth:`match_lines`' passes as one compiled loop (``_kernels.lines.match_lines``),
         with the prior's gates (``from_prior``) or the start's."""
-        from .._kernels.lines import match_lines
-
         m = self.matching
         if len(prev) == 0 or len(curr) == 0:
             return None, 0
         settings = self._line_settings[from_prior]
-        found, est, n_pairs = match_lines(
+        found, est, n_pairs = _kernels().match_lines(
             self._arrays_of(prev), self._arrays_of(curr), np.array(pose, dtype=np.float64),
             np.array(prior, dtype=np.float64), settings, self._line_params, int(m.line_passes),
             int(m.line_min_pairs),
@@ -177,8 +185,14 @@ _LineArrays = tuple[
 
 
 def _line_arrays(lines: Lines) -> _LineArrays:
-    """What the line-matching kernel reads of a scan's lines."""
+    """What the line-matching kernel reads of a scan's lines. The normals' angles and the
+    lengths are :class:`~fuzzypos.features.Lines`' ``normal_angle`` and ``length``, the same
+    numpy expressions (so the same values) but not through the cached properties: their
+    lookup (a lock each) costs more than the arithmetic, and the matcher reads them once."""
+    normal, start, end = lines.normal, lines.start, lines.end
+    angle = np.arctan2(normal[:, 1], normal[:, 0])
+    length = np.hypot(end[:, 0] - start[:, 0], end[:, 1] - start[:, 1])
     return (
-        f64(lines.normal_angle), f64(lines.distance), f64(lines.normal), f64(lines.centre),
-        f64(lines.length), f64(lines.angle_variance), f64(lines.distance_variance),
+        f64(angle), f64(lines.distance), f64(normal), f64(lines.centre), f64(length),
+        f64(lines.angle_variance), f64(lines.distance_variance),
     )  # fmt: skip

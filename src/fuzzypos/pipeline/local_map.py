@@ -3,19 +3,30 @@ keyframes, and the previous scan."""
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._kernels import compiled, f64
 from ..config import MatchingConfig, RefinementConfig
 from ..features import Features
-from ..geometry import compose, relative, transform_points
+from ..geometry import Pose3, compose3, relative3, stack_columns
 from ..matching import SurfacePoints, surface_points
 
 __all__ = ["LocalMap"]
 
 FloatArray = NDArray[np.float64]
+
+
+@functools.cache
+def _kernels() -> ModuleType:
+    """The compiled kernels (``_kernels.pipeline``), imported with numba on first use and kept:
+    an import statement in the per-scan path costs over a microsecond a call."""
+    return importlib.import_module("fuzzypos._kernels.pipeline")
 
 
 class LocalMap:
@@ -38,7 +49,7 @@ class LocalMap:
         self._previous: tuple[Features, FloatArray] | None = None
         # the last pose from_keyframe was asked about, the keyframe it was seen from and
         # that pose relative to it (the positioner asks twice per scan, about one pose)
-        self._relative: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        self._relative: tuple[FloatArray, FloatArray, Pose3] | None = None
 
     @property
     def features(self) -> Features:
@@ -55,27 +66,31 @@ class LocalMap:
     def from_keyframe(self, pose: FloatArray, increment: FloatArray) -> FloatArray:
         """The motion ``increment`` from ``pose`` expressed from the keyframe: what was
         estimated up to ``pose``, then ``increment``."""
+        # in floats (compose3/relative3: the arithmetic of compose/relative without an array
+        # per step), one array for the result
         seen = self._relative
         if seen is not None and seen[0] is pose and seen[1] is self._pose:
-            return compose(seen[2], increment)
-        rel = relative(self._pose, pose)
-        self._relative = (pose, self._pose, rel)
-        return compose(rel, increment)
+            rel = seen[2]
+        else:
+            rel = relative3(self._pose.tolist(), pose.tolist())
+            self._relative = (pose, self._pose, rel)
+        return np.array(compose3(rel, increment.tolist()))
 
     def pose_of(self, from_keyframe: FloatArray) -> FloatArray:
         """The pose at ``from_keyframe`` seen from the keyframe."""
-        return compose(self._pose, from_keyframe)
+        return np.array(compose3(self._pose.tolist(), from_keyframe.tolist()))
 
     def add(self, features: Features, pose: FloatArray, from_keyframe: FloatArray | None) -> bool:
         """The scan just estimated: it becomes the keyframe where matching it failed
         (``from_keyframe`` None: start afresh from it) or it lies far enough from the
         keyframe, else it is kept as the previous scan. Whether it became the keyframe."""
         m = self.matching
-        if (
-            from_keyframe is None
-            or math.hypot(from_keyframe[0], from_keyframe[1]) >= m.keyframe_distance
-            or abs(from_keyframe[2]) >= m.keyframe_angle
-        ):
+        if from_keyframe is None:
+            renew = True
+        else:
+            x, y, theta = from_keyframe.tolist()
+            renew = math.hypot(x, y) >= m.keyframe_distance or abs(theta) >= m.keyframe_angle
+        if renew:
             self.set_keyframe(features, pose)
             return True
         self._previous = (features, pose)
@@ -121,14 +136,33 @@ class LocalMap:
     def _map_of(self, parts: list[tuple[SurfacePoints, FloatArray]]) -> SurfacePoints:
         """Surface points seen from the given poses, in the keyframe's frame (one grid or
         KD-tree over them all, built on first use)."""
-        xy, normal, weight = [], [], []
+        key = self._pose.tolist()
+        moves, ends, n = [], [], 0
         for surf, pose in parts:
-            rel = relative(self._pose, pose)
-            xy.append(transform_points(rel, surf.xy))
-            c, s_ = math.cos(rel[2]), math.sin(rel[2])
-            n = surf.normal
-            normal.append(
-                np.stack((c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]), axis=1)
-            )
-            weight.append(surf.weight)
-        return SurfacePoints(np.concatenate(xy), np.concatenate(normal), np.concatenate(weight))
+            x, y, theta = relative3(key, pose.tolist())
+            moves.append((x, y, math.cos(theta), math.sin(theta)))
+            n += surf.xy.shape[0]
+            ends.append(n)
+        weight = np.concatenate([surf.weight for surf, _ in parts])
+        if compiled():  # every part moved in one loop (the numpy below, a few calls a part)
+            xy, normal = _kernels().move_surfaces(
+                f64(np.concatenate([surf.xy for surf, _ in parts])),
+                f64(np.concatenate([surf.normal for surf, _ in parts])),
+                np.array(moves), np.array(ends, dtype=np.int64),
+            )  # fmt: skip
+            return SurfacePoints(xy, normal, weight)
+        return SurfacePoints(*_moved_numpy(parts, moves), weight)
+
+
+def _moved_numpy(
+    parts: list[tuple[SurfacePoints, FloatArray]], moves: list[tuple[float, float, float, float]]
+) -> tuple[FloatArray, FloatArray]:
+    """The parts' points and normals, each part moved by its ``(x, y, cos θ, sin θ)`` (the
+    reference of the kernel ``move_surfaces``)."""
+    xy, normal = [], []
+    for (surf, _), (x, y, c, s_) in zip(parts, moves):
+        p = surf.xy
+        xy.append(stack_columns(x + c * p[:, 0] - s_ * p[:, 1], y + s_ * p[:, 0] + c * p[:, 1]))
+        n = surf.normal
+        normal.append(np.stack((c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]), axis=1))
+    return np.concatenate(xy), np.concatenate(normal)

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..config import OdometryConfig, OdometryNoiseConfig
-from ..geometry import relative
+from ..geometry import relative, relative3
 from ._stale import StaleRates
 from ._window import Window
 
@@ -119,14 +119,19 @@ class OdometryNoise:
         """The 3×3 covariance of an odometry ``increment`` (x, y, θ in its start's frame),
         ``stale`` seconds of it without odometry."""
         s = self.settings
-        d = math.hypot(float(increment[0]), float(increment[1]))
-        turn = abs(float(increment[2]))
+        x, y, theta = increment.tolist()
+        d = math.hypot(x, y)
+        turn = abs(theta)
         var_t = s.floor_translation**2 + self.alpha_translation**2 * d
         var_r = s.floor_rotation**2 + self.alpha_rotation**2 * (d + s.turning_distance * turn)
         if stale > 0.0:
             var_t += (self.stale.speed * stale) ** 2
             var_r += (self.stale.turn_rate * stale) ** 2
-        return np.array([[var_t, 0.0, 0.0], [0.0, var_t, 0.0], [0.0, 0.0, var_r]])
+        # (filled in place: a nested list of nine floats makes a slower array)
+        out = np.zeros((3, 3))
+        out[0, 0] = out[1, 1] = var_t
+        out[2, 2] = var_r
+        return out
 
     def learn(
         self,
@@ -137,35 +142,40 @@ class OdometryNoise:
         """A confident match ``matched`` (with its own covariance, where known) of an
         increment the odometry says was ``odometry``: their disagreement teaches the noise,
         their ratio the calibration."""
-        own = None if matched_covariance is None else np.diag(matched_covariance)
+        # in floats: three numbers each, a numpy operation apiece would cost more than the
+        # arithmetic (the same float64 operations, so the very same values)
         s = self.settings
-        d = math.hypot(float(odometry[0]), float(odometry[1]))
-        travel = d + s.turning_distance * abs(float(odometry[2]))
+        ox, oy, ot = odometry.tolist()
+        d = math.hypot(ox, oy)
+        travel = d + s.turning_distance * abs(ot)
         if travel < _MIN_TRAVEL:
             return
+        mx, my, mt = matched.tolist()
         if s.calibrate or s.trust_where_better:
-            dm = math.hypot(float(matched[0]), float(matched[1]))
+            dm = math.hypot(mx, my)
             mo, oo = self._scale_sums
             self._scale_sums = (mo + dm * d, oo + d * d)
             mo, oo = self._turn_sums
-            turn = float(odometry[2])
-            self._turn_sums = (mo + float(matched[2]) * turn, oo + turn**2)
+            self._turn_sums = (mo + mt * ot, oo + ot**2)
             self._factors = None
         if not s.learn:
             return
-        err = relative(self.calibrated(odometry), matched)
+        k, r = self._calibration()
+        odo = (ox, oy, ot) if k == 1.0 and r == 1.0 else (ox * k, oy * k, ot * r)
+        ex, ey, et = relative3(odo, (mx, my, mt))
         # the disagreement is the odometry's error and the match's; the match's share (its
         # own variance) is taken off the medians, not sample by sample (a difference of two
         # noisy estimates clipped at zero would bias the median toward the floor)
         if d >= _MIN_TRAVEL:
-            e2 = float(err[0] ** 2 + err[1] ** 2) / _MEDIAN_CHI2_2 - s.floor_translation**2
+            e2 = (ex**2 + ey**2) / _MEDIAN_CHI2_2 - s.floor_translation**2
             self._translation.append(max(e2, 0.0) / d)
-            if own is not None:
-                self._translation_own.append(float(own[0] + own[1]) / 2.0 / d)
-        e2r = float(err[2] ** 2) / _MEDIAN_CHI2_1 - s.floor_rotation**2
+            if matched_covariance is not None:
+                own_xy = float(matched_covariance[0, 0]) + float(matched_covariance[1, 1])
+                self._translation_own.append(own_xy / 2.0 / d)
+        e2r = et**2 / _MEDIAN_CHI2_1 - s.floor_rotation**2
         self._rotation.append(max(e2r, 0.0) / travel)
-        if own is not None:
-            self._rotation_own.append(float(own[2]) / travel)
+        if matched_covariance is not None:
+            self._rotation_own.append(float(matched_covariance[2, 2]) / travel)
         self._update()
 
     def learn_stale(

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from ..config import Config
 from ..features import Features, extract_features
-from ..geometry import Pose2D, compose, relative
+from ..geometry import Pose2D, compose3, relative3
 from ..matching import Refinement
 from ..scan import LaserScan
 from .estimate import Estimate, Reason
@@ -29,7 +29,7 @@ from .noise import OdometryNoise
 from .prior import OdometryPrior, Prior
 from .refine import Refiner, Starts
 from .search import Relocaliser
-from .uncertainty import Uncertainty
+from .uncertainty import Assessment, Uncertainty
 
 __all__ = ["Positioner"]
 
@@ -43,7 +43,7 @@ _NO_MOTION.flags.writeable = False
 
 def _pose(a: FloatArray) -> Pose2D:
     """A Pose2D from a pose array the pipeline computed (finite, angle wrapped by compose)."""
-    x, y, th = float(a[0]), float(a[1]), float(a[2])
+    x, y, th = a.tolist()
     if not (math.isfinite(x) and math.isfinite(y) and -math.pi <= th < math.pi):
         return Pose2D(x, y, th)  # validates and wraps
     return Pose2D._trusted(x, y, th)
@@ -118,22 +118,16 @@ class Positioner:
             features, match, key_prior, prior, scan.angle_increment, information
         )
         from_key = match.increment if fit is None else fit.increment
-        previous_cov = self.uncertainty.previous_covariance() if on_previous else None
-        judged = self.uncertainty.assess(
-            t_prev, prior.increment, prior_cov, from_key, fit, gate_open=self._gate_open(prior)
-        )
-        if previous_cov is not None and from_key is not None and not judged.rejected:
-            # the fit placed the previous scan's points by its estimate: their error too
-            judged = self.uncertainty.widened(judged, previous_cov, float(from_key[2]))
+        judged = self._assess(t_prev, prior, prior_cov, from_key, fit, on_previous)
         if judged.rejected:  # too unlikely under both covariances: the odometry stands
             from_key = None
         if from_key is None:  # fall back to the prior, and start afresh from this scan
             increment = np.asarray(prior.increment, dtype=float)
-            pose = compose(self._pose, increment)
+            pose = np.array(compose3(self._pose.tolist(), increment.tolist()))
         else:
             pose = self.local_map.pose_of(from_key)
-            increment = relative(self._pose, pose)
-        self._learn(prior, t_prev, fit, accepted=from_key is not None)
+            increment = np.array(relative3(self._pose.tolist(), pose.tolist()))
+        self._learn(prior, t_prev, fit, judged)
         renewed = self.local_map.add(features, pose, from_key)
         if renewed:
             self.uncertainty.renewed()
@@ -141,7 +135,7 @@ class Positioner:
         self.odometry_prior.accept(increment, prior.dt)
         reason = Reason.GATED if judged.rejected else match.reason
         refined = fit is not None and from_key is not None
-        return Estimate(
+        return Estimate._trusted(
             stamp=scan.stamp, pose=_pose(pose), increment=_pose(increment),
             prior=_pose(prior.increment), n_pairs=match.n_pairs, degraded=from_key is None,
             features=features, reason=Reason.MATCHED if from_key is not None else reason,
@@ -196,25 +190,53 @@ class Positioner:
             return False
         return noise.better_than_matching or not gate.only_where_odometry_is_better
 
+    def _assess(
+        self,
+        t_prev: FloatArray,
+        prior: Prior,
+        prior_cov: FloatArray,
+        from_key: FloatArray | None,
+        fit: Refinement | None,
+        on_previous: bool,
+    ) -> Assessment:
+        """The uncertainty stage's assessment of the match (with the scan's own motion where
+        it teaches the odometry's noise); a fit against the previous scan too carries that
+        scan's error relative to the keyframe."""
+        previous_cov = self.uncertainty.previous_covariance() if on_previous else None
+        judged = self.uncertainty.assess(
+            t_prev, prior.increment, prior_cov, from_key, fit, gate_open=self._gate_open(prior),
+            with_scan_only=self._learns_from(prior, fit),
+        )  # fmt: skip
+        if previous_cov is not None and from_key is not None and not judged.rejected:
+            # the fit placed the previous scan's points by its estimate: their error too
+            judged = self.uncertainty.widened(judged, previous_cov, float(from_key[2]))
+        return judged
+
+    @staticmethod
+    def _learns_from(prior: Prior, fit: Refinement | None) -> bool:
+        """Whether a refined match (its prior the odometry's) would teach the odometry's noise
+        and calibration (on time) or the stale rates (after a gap), where it stands: the
+        assessment then gives the scan's own motion with it (one compiled call for both)."""
+        return fit is not None and prior.from_odometry and prior.odometry is not None
+
     def _learn(
-        self, prior: Prior, t_prev: FloatArray, fit: Refinement | None, accepted: bool
+        self, prior: Prior, t_prev: FloatArray, fit: Refinement | None, judged: Assessment
     ) -> None:
-        """A refined match on time, ``accepted`` by the gate, teaches the odometry's noise and
-        calibration: the scan's own motion (the fit without its prior), never the fused one,
-        which would teach the odometry its own weight back. A refined match after a gap
-        teaches the stale rates, accepted or not: the gate is drawn with those rates, and
-        learning only from what it let through would keep rates learned low on a log whose
-        odometry stalls in later gaps (the median stands against the false matches)."""
-        if fit is None or not prior.from_odometry or prior.odometry is None:
+        """A refined match on time that stands teaches the odometry's noise and calibration:
+        the scan's own motion (the fit without its prior, ``judged.scan_only``), never the
+        fused one, which would teach the odometry its own weight back. A refined match after
+        a gap teaches the stale rates, standing or not: the gate is drawn with those rates,
+        and learning only from what it let through would keep rates learned low on a log
+        whose odometry stalls in later gaps (the median stands against the false matches)."""
+        if prior.odometry is None:
             return
-        if not accepted and prior.stale == 0.0:
-            return
-        scan = self.uncertainty.scan_only(fit, t_prev)
-        if scan is None:
-            return
+        scan = judged.scan_only
         if prior.stale != 0.0:  # after a gap: how stale the odometry was
-            self.odometry_noise.learn_stale(prior.odometry, *scan, prior.stale)
-        else:
+            if scan is None and judged.rejected and fit is not None and prior.from_odometry:
+                scan = self.uncertainty.scan_only(fit, t_prev)
+            if scan is not None:
+                self.odometry_noise.learn_stale(prior.odometry, *scan, prior.stale)
+        elif scan is not None:
             self.odometry_noise.learn(prior.odometry, *scan)
 
     def _first(self, scan: LaserScan, odom: Pose2D | None) -> Estimate:

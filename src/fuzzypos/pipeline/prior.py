@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..config import OdometryConfig
-from ..geometry import Pose2D, relative
+from ..geometry import Pose2D, relative3
 from ._window import Window
 
 __all__ = ["OdometryPrior", "Prior"]
@@ -63,7 +63,6 @@ class OdometryPrior:
 
     def reset(self) -> None:
         self._prev_odom: Pose2D | None = None
-        self._prev_array: FloatArray | None = None  # its array (None: not built yet)
         self._prev_stamp = 0.0
         self._last_increment: FloatArray = np.zeros(3)
         self._last_dt = 0.0
@@ -74,7 +73,6 @@ class OdometryPrior:
     def start(self, stamp: float, odom: Pose2D | None) -> None:
         """The first scan: nothing to predict yet."""
         self._prev_odom = odom
-        self._prev_array = None
         self._prev_stamp = stamp
 
     def predict(self, stamp: float, odom: Pose2D | None) -> Prior:
@@ -82,13 +80,19 @@ class OdometryPrior:
         rejected = False
         odo_inc = None
         dt = max(0.0, stamp - self._prev_stamp)
-        odom_array = None if odom is None else odom.as_array()
-        if odom_array is not None and self._prev_odom is not None:
-            prev = self._prev_array
-            if prev is None:
-                prev = self._prev_odom.as_array()
-            odo_inc = relative(prev, odom_array)
-            rejected = self.is_jump(odo_inc, dt)
+        prev_odom = self._prev_odom
+        standing = False
+        if odom is not None and prev_odom is not None:
+            # the increment in floats from the poses' own (what relative() of their arrays
+            # computes, without the arrays)
+            before = (prev_odom.x, prev_odom.y, prev_odom.theta)
+            inc = relative3(before, (odom.x, odom.y, odom.theta))
+            odo_inc = np.array(inc)
+            rejected = self._is_jump(inc[0], inc[1], inc[2], dt)
+            # the very same pose: the wheels did not turn (Pose2D's ==, field by field)
+            standing = self.settings.trust_stand_still and (
+                odom.x == prev_odom.x and odom.y == prev_odom.y and odom.theta == prev_odom.theta
+            )
         self._prev_stamp = stamp
         if odo_inc is not None and not rejected:
             prior = odo_inc
@@ -99,12 +103,7 @@ class OdometryPrior:
             prior = self._last_increment
         if rejected:
             self.jumps += 1
-        standing = (
-            odo_inc is not None
-            and self.settings.trust_stand_still
-            and odom == self._prev_odom  # the very same pose: the wheels did not turn
-        )
-        self._prev_odom, self._prev_array = odom, odom_array
+        self._prev_odom = odom
         stale = 0.0
         if len(self._steps) >= _MIN_STEPS:
             usual = self._steps.quantile(self.stale_quantile)
@@ -122,9 +121,13 @@ class OdometryPrior:
     def is_jump(self, increment: FloatArray, dt: float) -> bool:
         """An odometry increment no robot makes: faster than ``max_speed`` / ``max_turn_rate``
         over ``dt`` plus the allowances (stamps of real logs are not acquisition times)."""
+        return self._is_jump(float(increment[0]), float(increment[1]), float(increment[2]), dt)
+
+    def _is_jump(self, x: float, y: float, theta: float, dt: float) -> bool:
+        """:meth:`is_jump` of the increment ``(x, y, theta)``."""
         o = self.settings
-        dist = math.hypot(increment[0], increment[1])
-        return bool(
+        dist = math.hypot(x, y)
+        return (
             dist > o.max_speed * dt + o.max_jump_distance
-            or abs(increment[2]) > o.max_turn_rate * dt + o.max_jump_angle
+            or abs(theta) > o.max_turn_rate * dt + o.max_jump_angle
         )

@@ -4,13 +4,16 @@ disagrees with the odometry's, from the odometry's too."""
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled
+from .._kernels import compiled, f64
 from ..config import RefinementConfig, SearchConfig
 from ..features import Features
 from ..matching import Refinement, SurfacePoints, refine_point_to_line, surface_lengths
@@ -19,6 +22,13 @@ from ..matching._robust import median as _median
 __all__ = ["Refiner", "ScanPoints", "Starts"]
 
 FloatArray = NDArray[np.float64]
+
+
+@functools.cache
+def _kernels() -> ModuleType:
+    """The compiled kernels (``_kernels.refine``), imported with numba on first use and kept:
+    an import statement in the per-scan path costs over a microsecond a call."""
+    return importlib.import_module("fuzzypos._kernels.refine")
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,6 +62,13 @@ class Refiner:
     def __init__(self, refinement: RefinementConfig, search: SearchConfig) -> None:
         self.refinement = refinement
         self.search = search
+        r = refinement
+        # the weight kernel's settings, as floats once (not per scan)
+        self._weight_settings = (
+            float(r.weight_floor),
+            float(r.length_weight_max),
+            float(r.length_cap),
+        )
 
     def points(self, features: Features, angle_increment: float) -> ScanPoints | None:
         """Every valid point of the scan (the paper's filter, §3.1, drops grazing points that
@@ -63,14 +80,9 @@ class Refiner:
             return None
         spacing = features.ranges * abs(float(angle_increment))
         if compiled():
-            from .._kernels.refine import scan_weights
-
-            weights = scan_weights(
-                np.ascontiguousarray(pts, dtype=np.float64),
-                np.ascontiguousarray(features.ranges, dtype=np.float64),
-                np.ascontiguousarray(features.uncertainty, dtype=np.float64),
-                float(angle_increment), float(r.weight_floor), float(r.length_weight_max),
-                float(r.length_cap),
+            weights = _kernels().scan_weights(
+                f64(pts), f64(features.ranges), f64(features.uncertainty),
+                float(angle_increment), *self._weight_settings,
             )  # fmt: skip
             return ScanPoints(pts, weights, spacing)
         return ScanPoints(pts, self._weights_numpy(features, angle_increment), spacing)
@@ -107,14 +119,7 @@ class Refiner:
             surface, points, start, starts.prior, hold, max_distance=max_distance,
             prior_information=starts.prior_information,
         )  # fmt: skip
-        differ = start - hold
-        if (
-            not wide
-            and r.also_from_odometry
-            and (
-                math.hypot(differ[0], differ[1]) > r.both_distance or abs(differ[2]) > r.both_angle
-            )
-        ):
+        if not wide and r.also_from_odometry and self._differ(start, hold):
             other = self.fit(
                 surface, points, hold, hold, hold, max_distance=r.max_distance,
                 prior_information=starts.odometry_information,
@@ -124,6 +129,14 @@ class Refiner:
             ):
                 best = other
         return best
+
+    def _differ(self, start: FloatArray, hold: FloatArray) -> bool:
+        """Whether the features' motion and the odometry's differ by more than
+        ``both_distance`` or ``both_angle`` (in floats: ``start - hold`` elementwise)."""
+        r = self.refinement
+        sx, sy, st = start.tolist()
+        hx, hy, ht = hold.tolist()
+        return math.hypot(sx - hx, sy - hy) > r.both_distance or abs(st - ht) > r.both_angle
 
     def fit(
         self,
@@ -159,6 +172,7 @@ class Refiner:
         if res is None or res.n_paired < r.min_points or res.inlier_fraction < min_fraction:
             return None
         limit = s.jump_distance if weak_prior else r.max_correction
-        if math.hypot(res.increment[0] - start[0], res.increment[1] - start[1]) > limit:
+        (x, y, _), (x0, y0, _) = res.increment.tolist(), start.tolist()
+        if math.hypot(x - x0, y - y0) > limit:
             return None
         return res

@@ -21,15 +21,18 @@ points do not constrain a direction (a corridor) the covariance along it is the 
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
 from dataclasses import dataclass, replace
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._kernels import compiled, f64
 from ..config import CovarianceConfig, GateConfig
-from ..geometry import compose, compose_jacobians, relative
+from ..geometry import compose3, compose_jacobians, relative
 from ..matching import Refinement
 
 __all__ = ["Assessment", "Uncertainty", "local"]
@@ -45,9 +48,28 @@ _TINY = 1e-12 * np.eye(3)
 _TINY.flags.writeable = False
 
 
+@functools.cache
+def _kernels() -> ModuleType:
+    """The compiled kernels (``_kernels.uncertainty``), imported with numba on first use and kept:
+    an import statement in the per-scan path costs over a microsecond a call."""
+    return importlib.import_module("fuzzypos._kernels.uncertainty")
+
+
+@functools.cache
+def _pipeline_kernels() -> ModuleType:
+    """The pipeline's own kernels (``_kernels.pipeline``: the assessment and the scan's own
+    motion in one call), imported on first use and kept."""
+    return importlib.import_module("fuzzypos._kernels.pipeline")
+
+
 def _read_only(a: FloatArray) -> FloatArray:
     a.flags.writeable = False
     return a
+
+
+def _compose(a: FloatArray, b: FloatArray) -> FloatArray:
+    """:func:`~fuzzypos.geometry.compose` of one pose each, in floats (bit-identical)."""
+    return np.array(compose3(a.tolist(), b.tolist()))
 
 
 def local(cov: FloatArray, theta: float) -> FloatArray:
@@ -66,12 +88,16 @@ class Assessment:
     ``keyframe_covariance`` of its pose relative to the keyframe it was matched against (both
     right perturbations, see the module), ``gate`` the Mahalanobis distance squared of the
     match's disagreement with the odometry (None where nothing was compared) and
-    ``rejected`` whether the gate rejected the match."""
+    ``rejected`` whether the gate rejected the match. ``scan_only``: where
+    :meth:`Uncertainty.assess` was asked for it (``with_scan_only``) and the fit stands, what
+    :meth:`Uncertainty.scan_only` gives for it (None where not asked, rejected, or where the
+    points alone do not fix the motion)."""
 
     covariance: FloatArray
     keyframe_covariance: FloatArray
     gate: float | None = None
     rejected: bool = False
+    scan_only: tuple[FloatArray, FloatArray] | None = None
 
 
 class Uncertainty:
@@ -96,6 +122,7 @@ class Uncertainty:
         )
         # the compiled assessment's stand-ins for a fit's matrices and poses, without a fit
         self._no_fit = (np.zeros((3, 3)), np.zeros(3))
+        self._point_correlation = float(f.point_correlation)
         self.reset()
 
     def reset(self) -> None:
@@ -138,15 +165,35 @@ class Uncertainty:
         from_key: FloatArray | None,
         fit: Refinement | None,
         gate_open: bool,
+        with_scan_only: bool = False,
     ) -> Assessment:
         """The covariances of a scan whose previous scan lies at ``t_prev`` from the keyframe,
         whose motion since then was predicted as ``prior`` with ``prior_covariance`` (the
         odometry's, or a broad one), estimated from the keyframe as ``from_key`` by ``fit``
         (None: the features alone; ``from_key`` None: nothing, the prior stands). With
-        ``gate_open`` the match is compared with the prior and rejected past the gate."""
+        ``gate_open`` the match is compared with the prior and rejected past the gate. With
+        ``with_scan_only`` also :meth:`scan_only` of the fit where it stands (the compiled path
+        computes both in one kernel call)."""
         if from_key is not None and compiled():
-            return self._assess_compiled(t_prev, prior, prior_covariance, from_key, fit, gate_open)
-        return self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
+            return self._assess_compiled(
+                t_prev, prior, prior_covariance, from_key, fit, gate_open, with_scan_only
+            )
+        judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
+        return self._with_scan_only(judged, fit, t_prev) if with_scan_only else judged
+
+    def _with_scan_only(
+        self, judged: Assessment, fit: Refinement | None, t_prev: FloatArray
+    ) -> Assessment:
+        """``judged`` with :meth:`scan_only` of ``fit`` where the fit stands (from the previous
+        covariance ``judged`` leaves)."""
+        if fit is None or judged.rejected:
+            return judged
+        scan = self.scan_only(fit, t_prev)
+        if scan is None:
+            return judged
+        return Assessment(
+            judged.covariance, judged.keyframe_covariance, judged.gate, judged.rejected, scan
+        )
 
     def _assess_compiled(
         self,
@@ -156,26 +203,34 @@ class Uncertainty:
         from_key: FloatArray,
         fit: Refinement | None,
         gate_open: bool,
+        with_scan_only: bool,
     ) -> Assessment:
-        """:meth:`assess` of a match through the compiled kernel (the fallback, rare, in numpy)."""
-        from .._kernels.uncertainty import assess_fit
-
+        """:meth:`assess` of a match through the compiled kernels, with :meth:`scan_only` in the
+        same call where asked (the fallback, rare, in numpy)."""
         if fit is None:
             zero, none = self._no_fit
             matrices, poses = (zero, zero, zero, zero), (none, none)
+            increment, wanted = none, False
         else:  # (the fit's own arrays, float64 already)
             matrices = (fit.information, fit.prior_information, fit.hold_information,
                         fit.gradient_covariance)  # fmt: skip
-            poses = (fit.prior, fit.start if fit.hold_on_start else compose(t_prev, prior))
-        inc_cov, kf, previous, gate = assess_fit(
+            key_prior = fit.start if fit.hold_on_start else _compose(t_prev, prior)
+            poses = (fit.prior, key_prior)
+            increment = f64(fit.increment)
+            # (scan_only's own test: a held fit gives no motion of the scan's own)
+            wanted = with_scan_only and not np.count_nonzero(fit.hold_information)
+        inc_cov, kf, previous, gate, ok, inc, cov = _pipeline_kernels().assess_and_scan_only(
             f64(t_prev), f64(prior), f64(prior_covariance), self._previous, f64(from_key),
             self._feature, self.floor, fit is not None, *matrices, *poses,
-            float(self.settings.point_correlation), bool(gate_open),
+            self._point_correlation, bool(gate_open), self.threshold, wanted, increment,
+            _MAX_CONDITION,
         )  # fmt: skip
         if gate_open and gate > self.threshold:
-            return self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
+            judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
+            return self._with_scan_only(judged, fit, t_prev) if wanted else judged
         self._previous = previous
-        return Assessment(inc_cov, kf, None if not gate_open else float(gate))
+        scan = (inc, cov) if wanted and ok else None
+        return Assessment(inc_cov, kf, None if not gate_open else float(gate), False, scan)
 
     def _assess_numpy(
         self,
@@ -201,7 +256,7 @@ class Uncertainty:
             scan_part = feature + prev
             pull = np.zeros((3, 3))
         else:
-            kf, scan_part, pull = self._fit_parts(fit, compose(t_prev, prior), prev, odo, feature)
+            kf, scan_part, pull = self._fit_parts(fit, _compose(t_prev, prior), prev, odo, feature)
         inc_cov = jb_inv @ (scan_part + pull @ odo @ pull.T) @ jb_inv.T
         gate, rejected = None, False
         if gate_open:
@@ -263,16 +318,14 @@ class Uncertainty:
         covariance A⁻¹ G A⁻¹ carried on from the previous scan. What the odometry's noise is
         learned from: the fused increment would teach it its own weight back. None where the
         points alone do not fix the motion (a corridor held, or too little information)."""
-        if fit.hold_information.any():
+        if np.count_nonzero(fit.hold_information):  # (an .any() costs a microsecond)
             return None
         if compiled():
-            from .._kernels.uncertainty import scan_only
-
-            ok, inc, cov = scan_only(
+            ok, inc, cov = _kernels().scan_only(
                 f64(fit.information), f64(fit.prior_information),
                 f64(fit.gradient_covariance), f64(fit.increment), f64(fit.prior),
                 f64(t_prev), self._previous, self.floor,
-                float(self.settings.point_correlation), _MAX_CONDITION,
+                self._point_correlation, _MAX_CONDITION,
             )  # fmt: skip
             return (inc, cov) if ok else None
         return self._scan_only_numpy(fit, t_prev)

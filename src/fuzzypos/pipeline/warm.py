@@ -74,10 +74,14 @@ def warm_up(config: Config | None = None) -> float:
     search_start(
         surface, f.points, np.zeros(3), cfg.search, half_width=0.1, translation_half_width=0.2
     )
-    from .._kernels import compiled
+    from .._kernels import compiled, f64
 
     if compiled():  # the CARMEN writer's ranges (fuzzypos.io.carmen_write)
+        from .._kernels.pipeline import move_surfaces
         from .._kernels.text import fixed_text
 
         fixed_text(scans[0].ranges, 10_000, 4, 5)
+        # a local map of several keyframes (the short drive renews the keyframe only once)
+        moves, ends = np.array([(0.0, 0.0, 1.0, 0.0)]), np.array([len(surface)], dtype=np.int64)
+        move_surfaces(f64(surface.xy), f64(surface.normal), moves, ends)
     return time.perf_counter() - t0

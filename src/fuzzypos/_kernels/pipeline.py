@@ -1,0 +1,83 @@
+"""Small kernels of the per-scan pipeline's own glue (``fuzzypos.pipeline``), where numpy makes
+several small calls per step. Each has its numpy reference beside its caller, and
+``tests/test_kernels_pipeline.py`` checks the two against each other."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._jit import kernel
+from .uncertainty import assess_fit, scan_only
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@kernel
+def move_surfaces(
+    xy: FloatArray, normal: FloatArray, moves: FloatArray, ends: IntArray
+) -> tuple[FloatArray, FloatArray]:
+    """Several surfaces' points ``xy`` and unit normals (``(n, 2)`` each, part ``k`` the rows
+    from ``ends[k - 1]`` (0 for the first) to ``ends[k]``), part ``k`` moved by ``moves[k]``
+    = ``(x, y, cos θ, sin θ)``: the points as ``geometry.transform_points`` moves them and
+    the normals turned by θ, in the same order of operations (the same values).
+    ``pipeline.local_map.LocalMap._map_of`` in one loop."""
+    n = xy.shape[0]
+    out_xy = np.empty((n, 2))
+    out_normal = np.empty((n, 2))
+    begin = 0
+    for k in range(moves.shape[0]):
+        tx, ty, c, s = moves[k, 0], moves[k, 1], moves[k, 2], moves[k, 3]
+        for i in range(begin, ends[k]):
+            x, y = xy[i, 0], xy[i, 1]
+            out_xy[i, 0] = tx + c * x - s * y
+            out_xy[i, 1] = ty + s * x + c * y
+            nx, ny = normal[i, 0], normal[i, 1]
+            out_normal[i, 0] = c * nx - s * ny
+            out_normal[i, 1] = s * nx + c * ny
+        begin = ends[k]
+    return out_xy, out_normal
+
+
+@kernel
+def assess_and_scan_only(
+    t_prev: FloatArray,
+    prior: FloatArray,
+    prior_covariance: FloatArray,
+    previous: FloatArray,
+    from_key: FloatArray,
+    feature: FloatArray,
+    floor: FloatArray,
+    has_fit: bool,
+    information: FloatArray,
+    prior_information: FloatArray,
+    hold_information: FloatArray,
+    gradient_covariance: FloatArray,
+    fit_prior: FloatArray,
+    hold_target: FloatArray,
+    point_correlation: float,
+    gate_open: bool,
+    threshold: float,
+    wanted: bool,
+    increment: FloatArray,
+    max_condition: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, float, bool, FloatArray, FloatArray]:
+    """``uncertainty.assess_fit`` and, where ``wanted`` and the gate (at ``threshold``) let the
+    match stand, ``uncertainty.scan_only`` of the fit (its ``increment``) from the previous
+    covariance the assessment leaves: the two kernels the positioner calls one after the
+    other for a refined match, in one call. Returns the assessment's four values, then
+    whether the scan alone fixes the motion, that motion and its covariance (zeros where not
+    computed)."""
+    inc_cov, kf, new_previous, gate = assess_fit(
+        t_prev, prior, prior_covariance, previous, from_key, feature, floor, has_fit,
+        information, prior_information, hold_information, gradient_covariance, fit_prior,
+        hold_target, point_correlation, gate_open,
+    )  # fmt: skip
+    if wanted and not (gate_open and gate > threshold):
+        ok, inc, cov = scan_only(
+            information, prior_information, gradient_covariance, increment, fit_prior, t_prev,
+            new_previous, floor, point_correlation, max_condition,
+        )  # fmt: skip
+        return inc_cov, kf, new_previous, gate, ok, inc, cov
+    return inc_cov, kf, new_previous, gate, False, np.zeros(3), np.zeros((3, 3))
