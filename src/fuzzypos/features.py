@@ -16,8 +16,11 @@ per-cluster and per-segment statistics use ``np.bincount`` over labels.
 from __future__ import annotations
 
 import math
+import importlib
 from dataclasses import dataclass, field, replace
 from functools import cached_property, lru_cache
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,6 +44,9 @@ from .segmentation import (
     point_uncertainty,
     segment_scan,
 )
+
+if TYPE_CHECKING:
+    from ._kernels.front import ChainSizes
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -646,40 +652,126 @@ def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Feature
     front, the lines and their joins at the angular points, which the staged chain computes
     in four calls with numpy between them); None for a gapless 360° ring or rule bases off
     the interpolation's path (then the staged chain runs)."""
-    from ._kernels.front import scan_features
-
     inputs = _chain_inputs(cfg, bases)
     if inputs is None:
         return None
     lo, hi, front_params, line_params, min_sine, point_tables, line_tables = inputs
     sp = scan.sensor_pose
-    done, front, kept, fitted, corners = scan_features(
-        np.asarray(scan.ranges), scan.angles, scan.valid, lo, hi, float(scan.angle_increment),
-        np.array([sp.x, sp.y, sp.theta]), bool(scan.is_full_circle), front_params,
-        point_tables, line_params, line_tables, min_sine,
+    done, scale, line_scale, sizes, fl, it, bl = _front().scan_features(
+        scan.ranges, _beam_directions(scan), scan.valid, lo, hi, scan.angle_increment,
+        (sp.x, sp.y, sp.theta), scan.is_full_circle, front_params, point_tables, line_params,
+        line_tables, min_sine,
     )  # fmt: skip
     if not done:
         return None
-    (beam_index, ranges, points, scale, beta, u, kept_mask, kept_index, is_break, fov_edge,
-     cluster, is_corner, segment) = front  # fmt: skip
-    kp, ku, kr = kept
-    (line_scale, normal, distance, start, end, centre, n_points, sigma, delta, f_line, ids,
-     line_cluster, angle_variance, distance_variance) = fitted  # fmt: skip
+    return _unpacked(scan, bases, cfg, scale, line_scale, sizes, fl, it, bl)
+
+
+@lru_cache(maxsize=1)
+def _front() -> ModuleType:
+    """The compiled chain's kernels (``_kernels.front``), imported with numba on first use and
+    kept."""
+    return importlib.import_module("fuzzypos._kernels.front")
+
+
+def _beam_directions(scan: LaserScan) -> FloatArray:
+    """The (2, n) cosines and sines of the scan's bearings (``_kernels.front.beam_directions``
+    of ``scan.angles``), computed once per scanner: the last ones again where the bearings are
+    the last call's (the same ``angle_min``, to the sign of a zero, increment and count)."""
+    global _last_directions
+    a0, inc, n = scan.angle_min, scan.angle_increment, scan.ranges.shape[0]
+    sign = math.copysign(1.0, a0)
+    last = _last_directions
+    if last is not None and last[0] == a0 and last[1] == inc and last[2] == n and last[3] == sign:
+        return last[4]
+    table = _front().beam_directions(scan.angles)
+    table.setflags(write=False)
+    _last_directions = (a0, inc, n, sign, table)
+    return table
+
+
+_last_directions: tuple[float, float, int, float, FloatArray] | None = None
+
+
+def _unpacked(
+    scan: LaserScan, bases: RuleBases, cfg: Config, scale: float, line_scale: float,
+    sizes: ChainSizes, fl: FloatArray, it: IntArray, bl: BoolArray,
+) -> Features:  # fmt: skip
+    """The :class:`Features` of ``_kernels.front.scan_features``' packed arrays (views of
+    them, in the order the kernel packs them)."""
+    n, m, nl, nc, nj = sizes
+    points = fl[: 2 * n].reshape(n, 2)
+    o = 5 * n + 4 * m
     lines = _empty_lines()
-    if ids.shape[0]:
-        lines = Lines(
-            normal, distance, start, end, centre, n_points, sigma, delta, f_line, ids,
-            line_cluster, angle_variance, distance_variance,
-        )  # fmt: skip
-    corner_idx, corner_xy, joined, corner_a, corner_b, corner_dv, before, after, breaks = corners
-    context = _CornerContext(
-        cfg, bases, lines, kp, ku, kr, scan.angle_increment, corner_idx, corner_xy, joined,
-        corner_a, corner_b, corner_dv, scale, line_scale, before, after, breaks,
-    )  # fmt: skip
-    return Features(
-        scan.stamp, beam_index, points, ranges, beta, u, kept_mask, kept_index, is_break,
-        fov_edge, cluster, is_corner, segment, lines, context,
-    )  # fmt: skip
+    if nl:
+        centre_at = o + 7 * nl
+        lines = _new(Lines, {
+            "normal": fl[o : o + 2 * nl].reshape(nl, 2),
+            "distance": fl[o + 2 * nl : o + 3 * nl],
+            "start": fl[o + 3 * nl : o + 5 * nl].reshape(nl, 2),
+            "end": fl[o + 5 * nl : centre_at].reshape(nl, 2),
+            "centre": fl[centre_at : o + 9 * nl].reshape(nl, 2),
+            "n_points": it[n + 3 * m : n + 3 * m + nl],
+            "sigma": fl[o + 9 * nl : o + 10 * nl],
+            "delta": fl[o + 10 * nl : o + 11 * nl],
+            "uncertainty": fl[o + 11 * nl : o + 12 * nl],
+            "segment": it[n + 3 * m + nl : n + 3 * m + 2 * nl],
+            "cluster": it[n + 3 * m + 2 * nl : n + 3 * m + 3 * nl],
+            "angle_variance": fl[o + 12 * nl : o + 13 * nl],
+            "distance_variance": fl[o + 13 * nl : o + 14 * nl],
+        })  # fmt: skip
+    o += 14 * nl
+    oi = n + 3 * m + 3 * nl
+    ob = n + 4 * m
+    context = _new(_CornerContext, {
+        "cfg": cfg,
+        "bases": bases,
+        "lines": lines,
+        "kept_points": fl[5 * n : 5 * n + 2 * m].reshape(m, 2),
+        "kept_uncertainty": fl[5 * n + 2 * m : 5 * n + 3 * m],
+        "kept_ranges": fl[5 * n + 3 * m : 5 * n + 4 * m],
+        "angle_increment": scan.angle_increment,
+        "corner_index": it[oi : oi + nc],
+        "corner_xy": fl[o : o + 2 * nc].reshape(nc, 2),
+        "joined": bl[ob : ob + nc],
+        "corner_a": it[oi + 3 * nc : oi + 3 * nc + nj],
+        "corner_b": it[oi + 3 * nc + nj : oi + 3 * nc + 2 * nj],
+        "corner_dv": fl[o + 2 * nc : o + 2 * nc + nj],
+        "distance_scale": scale,
+        "line_distance_scale": line_scale,
+        "seg_before": it[oi + nc : oi + 2 * nc],
+        "seg_after": it[oi + 2 * nc : oi + 3 * nc],
+        "break_mask": bl[n + 3 * m : ob],
+    })  # fmt: skip
+    return _new(Features, {
+        "stamp": scan.stamp,
+        "beam_index": it[:n],
+        "points": points,
+        "ranges": fl[2 * n : 3 * n],
+        "detection_angle": fl[3 * n : 4 * n],
+        "uncertainty": fl[4 * n : 5 * n],
+        "kept": bl[:n],
+        "kept_index": it[n : n + m],
+        "is_break_point": bl[n : n + m],
+        "is_field_of_view_edge": bl[n + m : n + 2 * m],
+        "cluster": it[n + m : n + 2 * m],
+        "is_angular_point": bl[n + 2 * m : n + 3 * m],
+        "segment": it[n + 2 * m : n + 3 * m],
+        "lines": lines,
+        "_corners": context,
+    })  # fmt: skip
+
+
+_T = TypeVar("_T")
+
+
+def _new(cls: type[_T], values: dict[str, Any]) -> _T:
+    """An instance of the frozen dataclass ``cls`` with its fields' ``values`` (all of them,
+    in their order) put straight into its dict: what ``cls(**values)`` makes, without the
+    frozen ``__init__``'s ``object.__setattr__`` per field (about 0.1 µs each)."""
+    obj = object.__new__(cls)
+    obj.__dict__.update(values)
+    return obj
 
 
 def _graded_lines(
