@@ -15,8 +15,8 @@ per-cluster and per-segment statistics use ``np.bincount`` over labels.
 
 from __future__ import annotations
 
-import math
 import importlib
+import math
 from dataclasses import dataclass, field, replace
 from functools import cached_property, lru_cache
 from types import ModuleType
@@ -89,6 +89,107 @@ def rule_bases(cfg: FuzzyConfig) -> RuleBases:
     return RuleBases.from_config(cfg)
 
 
+class _Packed:
+    """``_kernels.front.scan_features``' sizes (:data:`~fuzzypos._kernels.front.ChainSizes`)
+    and its three packed arrays (floats, integers, masks)."""
+
+    __slots__ = ("buffers", "sizes")
+
+    def __init__(self, sizes: ChainSizes, fl: FloatArray, it: IntArray, bl: BoolArray) -> None:
+        self.sizes = sizes
+        self.buffers: tuple[NDArray[Any], NDArray[Any], NDArray[Any]] = (fl, it, bl)
+
+    def view(self, where: _Where) -> NDArray[Any]:
+        """The array at ``where`` (:data:`_PACKED`), a view of its buffer."""
+        which, first, length, columns = where
+        start, size = _dot(first, self.sizes), _dot(length, self.sizes)
+        out = self.buffers[which][start : start + columns * size]
+        return out.reshape(size, 2) if columns == 2 else out
+
+
+#: where an array sits in :class:`_Packed`: the buffer (0 floats, 1 integers, 2 masks), its
+#: first element and its rows as sums of the sizes times these coefficients (valid points,
+#: kept points, lines, angular points, joined ones), and its columns
+_Where = tuple[int, tuple[int, int, int, int, int], tuple[int, int, int, int, int], int]
+
+#: the rows of an array of each size
+_N, _M, _L = (1, 0, 0, 0, 0), (0, 1, 0, 0, 0), (0, 0, 1, 0, 0)
+_C, _J = (0, 0, 0, 1, 0), (0, 0, 0, 0, 1)
+
+
+def _dot(a: tuple[int, ...], b: tuple[int, ...]) -> int:
+    """Σ a_i · b_i of two 5-tuples."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4]
+
+
+#: the arrays of each class in ``_kernels.front.scan_features``' packing, in its order
+_PACKED: dict[str, dict[str, _Where]] = {
+    "Features": {
+        "points": (0, (0, 0, 0, 0, 0), _N, 2),
+        "ranges": (0, (2, 0, 0, 0, 0), _N, 1),
+        "detection_angle": (0, (3, 0, 0, 0, 0), _N, 1),
+        "uncertainty": (0, (4, 0, 0, 0, 0), _N, 1),
+        "beam_index": (1, (0, 0, 0, 0, 0), _N, 1),
+        "kept_index": (1, (1, 0, 0, 0, 0), _M, 1),
+        "cluster": (1, (1, 1, 0, 0, 0), _M, 1),
+        "segment": (1, (1, 2, 0, 0, 0), _M, 1),
+        "kept": (2, (0, 0, 0, 0, 0), _N, 1),
+        "is_break_point": (2, (1, 0, 0, 0, 0), _M, 1),
+        "is_field_of_view_edge": (2, (1, 1, 0, 0, 0), _M, 1),
+        "is_angular_point": (2, (1, 2, 0, 0, 0), _M, 1),
+    },
+    "Lines": {
+        "normal": (0, (5, 4, 0, 0, 0), _L, 2),
+        "distance": (0, (5, 4, 2, 0, 0), _L, 1),
+        "start": (0, (5, 4, 3, 0, 0), _L, 2),
+        "end": (0, (5, 4, 5, 0, 0), _L, 2),
+        "centre": (0, (5, 4, 7, 0, 0), _L, 2),
+        "sigma": (0, (5, 4, 9, 0, 0), _L, 1),
+        "delta": (0, (5, 4, 10, 0, 0), _L, 1),
+        "uncertainty": (0, (5, 4, 11, 0, 0), _L, 1),
+        "angle_variance": (0, (5, 4, 12, 0, 0), _L, 1),
+        "distance_variance": (0, (5, 4, 13, 0, 0), _L, 1),
+        "n_points": (1, (1, 3, 0, 0, 0), _L, 1),
+        "segment": (1, (1, 3, 1, 0, 0), _L, 1),
+        "cluster": (1, (1, 3, 2, 0, 0), _L, 1),
+    },
+    "_CornerContext": {
+        "kept_points": (0, (5, 0, 0, 0, 0), _M, 2),
+        "kept_uncertainty": (0, (5, 2, 0, 0, 0), _M, 1),
+        "kept_ranges": (0, (5, 3, 0, 0, 0), _M, 1),
+        "corner_xy": (0, (5, 4, 14, 0, 0), _C, 2),
+        "corner_dv": (0, (5, 4, 14, 2, 0), _J, 1),
+        "corner_index": (1, (1, 3, 3, 0, 0), _C, 1),
+        "seg_before": (1, (1, 3, 3, 1, 0), _C, 1),
+        "seg_after": (1, (1, 3, 3, 2, 0), _C, 1),
+        "corner_a": (1, (1, 3, 3, 3, 0), _J, 1),
+        "corner_b": (1, (1, 3, 3, 3, 1), _J, 1),
+        "break_mask": (2, (1, 3, 0, 0, 0), _M, 1),
+        "joined": (2, (1, 4, 0, 0, 0), _C, 1),
+    },
+}
+
+
+class _Unpacks:
+    """A dataclass whose fields the compiled chain may leave in its packed arrays (a
+    ``_packed`` entry of the instance's dict, :class:`_Packed`): each is taken out on first
+    use and kept (the positioner reads few of them per scan; each view costs about 0.15 µs).
+    Instances made by their constructor have every field and never get here."""
+
+    __slots__ = ()
+
+    if not TYPE_CHECKING:  # (for mypy the fields are plain attributes)
+
+        def __getattr__(self, name: str) -> Any:
+            packed = self.__dict__.get("_packed")
+            where = _PACKED[type(self).__name__].get(name) if packed is not None else None
+            if where is None:
+                raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+            value = packed.view(where)
+            self.__dict__[name] = value
+            return value
+
+
 # ---------------------------------------------------------------------------------------------
 # data containers
 # ---------------------------------------------------------------------------------------------
@@ -119,7 +220,7 @@ class FeaturePoints:
 
 
 @dataclass(frozen=True, eq=False)
-class Lines:
+class Lines(_Unpacks):
     """Line features in normal form ``normal · p = distance`` (robot frame).
 
     ``start``/``end`` are the segment's endpoints (§3.5), ``centre`` their midpoint, ``sigma``
@@ -163,7 +264,7 @@ class Lines:
 
 
 @dataclass(frozen=True, eq=False)
-class Features:
+class Features(_Unpacks):
     """Everything :func:`extract_features` found in one scan, every stage kept for plotting.
 
     Points are processed counter-clockwise (a scan with a negative increment is reversed) and
@@ -684,7 +785,7 @@ def _beam_directions(scan: LaserScan) -> FloatArray:
     last = _last_directions
     if last is not None and last[0] == a0 and last[1] == inc and last[2] == n and last[3] == sign:
         return last[4]
-    table = _front().beam_directions(scan.angles)
+    table: FloatArray = _front().beam_directions(scan.angles)
     table.setflags(write=False)
     _last_directions = (a0, inc, n, sign, table)
     return table
@@ -697,68 +798,44 @@ def _unpacked(
     scan: LaserScan, bases: RuleBases, cfg: Config, scale: float, line_scale: float,
     sizes: ChainSizes, fl: FloatArray, it: IntArray, bl: BoolArray,
 ) -> Features:  # fmt: skip
-    """The :class:`Features` of ``_kernels.front.scan_features``' packed arrays (views of
-    them, in the order the kernel packs them)."""
-    n, m, nl, nc, nj = sizes
-    points = fl[: 2 * n].reshape(n, 2)
-    o = 5 * n + 4 * m
-    lines = _empty_lines()
-    if nl:
-        centre_at = o + 7 * nl
+    """The :class:`Features` of ``_kernels.front.scan_features``' packed arrays: views of them
+    (in the order the kernel packs them, :data:`_PACKED`). What the positioner reads of every
+    scan (the points, their ranges and uncertainty, the lines for matching) is taken out
+    here, the rest on first use (:class:`_Unpacks`)."""
+    n, m, nl = sizes[0], sizes[1], sizes[2]
+    packed = _Packed(sizes, fl, it, bl)
+    if nl == 0:
+        lines = _empty_lines()
+    else:
+        o = 5 * n + 4 * m
         lines = _new(Lines, {
             "normal": fl[o : o + 2 * nl].reshape(nl, 2),
             "distance": fl[o + 2 * nl : o + 3 * nl],
             "start": fl[o + 3 * nl : o + 5 * nl].reshape(nl, 2),
-            "end": fl[o + 5 * nl : centre_at].reshape(nl, 2),
-            "centre": fl[centre_at : o + 9 * nl].reshape(nl, 2),
-            "n_points": it[n + 3 * m : n + 3 * m + nl],
-            "sigma": fl[o + 9 * nl : o + 10 * nl],
-            "delta": fl[o + 10 * nl : o + 11 * nl],
+            "end": fl[o + 5 * nl : o + 7 * nl].reshape(nl, 2),
+            "centre": fl[o + 7 * nl : o + 9 * nl].reshape(nl, 2),
             "uncertainty": fl[o + 11 * nl : o + 12 * nl],
-            "segment": it[n + 3 * m + nl : n + 3 * m + 2 * nl],
-            "cluster": it[n + 3 * m + 2 * nl : n + 3 * m + 3 * nl],
             "angle_variance": fl[o + 12 * nl : o + 13 * nl],
             "distance_variance": fl[o + 13 * nl : o + 14 * nl],
+            "_packed": packed,
         })  # fmt: skip
-    o += 14 * nl
-    oi = n + 3 * m + 3 * nl
-    ob = n + 4 * m
     context = _new(_CornerContext, {
         "cfg": cfg,
         "bases": bases,
         "lines": lines,
-        "kept_points": fl[5 * n : 5 * n + 2 * m].reshape(m, 2),
-        "kept_uncertainty": fl[5 * n + 2 * m : 5 * n + 3 * m],
-        "kept_ranges": fl[5 * n + 3 * m : 5 * n + 4 * m],
         "angle_increment": scan.angle_increment,
-        "corner_index": it[oi : oi + nc],
-        "corner_xy": fl[o : o + 2 * nc].reshape(nc, 2),
-        "joined": bl[ob : ob + nc],
-        "corner_a": it[oi + 3 * nc : oi + 3 * nc + nj],
-        "corner_b": it[oi + 3 * nc + nj : oi + 3 * nc + 2 * nj],
-        "corner_dv": fl[o + 2 * nc : o + 2 * nc + nj],
         "distance_scale": scale,
         "line_distance_scale": line_scale,
-        "seg_before": it[oi + nc : oi + 2 * nc],
-        "seg_after": it[oi + 2 * nc : oi + 3 * nc],
-        "break_mask": bl[n + 3 * m : ob],
+        "_packed": packed,
     })  # fmt: skip
     return _new(Features, {
         "stamp": scan.stamp,
-        "beam_index": it[:n],
-        "points": points,
+        "points": fl[: 2 * n].reshape(n, 2),
         "ranges": fl[2 * n : 3 * n],
-        "detection_angle": fl[3 * n : 4 * n],
         "uncertainty": fl[4 * n : 5 * n],
-        "kept": bl[:n],
-        "kept_index": it[n : n + m],
-        "is_break_point": bl[n : n + m],
-        "is_field_of_view_edge": bl[n + m : n + 2 * m],
-        "cluster": it[n + m : n + 2 * m],
-        "is_angular_point": bl[n + 2 * m : n + 3 * m],
-        "segment": it[n + 2 * m : n + 3 * m],
         "lines": lines,
         "_corners": context,
+        "_packed": packed,
     })  # fmt: skip
 
 
@@ -858,7 +935,7 @@ def _graded_for_lines(
 
 
 @dataclass(frozen=True, eq=False)
-class _CornerContext:
+class _CornerContext(_Unpacks):
     """What the point features of one scan are computed from, on first use."""
 
     cfg: Config
