@@ -215,6 +215,27 @@ def test_the_lines_distance_scale_is_the_numpy_one(ranges, point_scale, quantile
         assert got == point_scale
 
 
+@BUDGET
+@given(
+    values=st.lists(st.floats(-1e3, 1e3) | st.sampled_from([0.0, -0.0, 1.0, math.inf]),
+                    max_size=300),
+    shape=st.sampled_from(["as drawn", "sorted", "reversed", "waves"]),
+)  # fmt: skip
+def test_the_sort_is_numpys(values, shape) -> None:
+    """``_sorted`` (a natural merge sort) is ``np.sort``, on values as drawn, sorted, reversed
+    and in rising and falling runs as a scan's ranges along walls are."""
+    x = np.array(values, dtype=np.float64)
+    if shape == "sorted":
+        x = np.sort(x)
+    elif shape == "reversed":
+        x = np.sort(x)[::-1].copy()
+    elif shape == "waves":
+        x = np.abs(np.sin(0.1 * np.arange(x.shape[0]))) * 10.0 + x * 1e-3
+    got = _front()._sorted(x)
+    assert got.shape == x.shape
+    np.testing.assert_array_equal(got, np.sort(x))  # (−0 and 0 in either order)
+
+
 # -- the packed features -----------------------------------------------------------------------
 def _fields(obj: Any) -> list[str]:
     return [f.name for f in dataclasses.fields(obj)]

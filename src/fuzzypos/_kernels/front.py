@@ -163,30 +163,61 @@ def distance_scale(ranges: FloatArray, reference: float, quantile: float) -> flo
 
 @kernel
 def _sorted(values: FloatArray) -> FloatArray:
-    """``np.sort`` of a float array without NaN (heapsort)."""
+    """``np.sort`` of a float array without NaN: a natural merge sort (the runs of a scan's
+    ranges along a wall, falling ones turned around, merged in pairs), about twice as fast
+    as a heapsort on a scan's ranges (whose comparisons the processor cannot foresee)."""
+    n = values.shape[0]
     a: FloatArray = values.copy()
-    n = a.shape[0]
-    for start in range(n // 2 - 1, -1, -1):
-        _sift(a, start, n)
-    for end in range(n - 1, 0, -1):
-        a[0], a[end] = a[end], a[0]
-        _sift(a, 0, end)
-    return a
-
-
-@kernel
-def _sift(a: FloatArray, root: int, end: int) -> None:
-    """Move ``a[root]`` down the max-heap ``a[:end]``."""
-    while True:
-        child = 2 * root + 1
-        if child >= end:
-            return
-        if child + 1 < end and a[child] < a[child + 1]:
-            child += 1
-        if not a[root] < a[child]:
-            return
-        a[root], a[child] = a[child], a[root]
-        root = child
+    if n < 2:
+        return a
+    bounds = np.empty(n + 1, dtype=np.int64)  # where each run starts, then n
+    runs, i = 0, 0
+    while i < n:
+        j = i + 1
+        if j < n and a[j] < a[i]:  # a falling run, turned around
+            while j < n and a[j] < a[j - 1]:
+                j += 1
+            lo, hi = i, j - 1
+            while lo < hi:
+                a[lo], a[hi] = a[hi], a[lo]
+                lo += 1
+                hi -= 1
+        else:
+            while j < n and a[j] >= a[j - 1]:
+                j += 1
+        bounds[runs] = i
+        runs += 1
+        i = j
+    bounds[runs] = n
+    src, dst = a, np.empty(n)
+    while runs > 1:  # merge the runs in pairs, from one buffer into the other
+        merged = 0
+        for r in range(0, runs, 2):
+            lo, mid = bounds[r], bounds[r + 1]
+            hi = bounds[r + 2] if r + 1 < runs else mid
+            i, j, t = lo, mid, lo
+            while i < mid and j < hi:
+                if src[j] < src[i]:
+                    dst[t] = src[j]
+                    j += 1
+                else:
+                    dst[t] = src[i]
+                    i += 1
+                t += 1
+            while i < mid:
+                dst[t] = src[i]
+                i += 1
+                t += 1
+            while j < hi:
+                dst[t] = src[j]
+                j += 1
+                t += 1
+            bounds[merged] = lo
+            merged += 1
+        bounds[merged] = n
+        runs = merged
+        src, dst = dst, src
+    return src
 
 
 @kernel
