@@ -313,17 +313,30 @@ def line_distance_scale(
     """``segmentation.line_distance_scale`` with ``line_distance_scale = "structure"``: the
     quantile of the lines' points' ranges weighted by range, over the reference, at least
     ``point_scale``."""
-    if line_ranges.shape[0] == 0:
+    n = line_ranges.shape[0]
+    if n == 0:
         return point_scale
-    farthest = line_ranges[0]  # the sorted ranges' last (sorted only where it is needed)
-    for i in range(1, line_ranges.shape[0]):
-        farthest = max(farthest, line_ranges[i])
-    if farthest <= reference * point_scale:
+    # sorted only where it is needed: not where the farthest range (the sorted ranges' last)
+    # is within the reference's stretch, nor where the ranges under it (less a margin) weigh
+    # more than the quantile's target by far more than the sums' rounding (the target is then
+    # reached before the first range past the stretch: the scale is the points')
+    stretch = reference * point_scale
+    under = stretch * (1.0 - 1e-6)
+    farthest, total, below, top_below = line_ranges[0], 0.0, 0.0, 0.0
+    for i in range(n):
+        v = line_ranges[i]
+        farthest = max(farthest, v)
+        total += v
+        if v < under:
+            below += v
+            top_below = max(top_below, v)
+    if farthest <= stretch:
+        return point_scale
+    if below - 0.5 * top_below > quantile * total * (1.0 + 1e-6):  # w at the last range under
         return point_scale
     r = _sorted(line_ranges)
     # the weighted quantile: the range where the cumulative weight (midpoint rule) reaches q,
     # interpolated as np.interp does (loops: numba's cumsum and interp are slow to compile)
-    n = r.shape[0]
     w = np.empty(n)
     acc = 0.0
     for i in range(n):
