@@ -758,10 +758,11 @@ def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Feature
         return None
     lo, hi, front_params, line_params, min_sine, point_tables, line_tables = inputs
     sp = scan.sensor_pose
+    directions, closed = _scanner(scan)
     done, scale, line_scale, sizes, fl, it, bl = _front().scan_features(
-        scan.ranges, _beam_directions(scan), scan.valid, lo, hi, scan.angle_increment,
-        (sp.x, sp.y, sp.theta), scan.is_full_circle, front_params, point_tables, line_params,
-        line_tables, min_sine,
+        scan.ranges, directions, scan.valid, lo, hi, scan.angle_increment,
+        (sp.x, sp.y, sp.theta), closed, front_params, point_tables, line_params, line_tables,
+        min_sine,
     )  # fmt: skip
     if not done:
         return None
@@ -775,23 +776,25 @@ def _front() -> ModuleType:
     return importlib.import_module("fuzzypos._kernels.front")
 
 
-def _beam_directions(scan: LaserScan) -> FloatArray:
+def _scanner(scan: LaserScan) -> tuple[FloatArray, bool]:
     """The (2, n) cosines and sines of the scan's bearings (``_kernels.front.beam_directions``
-    of ``scan.angles``), computed once per scanner: the last ones again where the bearings are
-    the last call's (the same ``angle_min``, to the sign of a zero, increment and count)."""
-    global _last_directions
+    of ``scan.angles``) and whether they close a turn (``scan.is_full_circle``), once per
+    scanner: the last ones again where the bearings are the last call's (the same
+    ``angle_min``, to the sign of a zero, increment and count)."""
+    global _last_scanner
     a0, inc, n = scan.angle_min, scan.angle_increment, scan.ranges.shape[0]
     sign = math.copysign(1.0, a0)
-    last = _last_directions
+    last = _last_scanner
     if last is not None and last[0] == a0 and last[1] == inc and last[2] == n and last[3] == sign:
-        return last[4]
+        return last[4], last[5]
     table: FloatArray = _front().beam_directions(scan.angles)
     table.setflags(write=False)
-    _last_directions = (a0, inc, n, sign, table)
-    return table
+    closed = bool(scan.is_full_circle)
+    _last_scanner = (a0, inc, n, sign, table, closed)
+    return table, closed
 
 
-_last_directions: tuple[float, float, int, float, FloatArray] | None = None
+_last_scanner: tuple[float, float, int, float, FloatArray, bool] | None = None
 
 
 def _unpacked(
