@@ -277,7 +277,8 @@ class Features(_Unpacks):
     ``cluster`` (−1 for dropped clusters), ``is_angular_point`` (eq. 14) and ``segment``
     (−1 where a point belongs to no line fit). Then ``lines``, the virtual angular points with
     the indices of their two lines (``virtual_lines``), and ``points_of_interest``: the
-    feature points used for pairing.
+    feature points used for pairing. (Made by the one compiled call, the arrays the positioner
+    does not read of every scan are taken out of the call's packed arrays on first use.)
     """
 
     stamp: float
