@@ -22,6 +22,7 @@ import fuzzypos._kernels as kernels
 from fuzzypos import features as features_module
 from fuzzypos import segmentation as seg
 from fuzzypos import sim
+from fuzzypos._kernels import packing
 from fuzzypos.config import Config
 from fuzzypos.features import extract_features, rule_bases
 from fuzzypos.geometry import Pose2D
@@ -88,12 +89,12 @@ def test_the_beams_directions_are_the_cosines_and_sines_of_their_bearings(
     back the last scanner's."""
     scan = LaserScan(np.full(n, 2.0), angle_min, increment)
     kernels._ENABLED = True
-    table = features_module._scanner(scan)[0]
+    table = packing.scanner(scan)[0]
     assert table.shape == (2, n)
     np.testing.assert_allclose(table[0], np.cos(scan.angles), rtol=0, atol=1e-15)
     np.testing.assert_allclose(table[1], np.sin(scan.angles), rtol=0, atol=1e-15)
     np.testing.assert_array_equal(table, _front().beam_directions(scan.angles))
-    again, closed = features_module._scanner(LaserScan(np.full(n, 3.0), angle_min, increment))
+    again, closed = packing.scanner(LaserScan(np.full(n, 3.0), angle_min, increment))
     assert again is table  # the same scanner: computed once
     assert closed == scan.is_full_circle
 
@@ -111,13 +112,13 @@ def test_the_beams_directions_follow_the_scanner() -> None:
         LaserScan(np.full(180, 2.0), 0.0, -0.01),
         LaserScan(np.full(360, 2.0), 0.0, -math.tau / 360),  # (a full turn: closed)
     ):
-        first = features_module._scanner(base)[0]
-        table, closed = features_module._scanner(other)
+        first = packing.scanner(base)[0]
+        table, closed = packing.scanner(other)
         assert closed == other.is_full_circle
         assert table is not first
         expected = _front().beam_directions(other.angles)
         assert table.tobytes() == expected.tobytes()  # (signed zeros too)
-    zero = features_module._scanner(LaserScan(np.full(3, 2.0), -0.0, -0.01))[0]
+    zero = packing.scanner(LaserScan(np.full(3, 2.0), -0.0, -0.01))[0]
     assert math.copysign(1.0, zero[1, 0]) == -1.0
 
 
@@ -141,7 +142,7 @@ def test_the_usable_points_are_the_numpy_ones(pose, seed, offset, clockwise) -> 
     sp = scan.sensor_pose
     kernels._ENABLED = True
     got = _front().usable_points(
-        scan.ranges, features_module._scanner(scan)[0], scan.valid, lo, hi,
+        scan.ranges, packing.scanner(scan)[0], scan.valid, lo, hi,
         scan.angle_increment, sp.x, sp.y, sp.theta,
     )  # fmt: skip
     reference = seg._valid_points(scan, CFG.scanner.no_return_bands)

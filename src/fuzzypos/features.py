@@ -15,17 +15,16 @@ per-cluster and per-segment statistics use ``np.bincount`` over labels.
 
 from __future__ import annotations
 
-import importlib
 import math
 from dataclasses import dataclass, field, replace
 from functools import cached_property, lru_cache
-from types import ModuleType
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ._kernels import compiled
+from ._kernels import compiled, packing
+from ._kernels.packing import Unpacks
 from .config import Config, FuzzyConfig, LineConfig, same_as_last_call
 from .fuzzy import RuleBases
 from .geometry import stack_columns
@@ -44,9 +43,6 @@ from .segmentation import (
     point_uncertainty,
     segment_scan,
 )
-
-if TYPE_CHECKING:
-    from ._kernels.front import ChainSizes
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -89,107 +85,6 @@ def rule_bases(cfg: FuzzyConfig) -> RuleBases:
     return RuleBases.from_config(cfg)
 
 
-class _Packed:
-    """``_kernels.front.scan_features``' sizes (:data:`~fuzzypos._kernels.front.ChainSizes`)
-    and its three packed arrays (floats, integers, masks)."""
-
-    __slots__ = ("buffers", "sizes")
-
-    def __init__(self, sizes: ChainSizes, fl: FloatArray, it: IntArray, bl: BoolArray) -> None:
-        self.sizes = sizes
-        self.buffers: tuple[NDArray[Any], NDArray[Any], NDArray[Any]] = (fl, it, bl)
-
-    def view(self, where: _Where) -> NDArray[Any]:
-        """The array at ``where`` (:data:`_PACKED`), a view of its buffer."""
-        which, first, length, columns = where
-        start, size = _dot(first, self.sizes), _dot(length, self.sizes)
-        out = self.buffers[which][start : start + columns * size]
-        return out.reshape(size, 2) if columns == 2 else out
-
-
-#: where an array sits in :class:`_Packed`: the buffer (0 floats, 1 integers, 2 masks), its
-#: first element and its rows as sums of the sizes times these coefficients (valid points,
-#: kept points, lines, angular points, joined ones), and its columns
-_Where = tuple[int, tuple[int, int, int, int, int], tuple[int, int, int, int, int], int]
-
-#: the rows of an array of each size
-_N, _M, _L = (1, 0, 0, 0, 0), (0, 1, 0, 0, 0), (0, 0, 1, 0, 0)
-_C, _J = (0, 0, 0, 1, 0), (0, 0, 0, 0, 1)
-
-
-def _dot(a: tuple[int, ...], b: tuple[int, ...]) -> int:
-    """Σ a_i · b_i of two 5-tuples."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4]
-
-
-#: the arrays of each class in ``_kernels.front.scan_features``' packing, in its order
-_PACKED: dict[str, dict[str, _Where]] = {
-    "Features": {
-        "points": (0, (0, 0, 0, 0, 0), _N, 2),
-        "ranges": (0, (2, 0, 0, 0, 0), _N, 1),
-        "detection_angle": (0, (3, 0, 0, 0, 0), _N, 1),
-        "uncertainty": (0, (4, 0, 0, 0, 0), _N, 1),
-        "beam_index": (1, (0, 0, 0, 0, 0), _N, 1),
-        "kept_index": (1, (1, 0, 0, 0, 0), _M, 1),
-        "cluster": (1, (1, 1, 0, 0, 0), _M, 1),
-        "segment": (1, (1, 2, 0, 0, 0), _M, 1),
-        "kept": (2, (0, 0, 0, 0, 0), _N, 1),
-        "is_break_point": (2, (1, 0, 0, 0, 0), _M, 1),
-        "is_field_of_view_edge": (2, (1, 1, 0, 0, 0), _M, 1),
-        "is_angular_point": (2, (1, 2, 0, 0, 0), _M, 1),
-    },
-    "Lines": {
-        "normal": (0, (5, 4, 0, 0, 0), _L, 2),
-        "distance": (0, (5, 4, 2, 0, 0), _L, 1),
-        "start": (0, (5, 4, 3, 0, 0), _L, 2),
-        "end": (0, (5, 4, 5, 0, 0), _L, 2),
-        "centre": (0, (5, 4, 7, 0, 0), _L, 2),
-        "sigma": (0, (5, 4, 9, 0, 0), _L, 1),
-        "delta": (0, (5, 4, 10, 0, 0), _L, 1),
-        "uncertainty": (0, (5, 4, 11, 0, 0), _L, 1),
-        "angle_variance": (0, (5, 4, 12, 0, 0), _L, 1),
-        "distance_variance": (0, (5, 4, 13, 0, 0), _L, 1),
-        "n_points": (1, (1, 3, 0, 0, 0), _L, 1),
-        "segment": (1, (1, 3, 1, 0, 0), _L, 1),
-        "cluster": (1, (1, 3, 2, 0, 0), _L, 1),
-    },
-    "_CornerContext": {
-        "kept_points": (0, (5, 0, 0, 0, 0), _M, 2),
-        "kept_uncertainty": (0, (5, 2, 0, 0, 0), _M, 1),
-        "kept_ranges": (0, (5, 3, 0, 0, 0), _M, 1),
-        "corner_xy": (0, (5, 4, 14, 0, 0), _C, 2),
-        "corner_dv": (0, (5, 4, 14, 2, 0), _J, 1),
-        "corner_index": (1, (1, 3, 3, 0, 0), _C, 1),
-        "seg_before": (1, (1, 3, 3, 1, 0), _C, 1),
-        "seg_after": (1, (1, 3, 3, 2, 0), _C, 1),
-        "corner_a": (1, (1, 3, 3, 3, 0), _J, 1),
-        "corner_b": (1, (1, 3, 3, 3, 1), _J, 1),
-        "break_mask": (2, (1, 3, 0, 0, 0), _M, 1),
-        "joined": (2, (1, 4, 0, 0, 0), _C, 1),
-    },
-}
-
-
-class _Unpacks:
-    """A dataclass whose fields the compiled chain may leave in its packed arrays (a
-    ``_packed`` entry of the instance's dict, :class:`_Packed`): each is taken out on first
-    use and kept (the positioner reads few of them per scan; each view costs about 0.15 µs).
-    Instances made by their constructor have every field and never get here."""
-
-    __slots__ = ()
-
-    if not TYPE_CHECKING:  # (for mypy the fields are plain attributes)
-
-        def __getattr__(self, name: str) -> Any:
-            packed = self.__dict__.get("_packed")
-            where = _PACKED[type(self).__name__].get(name) if packed is not None else None
-            if where is None:
-                raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-            value = packed.view(where)
-            self.__dict__[name] = value
-            return value
-
-
 # ---------------------------------------------------------------------------------------------
 # data containers
 # ---------------------------------------------------------------------------------------------
@@ -220,7 +115,7 @@ class FeaturePoints:
 
 
 @dataclass(frozen=True, eq=False)
-class Lines(_Unpacks):
+class Lines(Unpacks):
     """Line features in normal form ``normal · p = distance`` (robot frame).
 
     ``start``/``end`` are the segment's endpoints (§3.5), ``centre`` their midpoint, ``sigma``
@@ -264,7 +159,7 @@ class Lines(_Unpacks):
 
 
 @dataclass(frozen=True, eq=False)
-class Features(_Unpacks):
+class Features(Unpacks):
     """Everything :func:`extract_features` found in one scan, every stage kept for plotting.
 
     Points are processed counter-clockwise (a scan with a negative increment is reversed) and
@@ -759,100 +654,20 @@ def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Feature
         return None
     lo, hi, front_params, line_params, min_sine, point_tables, line_tables = inputs
     sp = scan.sensor_pose
-    directions, closed = _scanner(scan)
-    done, scale, line_scale, sizes, fl, it, bl = _front().scan_features(
+    directions, closed = packing.scanner(scan)
+    done, scale, line_scale, sizes, fl, it, bl = packing.front().scan_features(
         scan.ranges, directions, scan.valid, lo, hi, scan.angle_increment,
         (sp.x, sp.y, sp.theta), closed, front_params, point_tables, line_params, line_tables,
         min_sine,
     )  # fmt: skip
     if not done:
         return None
-    return _unpacked(scan, bases, cfg, scale, line_scale, sizes, fl, it, bl)
-
-
-@lru_cache(maxsize=1)
-def _front() -> ModuleType:
-    """The compiled chain's kernels (``_kernels.front``), imported with numba on first use and
-    kept."""
-    return importlib.import_module("fuzzypos._kernels.front")
-
-
-def _scanner(scan: LaserScan) -> tuple[FloatArray, bool]:
-    """The (2, n) cosines and sines of the scan's bearings (``_kernels.front.beam_directions``
-    of ``scan.angles``) and whether they close a turn (``scan.is_full_circle``), once per
-    scanner: the last ones again where the bearings are the last call's (the same
-    ``angle_min``, to the sign of a zero, increment and count)."""
-    global _last_scanner
-    a0, inc, n = scan.angle_min, scan.angle_increment, scan.ranges.shape[0]
-    sign = math.copysign(1.0, a0)
-    last = _last_scanner
-    if last is not None and last[0] == a0 and last[1] == inc and last[2] == n and last[3] == sign:
-        return last[4], last[5]
-    table: FloatArray = _front().beam_directions(scan.angles)
-    table.setflags(write=False)
-    closed = bool(scan.is_full_circle)
-    _last_scanner = (a0, inc, n, sign, table, closed)
-    return table, closed
-
-
-_last_scanner: tuple[float, float, int, float, FloatArray, bool] | None = None
-
-
-def _unpacked(
-    scan: LaserScan, bases: RuleBases, cfg: Config, scale: float, line_scale: float,
-    sizes: ChainSizes, fl: FloatArray, it: IntArray, bl: BoolArray,
-) -> Features:  # fmt: skip
-    """The :class:`Features` of ``_kernels.front.scan_features``' packed arrays: views of them
-    (in the order the kernel packs them, :data:`_PACKED`). What the positioner reads of every
-    scan (the points, their ranges and uncertainty, the lines for matching) is taken out
-    here, the rest on first use (:class:`_Unpacks`)."""
-    n, m, nl = sizes[0], sizes[1], sizes[2]
-    packed = _Packed(sizes, fl, it, bl)
-    if nl == 0:
-        lines = _empty_lines()
-    else:
-        o = 5 * n + 4 * m
-        lines = _new(Lines, {
-            "normal": fl[o : o + 2 * nl].reshape(nl, 2),
-            "distance": fl[o + 2 * nl : o + 3 * nl],
-            "start": fl[o + 3 * nl : o + 5 * nl].reshape(nl, 2),
-            "end": fl[o + 5 * nl : o + 7 * nl].reshape(nl, 2),
-            "centre": fl[o + 7 * nl : o + 9 * nl].reshape(nl, 2),
-            "uncertainty": fl[o + 11 * nl : o + 12 * nl],
-            "angle_variance": fl[o + 12 * nl : o + 13 * nl],
-            "distance_variance": fl[o + 13 * nl : o + 14 * nl],
-            "_packed": packed,
-        })  # fmt: skip
-    context = _new(_CornerContext, {
-        "cfg": cfg,
-        "bases": bases,
-        "lines": lines,
-        "angle_increment": scan.angle_increment,
-        "distance_scale": scale,
-        "line_distance_scale": line_scale,
-        "_packed": packed,
-    })  # fmt: skip
-    return _new(Features, {
-        "stamp": scan.stamp,
-        "points": fl[: 2 * n].reshape(n, 2),
-        "ranges": fl[2 * n : 3 * n],
-        "uncertainty": fl[4 * n : 5 * n],
-        "lines": lines,
-        "_corners": context,
-        "_packed": packed,
-    })  # fmt: skip
-
-
-_T = TypeVar("_T")
-
-
-def _new(cls: type[_T], values: dict[str, Any]) -> _T:
-    """An instance of the frozen dataclass ``cls`` with its fields' ``values`` (all of them,
-    in their order) put straight into its dict: what ``cls(**values)`` makes, without the
-    frozen ``__init__``'s ``object.__setattr__`` per field (about 0.1 µs each)."""
-    obj = object.__new__(cls)
-    obj.__dict__.update(values)
-    return obj
+    context = {"cfg": cfg, "bases": bases, "angle_increment": scan.angle_increment}
+    unpacked = packing.unpacked(
+        (Features, Lines, _CornerContext), _empty_lines, scan.stamp, context, scale, line_scale,
+        sizes, fl, it, bl,
+    )  # fmt: skip
+    return cast(Features, unpacked)
 
 
 def _graded_lines(
@@ -939,7 +754,7 @@ def _graded_for_lines(
 
 
 @dataclass(frozen=True, eq=False)
-class _CornerContext(_Unpacks):
+class _CornerContext(Unpacks):
     """What the point features of one scan are computed from, on first use."""
 
     cfg: Config

@@ -407,6 +407,106 @@ def fit_lines(
     return line_scale, lu, ids, out, firsts, f_line
 
 
+@kernel
+def _corners(
+    is_corner: BoolArray,
+    raw: IntArray,
+    normal: FloatArray,
+    distance: FloatArray,
+    start: FloatArray,
+    end: FloatArray,
+    ids: IntArray,
+    min_sine: float,
+) -> tuple[
+    IntArray, IntArray, IntArray, FloatArray, BoolArray, IntArray, IntArray, FloatArray,
+    FloatArray, FloatArray,
+]:  # fmt: skip
+    """:func:`scan_features`' angular points (``is_corner`` of the kept points, ``raw`` their
+    raw segment ids) and the lines on either side of each (circularly, for the ring's seam),
+    joined by ``_kernels.segmentation.join_at_corners`` (§3.5 b)): the angular points'
+    indices, the segments before and after each, their intersections, which were joined,
+    the joined ones' two lines and d_v, and the lines' start and end points."""
+    m, n_lines = is_corner.shape[0], ids.shape[0]
+    n_corners = 0
+    for j in range(m):
+        n_corners += is_corner[j]
+    corner_index = np.empty(n_corners, dtype=np.int64)
+    before, after = np.empty(n_corners, dtype=np.int64), np.empty(n_corners, dtype=np.int64)
+    c = 0
+    wrap = max(m, 1)
+    for j in range(m):
+        if is_corner[j]:
+            corner_index[c] = j
+            before[c], after[c] = raw[(j - 1) % wrap], raw[(j + 1) % wrap]
+            c += 1
+    corner_xy = np.full((n_corners, 2), np.nan)
+    joined = np.zeros(n_corners, dtype=np.bool_)
+    corner_a, corner_b = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    corner_dv = np.zeros(0)
+    if n_corners and n_lines >= 2:
+        have, new_start, new_end, _centre, xy, ok, ia, ib, dv = join_at_corners(
+            normal, distance, start, end, ids, before, after, min_sine
+        )
+        corner_xy, joined = xy, ok
+        if have:
+            start, end = new_start, new_end
+            corner_a, corner_b, corner_dv = ia, ib, dv
+    return corner_index, before, after, corner_xy, joined, corner_a, corner_b, corner_dv, start, end
+
+
+@kernel
+def _floats(
+    points: FloatArray,
+    rng: FloatArray,
+    beta: FloatArray,
+    u: FloatArray,
+    kp: FloatArray,
+    ku: FloatArray,
+    kr: FloatArray,
+    normal: FloatArray,
+    distance: FloatArray,
+    start: FloatArray,
+    end: FloatArray,
+    lt: FloatArray,
+    f_line: FloatArray,
+    corner_xy: FloatArray,
+    corner_dv: FloatArray,
+) -> FloatArray:
+    """:func:`scan_features`' floats end to end: points (n, 2), ranges, β, uncertainty; the
+    kept points (m, 2), their uncertainty and ranges; the lines' normal (L, 2), distance,
+    start (L, 2), end (L, 2), centre (L, 2), σ, δ, uncertainty, angle and distance variance
+    (``lt``: ``finish_lines``' table); the angular points' intersections (C, 2) and the
+    joined ones' d_v."""
+    n, m, nl = rng.shape[0], ku.shape[0], f_line.shape[0]
+    n_corners, n_joined = corner_xy.shape[0], corner_dv.shape[0]
+    fl = np.empty(5 * n + 4 * m + 14 * nl + 2 * n_corners + n_joined)
+    for i in range(n):
+        fl[2 * i], fl[2 * i + 1] = points[i, 0], points[i, 1]
+        fl[2 * n + i], fl[3 * n + i], fl[4 * n + i] = rng[i], beta[i], u[i]
+    o = 5 * n
+    for j in range(m):
+        fl[o + 2 * j], fl[o + 2 * j + 1] = kp[j, 0], kp[j, 1]
+        fl[o + 2 * m + j], fl[o + 3 * m + j] = ku[j], kr[j]
+    o += 4 * m
+    for k in range(nl):
+        fl[o + 2 * k], fl[o + 2 * k + 1] = normal[k, 0], normal[k, 1]
+        fl[o + 2 * nl + k] = distance[k]
+        fl[o + 3 * nl + 2 * k], fl[o + 3 * nl + 2 * k + 1] = start[k, 0], start[k, 1]
+        fl[o + 5 * nl + 2 * k], fl[o + 5 * nl + 2 * k + 1] = end[k, 0], end[k, 1]
+        fl[o + 7 * nl + 2 * k] = 0.5 * (start[k, 0] + end[k, 0])
+        fl[o + 7 * nl + 2 * k + 1] = 0.5 * (start[k, 1] + end[k, 1])
+        fl[o + 9 * nl + k], fl[o + 10 * nl + k] = lt[k, 7], lt[k, 8]
+        fl[o + 11 * nl + k] = f_line[k]
+        fl[o + 12 * nl + k], fl[o + 13 * nl + k] = lt[k, 9], lt[k, 10]
+    o += 14 * nl
+    for c in range(n_corners):
+        fl[o + 2 * c], fl[o + 2 * c + 1] = corner_xy[c, 0], corner_xy[c, 1]
+    o += 2 * n_corners
+    for c in range(n_joined):
+        fl[o + c] = corner_dv[c]
+    return fl
+
+
 #: :func:`scan_features`' sizes: the valid points, the kept points, the lines, the angular
 #: points and the joined ones
 ChainSizes = tuple[int, int, int, int, int]
@@ -436,7 +536,7 @@ def scan_features(
     (what ``extract_features`` did in numpy between the four calls). Returns whether it is
     done (False: a gapless 360° ring, the staged chain's), the points' and the lines' distance
     scales, the :data:`ChainSizes` and the arrays packed end to end in three (each array
-    handed to Python costs about a microsecond): the floats, the integers and the masks, in
+    handed to Python costs half a microsecond): the floats, the integers and the masks, in
     the order ``features._unpacked`` takes them apart (the front's arrays, as
     ``segmentation.ScanSegments`` without the raw segments; the kept points, uncertainty and
     ranges; the arrays of ``features.Lines``, joined at the corners; the corners' context,
@@ -470,62 +570,12 @@ def scan_features(
     for k in range(n_lines):
         normal[k, 0], normal[k, 1], distance[k] = lt[k, 0], lt[k, 1], lt[k, 2]
         start[k, 0], start[k, 1], end[k, 0], end[k, 1] = lt[k, 3], lt[k, 4], lt[k, 5], lt[k, 6]
-    # the lines on either side of each angular point (circularly, for the ring's seam)
-    n_corners = 0
-    for j in range(m):
-        n_corners += is_corner[j]
-    corner_index = np.empty(n_corners, dtype=np.int64)
-    before, after = np.empty(n_corners, dtype=np.int64), np.empty(n_corners, dtype=np.int64)
-    c = 0
-    wrap = max(m, 1)
-    for j in range(m):
-        if is_corner[j]:
-            corner_index[c] = j
-            before[c], after[c] = raw[(j - 1) % wrap], raw[(j + 1) % wrap]
-            c += 1
-    corner_xy = np.full((n_corners, 2), np.nan)
-    joined = np.zeros(n_corners, dtype=np.bool_)
-    corner_a, corner_b = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    corner_dv = np.zeros(0)
-    if n_corners and n_lines >= 2:
-        have, new_start, new_end, _centre, xy, ok, ia, ib, dv = join_at_corners(
-            normal, distance, start, end, ids, before, after, min_sine
-        )
-        corner_xy, joined = xy, ok
-        if have:
-            start, end = new_start, new_end
-            corner_a, corner_b, corner_dv = ia, ib, dv
-    n_joined = corner_a.shape[0]
-    # the floats: points (n, 2), ranges, β, uncertainty; the kept points (m, 2), their
-    # uncertainty and ranges; the lines' normal (L, 2), distance, start (L, 2), end (L, 2),
-    # centre (L, 2), σ, δ, uncertainty, angle and distance variance; the corners' xy (C, 2)
-    # and the joined ones' d_v
-    fl = np.empty(5 * n + 4 * m + 14 * n_lines + 2 * n_corners + n_joined)
-    for i in range(n):
-        fl[2 * i], fl[2 * i + 1] = points[i, 0], points[i, 1]
-        fl[2 * n + i], fl[3 * n + i], fl[4 * n + i] = rng[i], beta[i], u[i]
-    o = 5 * n
-    for j in range(m):
-        fl[o + 2 * j], fl[o + 2 * j + 1] = kp[j, 0], kp[j, 1]
-        fl[o + 2 * m + j], fl[o + 3 * m + j] = ku[j], kr[j]
-    o += 4 * m
-    nl = n_lines
-    for k in range(nl):
-        fl[o + 2 * k], fl[o + 2 * k + 1] = normal[k, 0], normal[k, 1]
-        fl[o + 2 * nl + k] = distance[k]
-        fl[o + 3 * nl + 2 * k], fl[o + 3 * nl + 2 * k + 1] = start[k, 0], start[k, 1]
-        fl[o + 5 * nl + 2 * k], fl[o + 5 * nl + 2 * k + 1] = end[k, 0], end[k, 1]
-        fl[o + 7 * nl + 2 * k] = 0.5 * (start[k, 0] + end[k, 0])
-        fl[o + 7 * nl + 2 * k + 1] = 0.5 * (start[k, 1] + end[k, 1])
-        fl[o + 9 * nl + k], fl[o + 10 * nl + k] = lt[k, 7], lt[k, 8]
-        fl[o + 11 * nl + k] = f_line[k]
-        fl[o + 12 * nl + k], fl[o + 13 * nl + k] = lt[k, 9], lt[k, 10]
-    o += 14 * nl
-    for c in range(n_corners):
-        fl[o + 2 * c], fl[o + 2 * c + 1] = corner_xy[c, 0], corner_xy[c, 1]
-    o += 2 * n_corners
-    for c in range(n_joined):
-        fl[o + c] = corner_dv[c]
+    corner_index, before, after, corner_xy, joined, corner_a, corner_b, corner_dv, start, end = (
+        _corners(is_corner, raw, normal, distance, start, end, ids, min_sine)
+    )
+    nl, n_corners, n_joined = n_lines, corner_index.shape[0], corner_a.shape[0]
+    fl = _floats(points, rng, beta, u, kp, ku, kr, normal, distance, start, end, lt, f_line,
+                 corner_xy, corner_dv)  # fmt: skip
     # the integers: beam indices; kept indices, clusters and segment ids; the lines' point
     # counts, segment ids and clusters; the angular points' indices and the segments before
     # and after each; the joined ones' two lines
