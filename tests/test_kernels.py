@@ -672,10 +672,13 @@ def test_the_compiled_front_of_the_chain_is_the_staged_one(
 
 def _same_features(f: Any, g: Any) -> None:
     """Two scans' features equal to the bit: every array of the features, of their lines and
-    of the corners' context, and the scales."""
+    of the corners' context, and the scales (every field: the compiled chain's are taken
+    from its packed arrays on first use)."""
+    import dataclasses
+
     for obj_f, obj_g in ((f, g), (f.lines, g.lines), (f._corners, g._corners)):
-        for name, x in vars(obj_f).items():
-            y = getattr(obj_g, name)
+        for name in (field.name for field in dataclasses.fields(obj_f)):
+            x, y = getattr(obj_f, name), getattr(obj_g, name)
             if isinstance(x, np.ndarray):
                 assert x.dtype == y.dtype, name
                 np.testing.assert_array_equal(x, y, err_msg=name)

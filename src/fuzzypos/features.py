@@ -18,11 +18,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from functools import cached_property, lru_cache
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ._kernels import compiled
+from ._kernels import compiled, packing
+from ._kernels.packing import Unpacks
 from .config import Config, FuzzyConfig, LineConfig, same_as_last_call
 from .fuzzy import RuleBases
 from .geometry import stack_columns
@@ -113,7 +115,7 @@ class FeaturePoints:
 
 
 @dataclass(frozen=True, eq=False)
-class Lines:
+class Lines(Unpacks):
     """Line features in normal form ``normal · p = distance`` (robot frame).
 
     ``start``/``end`` are the segment's endpoints (§3.5), ``centre`` their midpoint, ``sigma``
@@ -157,7 +159,7 @@ class Lines:
 
 
 @dataclass(frozen=True, eq=False)
-class Features:
+class Features(Unpacks):
     """Everything :func:`extract_features` found in one scan, every stage kept for plotting.
 
     Points are processed counter-clockwise (a scan with a negative increment is reversed) and
@@ -170,7 +172,8 @@ class Features:
     ``cluster`` (−1 for dropped clusters), ``is_angular_point`` (eq. 14) and ``segment``
     (−1 where a point belongs to no line fit). Then ``lines``, the virtual angular points with
     the indices of their two lines (``virtual_lines``), and ``points_of_interest``: the
-    feature points used for pairing.
+    feature points used for pairing. (Made by the one compiled call, the arrays the positioner
+    does not read of every scan are taken out of the call's packed arrays on first use.)
     """
 
     stamp: float
@@ -646,40 +649,25 @@ def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Feature
     front, the lines and their joins at the angular points, which the staged chain computes
     in four calls with numpy between them); None for a gapless 360° ring or rule bases off
     the interpolation's path (then the staged chain runs)."""
-    from ._kernels.front import scan_features
-
     inputs = _chain_inputs(cfg, bases)
     if inputs is None:
         return None
     lo, hi, front_params, line_params, min_sine, point_tables, line_tables = inputs
     sp = scan.sensor_pose
-    done, front, kept, fitted, corners = scan_features(
-        np.asarray(scan.ranges), scan.angles, scan.valid, lo, hi, float(scan.angle_increment),
-        np.array([sp.x, sp.y, sp.theta]), bool(scan.is_full_circle), front_params,
-        point_tables, line_params, line_tables, min_sine,
+    directions, closed = packing.scanner(scan)
+    done, scale, line_scale, sizes, fl, it, bl = packing.front().scan_features(
+        scan.ranges, directions, scan.valid, lo, hi, scan.angle_increment,
+        (sp.x, sp.y, sp.theta), closed, front_params, point_tables, line_params, line_tables,
+        min_sine,
     )  # fmt: skip
     if not done:
         return None
-    (beam_index, ranges, points, scale, beta, u, kept_mask, kept_index, is_break, fov_edge,
-     cluster, is_corner, segment) = front  # fmt: skip
-    kp, ku, kr = kept
-    (line_scale, normal, distance, start, end, centre, n_points, sigma, delta, f_line, ids,
-     line_cluster, angle_variance, distance_variance) = fitted  # fmt: skip
-    lines = _empty_lines()
-    if ids.shape[0]:
-        lines = Lines(
-            normal, distance, start, end, centre, n_points, sigma, delta, f_line, ids,
-            line_cluster, angle_variance, distance_variance,
-        )  # fmt: skip
-    corner_idx, corner_xy, joined, corner_a, corner_b, corner_dv, before, after, breaks = corners
-    context = _CornerContext(
-        cfg, bases, lines, kp, ku, kr, scan.angle_increment, corner_idx, corner_xy, joined,
-        corner_a, corner_b, corner_dv, scale, line_scale, before, after, breaks,
+    context = {"cfg": cfg, "bases": bases, "angle_increment": scan.angle_increment}
+    unpacked = packing.unpacked(
+        (Features, Lines, _CornerContext), _empty_lines, scan.stamp, context, scale, line_scale,
+        sizes, fl, it, bl,
     )  # fmt: skip
-    return Features(
-        scan.stamp, beam_index, points, ranges, beta, u, kept_mask, kept_index, is_break,
-        fov_edge, cluster, is_corner, segment, lines, context,
-    )  # fmt: skip
+    return cast(Features, unpacked)
 
 
 def _graded_lines(
@@ -766,7 +754,7 @@ def _graded_for_lines(
 
 
 @dataclass(frozen=True, eq=False)
-class _CornerContext:
+class _CornerContext(Unpacks):
     """What the point features of one scan are computed from, on first use."""
 
     cfg: Config

@@ -53,6 +53,18 @@ PARAMS = (
 
 
 @kernel
+def beam_directions(angles: FloatArray) -> FloatArray:
+    """The cosine and sine of each beam's bearing, a (2, n) table: the same for every scan of
+    one scanner (``angle_min``, ``angle_increment`` and the beam count), so computed once."""
+    n = angles.shape[0]
+    out = np.empty((2, n))
+    for i in range(n):
+        out[0, i] = math.cos(angles[i])
+        out[1, i] = math.sin(angles[i])
+    return out
+
+
+@kernel
 def valid_points(
     ranges: FloatArray,
     angles: FloatArray,
@@ -65,6 +77,26 @@ def valid_points(
     """``features._valid_points``: the beams that are valid and in no "no return" band
     (``scan.usable``), counter-clockwise; their indices, ranges, points in the sensor and in
     the robot frame (moved by ``sensor_pose``)."""
+    return usable_points(
+        ranges, beam_directions(angles), valid, band_lo, band_hi, angle_increment,
+        sensor_pose[0], sensor_pose[1], sensor_pose[2],
+    )  # fmt: skip
+
+
+@kernel
+def usable_points(
+    ranges: FloatArray,
+    directions: FloatArray,
+    valid: BoolArray,
+    band_lo: FloatArray,
+    band_hi: FloatArray,
+    angle_increment: float,
+    sensor_x: float,
+    sensor_y: float,
+    sensor_theta: float,
+) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`valid_points` with the beams' :func:`beam_directions` and the sensor's pose on
+    the robot as three numbers."""
     n = ranges.shape[0]
     keep = np.empty(n, dtype=np.bool_)
     count = 0
@@ -91,16 +123,16 @@ def valid_points(
     for k in range(count):
         i = index[k]
         r[k] = ranges[i]
-        p_sensor[k, 0] = ranges[i] * math.cos(angles[i])
-        p_sensor[k, 1] = ranges[i] * math.sin(angles[i])
-    if sensor_pose[0] == 0.0 and sensor_pose[1] == 0.0 and sensor_pose[2] == 0.0:
+        p_sensor[k, 0] = ranges[i] * directions[0, i]
+        p_sensor[k, 1] = ranges[i] * directions[1, i]
+    if sensor_x == 0.0 and sensor_y == 0.0 and sensor_theta == 0.0:
         return index, r, p_sensor, p_sensor
-    c, s = math.cos(sensor_pose[2]), math.sin(sensor_pose[2])
+    c, s = math.cos(sensor_theta), math.sin(sensor_theta)
     points = np.empty((count, 2))
     for k in range(count):
         x, y = p_sensor[k, 0], p_sensor[k, 1]
-        points[k, 0] = sensor_pose[0] + c * x - s * y
-        points[k, 1] = sensor_pose[1] + s * x + c * y
+        points[k, 0] = sensor_x + c * x - s * y
+        points[k, 1] = sensor_y + s * x + c * y
     return index, r, p_sensor, points
 
 
@@ -131,30 +163,61 @@ def distance_scale(ranges: FloatArray, reference: float, quantile: float) -> flo
 
 @kernel
 def _sorted(values: FloatArray) -> FloatArray:
-    """``np.sort`` of a float array without NaN (heapsort)."""
+    """``np.sort`` of a float array without NaN: a natural merge sort (the runs of a scan's
+    ranges along a wall, falling ones turned around, merged in pairs), about twice as fast
+    as a heapsort on a scan's ranges (whose comparisons the processor cannot foresee)."""
+    n = values.shape[0]
     a: FloatArray = values.copy()
-    n = a.shape[0]
-    for start in range(n // 2 - 1, -1, -1):
-        _sift(a, start, n)
-    for end in range(n - 1, 0, -1):
-        a[0], a[end] = a[end], a[0]
-        _sift(a, 0, end)
-    return a
-
-
-@kernel
-def _sift(a: FloatArray, root: int, end: int) -> None:
-    """Move ``a[root]`` down the max-heap ``a[:end]``."""
-    while True:
-        child = 2 * root + 1
-        if child >= end:
-            return
-        if child + 1 < end and a[child] < a[child + 1]:
-            child += 1
-        if not a[root] < a[child]:
-            return
-        a[root], a[child] = a[child], a[root]
-        root = child
+    if n < 2:
+        return a
+    bounds = np.empty(n + 1, dtype=np.int64)  # where each run starts, then n
+    runs, i = 0, 0
+    while i < n:
+        j = i + 1
+        if j < n and a[j] < a[i]:  # a falling run, turned around
+            while j < n and a[j] < a[j - 1]:
+                j += 1
+            lo, hi = i, j - 1
+            while lo < hi:
+                a[lo], a[hi] = a[hi], a[lo]
+                lo += 1
+                hi -= 1
+        else:
+            while j < n and a[j] >= a[j - 1]:
+                j += 1
+        bounds[runs] = i
+        runs += 1
+        i = j
+    bounds[runs] = n
+    src, dst = a, np.empty(n)
+    while runs > 1:  # merge the runs in pairs, from one buffer into the other
+        merged = 0
+        for r in range(0, runs, 2):
+            lo, mid = bounds[r], bounds[r + 1]
+            hi = bounds[r + 2] if r + 1 < runs else mid
+            i, j, t = lo, mid, lo
+            while i < mid and j < hi:
+                if src[j] < src[i]:
+                    dst[t] = src[j]
+                    j += 1
+                else:
+                    dst[t] = src[i]
+                    i += 1
+                t += 1
+            while i < mid:
+                dst[t] = src[i]
+                i += 1
+                t += 1
+            while j < hi:
+                dst[t] = src[j]
+                j += 1
+                t += 1
+            bounds[merged] = lo
+            merged += 1
+        bounds[merged] = n
+        runs = merged
+        src, dst = dst, src
+    return src
 
 
 @kernel
@@ -250,14 +313,30 @@ def line_distance_scale(
     """``segmentation.line_distance_scale`` with ``line_distance_scale = "structure"``: the
     quantile of the lines' points' ranges weighted by range, over the reference, at least
     ``point_scale``."""
-    if line_ranges.shape[0] == 0:
+    n = line_ranges.shape[0]
+    if n == 0:
+        return point_scale
+    # sorted only where it is needed: not where the farthest range (the sorted ranges' last)
+    # is within the reference's stretch, nor where the ranges under it (less a margin) weigh
+    # more than the quantile's target by far more than the sums' rounding (the target is then
+    # reached before the first range past the stretch: the scale is the points')
+    stretch = reference * point_scale
+    under = stretch * (1.0 - 1e-6)
+    farthest, total, below, top_below = line_ranges[0], 0.0, 0.0, 0.0
+    for i in range(n):
+        v = line_ranges[i]
+        farthest = max(farthest, v)
+        total += v
+        if v < under:
+            below += v
+            top_below = max(top_below, v)
+    if farthest <= stretch:
+        return point_scale
+    if below - 0.5 * top_below > quantile * total * (1.0 + 1e-6):  # w at the last range under
         return point_scale
     r = _sorted(line_ranges)
-    if r[-1] <= reference * point_scale:
-        return point_scale
     # the weighted quantile: the range where the cumulative weight (midpoint rule) reaches q,
     # interpolated as np.interp does (loops: numba's cumsum and interp are slow to compile)
-    n = r.shape[0]
     w = np.empty(n)
     acc = 0.0
     for i in range(n):
@@ -328,97 +407,34 @@ def fit_lines(
     return line_scale, lu, ids, out, firsts, f_line
 
 
-#: :func:`scan_features`' front: ``segmentation.ScanSegments`` without the raw segments and
-#: the ring's corner
-ChainFront = tuple[
-    IntArray, FloatArray, FloatArray, float, FloatArray, FloatArray, BoolArray, IntArray,
-    BoolArray, BoolArray, IntArray, BoolArray, IntArray,
-]  # fmt: skip
-#: its lines: the grading scale and the arrays of ``features.Lines``, in their order
-ChainLines = tuple[
-    float, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, IntArray, FloatArray,
-    FloatArray, FloatArray, IntArray, IntArray, FloatArray, FloatArray,
-]  # fmt: skip
-#: its corners: the angular points, their intersections, which were joined, the joined
-#: ones' line indices and d_v, the segments on either side of each, the break points' mask
-ChainCorners = tuple[
-    IntArray, FloatArray, BoolArray, IntArray, IntArray, FloatArray, IntArray, IntArray,
-    BoolArray,
-]  # fmt: skip
-
-
 @kernel
-def scan_features(
-    ranges: FloatArray,
-    angles: FloatArray,
-    valid: BoolArray,
-    band_lo: FloatArray,
-    band_hi: FloatArray,
-    angle_increment: float,
-    sensor_pose: FloatArray,
-    closed: bool,
-    front_params: FloatArray,
-    point_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
-    line_params: FloatArray,
-    line_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
+def _corners(
+    is_corner: BoolArray,
+    raw: IntArray,
+    normal: FloatArray,
+    distance: FloatArray,
+    start: FloatArray,
+    end: FloatArray,
+    ids: IntArray,
     min_sine: float,
-) -> tuple[bool, ChainFront, tuple[FloatArray, FloatArray, FloatArray], ChainLines, ChainCorners]:
-    """The whole compiled chain of ``fuzzypos.features.extract_features`` in one call:
-    :func:`valid_points`, :func:`scan_front`, the kept points, :func:`fit_lines` and the
-    lines' arrays (``features._lines_of_table``), the lines on either side of each angular
-    point and ``_kernels.segmentation.join_at_corners`` (§3.5 b)), with nothing but glue
-    between them (what ``extract_features`` did in numpy between the four calls). Returns
-    whether it is done (False: a gapless 360° ring, the staged chain's), the front's arrays
-    (``segmentation.ScanSegments`` without the raw segments), the kept points, uncertainty
-    and ranges, the lines' grading scale and arrays (``features.Lines``, joined at the
-    corners) and the corners' context (``features._CornerContext``)."""
-    beam_index, rng, p_sensor, points = valid_points(
-        ranges, angles, valid, band_lo, band_hi, angle_increment, sensor_pose
-    )
-    g1, g2, table, lo, hi = point_tables
-    done, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg = (
-        scan_front(p_sensor, points, rng, angle_increment, closed, front_params, g1, g2, table,
-                   lo, hi)
-    )  # fmt: skip
-    n_kept = kept_index.shape[0]
-    kp, ku = np.empty((n_kept, 2)), np.empty(n_kept)
-    kr, kb = np.empty(n_kept), np.empty(n_kept)
-    if done:
-        for j in range(n_kept):
-            i = kept_index[j]
-            kp[j, 0], kp[j, 1] = points[i, 0], points[i, 1]
-            ku[j], kr[j], kb[j] = u[i], rng[i], beta[i]
-        line_scale, _lu, ids, lt, firsts, f_line = fit_lines(
-            kp, kr, kb, ku, seg, scale, line_params, point_tables, line_tables
-        )
-    else:
-        line_scale, ids, lt = scale, np.zeros(0, dtype=np.int64), np.zeros((0, 12))
-        firsts, f_line = np.zeros(0, dtype=np.int64), np.zeros(0)
-    # the lines' arrays (``features._lines_of_table``)
-    n_lines = ids.shape[0]
-    normal, distance = np.empty((n_lines, 2)), np.empty(n_lines)
-    start, end, centre = np.empty((n_lines, 2)), np.empty((n_lines, 2)), np.empty((n_lines, 2))
-    n_points, line_cluster = np.empty(n_lines, dtype=np.int64), np.empty(n_lines, dtype=np.int64)
-    sigma, delta = np.empty(n_lines), np.empty(n_lines)
-    angle_variance, distance_variance = np.empty(n_lines), np.empty(n_lines)
-    for k in range(n_lines):
-        normal[k, 0], normal[k, 1], distance[k] = lt[k, 0], lt[k, 1], lt[k, 2]
-        start[k, 0], start[k, 1], end[k, 0], end[k, 1] = lt[k, 3], lt[k, 4], lt[k, 5], lt[k, 6]
-        centre[k, 0] = 0.5 * (start[k, 0] + end[k, 0])
-        centre[k, 1] = 0.5 * (start[k, 1] + end[k, 1])
-        sigma[k], delta[k] = lt[k, 7], lt[k, 8]
-        angle_variance[k], distance_variance[k] = lt[k, 9], lt[k, 10]
-        n_points[k] = int(lt[k, 11])
-        line_cluster[k] = cluster[firsts[k]]
-    # the lines on either side of each angular point (circularly, for the ring's seam)
+) -> tuple[
+    IntArray, IntArray, IntArray, FloatArray, BoolArray, IntArray, IntArray, FloatArray,
+    FloatArray, FloatArray,
+]:  # fmt: skip
+    """:func:`scan_features`' angular points (``is_corner`` of the kept points, ``raw`` their
+    raw segment ids) and the lines on either side of each (circularly, for the ring's seam),
+    joined by ``_kernels.segmentation.join_at_corners`` (§3.5 b)): the angular points'
+    indices, the segments before and after each, their intersections, which were joined,
+    the joined ones' two lines and d_v, and the lines' start and end points."""
+    m, n_lines = is_corner.shape[0], ids.shape[0]
     n_corners = 0
-    for j in range(n_kept):
+    for j in range(m):
         n_corners += is_corner[j]
     corner_index = np.empty(n_corners, dtype=np.int64)
     before, after = np.empty(n_corners, dtype=np.int64), np.empty(n_corners, dtype=np.int64)
     c = 0
-    wrap = max(n_kept, 1)
-    for j in range(n_kept):
+    wrap = max(m, 1)
+    for j in range(m):
         if is_corner[j]:
             corner_index[c] = j
             before[c], after[c] = raw[(j - 1) % wrap], raw[(j + 1) % wrap]
@@ -428,23 +444,168 @@ def scan_features(
     corner_a, corner_b = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     corner_dv = np.zeros(0)
     if n_corners and n_lines >= 2:
-        have, new_start, new_end, new_centre, xy, ok, ia, ib, dv = join_at_corners(
+        have, new_start, new_end, _centre, xy, ok, ia, ib, dv = join_at_corners(
             normal, distance, start, end, ids, before, after, min_sine
         )
         corner_xy, joined = xy, ok
         if have:
-            start, end, centre = new_start, new_end, new_centre
+            start, end = new_start, new_end
             corner_a, corner_b, corner_dv = ia, ib, dv
-    break_mask = np.empty(n_kept, dtype=np.bool_)
-    for j in range(n_kept):
-        break_mask[j] = is_break[j] and not fov_edge[j] and cluster[j] >= 0
-    return (
-        done,
-        (beam_index, rng, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
-         cluster, is_corner, seg),
-        (kp, ku, kr),
-        (line_scale, normal, distance, start, end, centre, n_points, sigma, delta, f_line, ids,
-         line_cluster, angle_variance, distance_variance),
-        (corner_index, corner_xy, joined, corner_a, corner_b, corner_dv, before, after,
-         break_mask),
+    return corner_index, before, after, corner_xy, joined, corner_a, corner_b, corner_dv, start, end
+
+
+@kernel
+def _floats(
+    points: FloatArray,
+    rng: FloatArray,
+    beta: FloatArray,
+    u: FloatArray,
+    kp: FloatArray,
+    ku: FloatArray,
+    kr: FloatArray,
+    normal: FloatArray,
+    distance: FloatArray,
+    start: FloatArray,
+    end: FloatArray,
+    lt: FloatArray,
+    f_line: FloatArray,
+    corner_xy: FloatArray,
+    corner_dv: FloatArray,
+) -> FloatArray:
+    """:func:`scan_features`' floats end to end: points (n, 2), ranges, β, uncertainty; the
+    kept points (m, 2), their uncertainty and ranges; the lines' normal (L, 2), distance,
+    start (L, 2), end (L, 2), centre (L, 2), σ, δ, uncertainty, angle and distance variance
+    (``lt``: ``finish_lines``' table); the angular points' intersections (C, 2) and the
+    joined ones' d_v."""
+    n, m, nl = rng.shape[0], ku.shape[0], f_line.shape[0]
+    n_corners, n_joined = corner_xy.shape[0], corner_dv.shape[0]
+    fl = np.empty(5 * n + 4 * m + 14 * nl + 2 * n_corners + n_joined)
+    for i in range(n):
+        fl[2 * i], fl[2 * i + 1] = points[i, 0], points[i, 1]
+        fl[2 * n + i], fl[3 * n + i], fl[4 * n + i] = rng[i], beta[i], u[i]
+    o = 5 * n
+    for j in range(m):
+        fl[o + 2 * j], fl[o + 2 * j + 1] = kp[j, 0], kp[j, 1]
+        fl[o + 2 * m + j], fl[o + 3 * m + j] = ku[j], kr[j]
+    o += 4 * m
+    for k in range(nl):
+        fl[o + 2 * k], fl[o + 2 * k + 1] = normal[k, 0], normal[k, 1]
+        fl[o + 2 * nl + k] = distance[k]
+        fl[o + 3 * nl + 2 * k], fl[o + 3 * nl + 2 * k + 1] = start[k, 0], start[k, 1]
+        fl[o + 5 * nl + 2 * k], fl[o + 5 * nl + 2 * k + 1] = end[k, 0], end[k, 1]
+        fl[o + 7 * nl + 2 * k] = 0.5 * (start[k, 0] + end[k, 0])
+        fl[o + 7 * nl + 2 * k + 1] = 0.5 * (start[k, 1] + end[k, 1])
+        fl[o + 9 * nl + k], fl[o + 10 * nl + k] = lt[k, 7], lt[k, 8]
+        fl[o + 11 * nl + k] = f_line[k]
+        fl[o + 12 * nl + k], fl[o + 13 * nl + k] = lt[k, 9], lt[k, 10]
+    o += 14 * nl
+    for c in range(n_corners):
+        fl[o + 2 * c], fl[o + 2 * c + 1] = corner_xy[c, 0], corner_xy[c, 1]
+    o += 2 * n_corners
+    for c in range(n_joined):
+        fl[o + c] = corner_dv[c]
+    return fl
+
+
+#: :func:`scan_features`' sizes: the valid points, the kept points, the lines, the angular
+#: points and the joined ones
+ChainSizes = tuple[int, int, int, int, int]
+
+
+@kernel
+def scan_features(
+    ranges: FloatArray,
+    directions: FloatArray,
+    valid: BoolArray,
+    band_lo: FloatArray,
+    band_hi: FloatArray,
+    angle_increment: float,
+    sensor_pose: tuple[float, float, float],
+    closed: bool,
+    front_params: FloatArray,
+    point_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
+    line_params: FloatArray,
+    line_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
+    min_sine: float,
+) -> tuple[bool, float, float, ChainSizes, FloatArray, IntArray, BoolArray]:
+    """The whole compiled chain of ``fuzzypos.features.extract_features`` in one call:
+    :func:`usable_points` (``directions``: the beams' :func:`beam_directions`),
+    :func:`scan_front`, the kept points, :func:`fit_lines` and the lines' arrays
+    (``features._lines_of_table``), the lines on either side of each angular point and
+    ``_kernels.segmentation.join_at_corners`` (§3.5 b)), with nothing but glue between them
+    (what ``extract_features`` did in numpy between the four calls). Returns whether it is
+    done (False: a gapless 360° ring, the staged chain's), the points' and the lines' distance
+    scales, the :data:`ChainSizes` and the arrays packed end to end in three (each array
+    handed to Python costs half a microsecond): the floats, the integers and the masks, in
+    the order ``features._unpacked`` takes them apart (the front's arrays, as
+    ``segmentation.ScanSegments`` without the raw segments; the kept points, uncertainty and
+    ranges; the arrays of ``features.Lines``, joined at the corners; the corners' context,
+    ``features._CornerContext``)."""
+    beam_index, rng, p_sensor, points = usable_points(
+        ranges, directions, valid, band_lo, band_hi, angle_increment,
+        sensor_pose[0], sensor_pose[1], sensor_pose[2],
     )  # fmt: skip
+    g1, g2, table, lo, hi = point_tables
+    done, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg = (
+        scan_front(p_sensor, points, rng, angle_increment, closed, front_params, g1, g2, table,
+                   lo, hi)
+    )  # fmt: skip
+    if not done:
+        none = (0, 0, 0, 0, 0)
+        return False, scale, scale, none, np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.bool_)
+    n, m = rng.shape[0], kept_index.shape[0]
+    kp, ku = np.empty((m, 2)), np.empty(m)
+    kr, kb = np.empty(m), np.empty(m)
+    for j in range(m):
+        i = kept_index[j]
+        kp[j, 0], kp[j, 1] = points[i, 0], points[i, 1]
+        ku[j], kr[j], kb[j] = u[i], rng[i], beta[i]
+    line_scale, _lu, ids, lt, firsts, f_line = fit_lines(
+        kp, kr, kb, ku, seg, scale, line_params, point_tables, line_tables
+    )
+    # the lines' arrays (``features._lines_of_table``)
+    n_lines = ids.shape[0]
+    normal, distance = np.empty((n_lines, 2)), np.empty(n_lines)
+    start, end = np.empty((n_lines, 2)), np.empty((n_lines, 2))
+    for k in range(n_lines):
+        normal[k, 0], normal[k, 1], distance[k] = lt[k, 0], lt[k, 1], lt[k, 2]
+        start[k, 0], start[k, 1], end[k, 0], end[k, 1] = lt[k, 3], lt[k, 4], lt[k, 5], lt[k, 6]
+    corner_index, before, after, corner_xy, joined, corner_a, corner_b, corner_dv, start, end = (
+        _corners(is_corner, raw, normal, distance, start, end, ids, min_sine)
+    )
+    nl, n_corners, n_joined = n_lines, corner_index.shape[0], corner_a.shape[0]
+    fl = _floats(points, rng, beta, u, kp, ku, kr, normal, distance, start, end, lt, f_line,
+                 corner_xy, corner_dv)  # fmt: skip
+    # the integers: beam indices; kept indices, clusters and segment ids; the lines' point
+    # counts, segment ids and clusters; the angular points' indices and the segments before
+    # and after each; the joined ones' two lines
+    it = np.empty(n + 3 * m + 3 * nl + 3 * n_corners + 2 * n_joined, dtype=np.int64)
+    for i in range(n):
+        it[i] = beam_index[i]
+    o = n
+    for j in range(m):
+        it[o + j], it[o + m + j], it[o + 2 * m + j] = kept_index[j], cluster[j], seg[j]
+    o += 3 * m
+    for k in range(nl):
+        it[o + k], it[o + nl + k] = int(lt[k, 11]), ids[k]
+        it[o + 2 * nl + k] = cluster[firsts[k]]
+    o += 3 * nl
+    for c in range(n_corners):
+        it[o + c], it[o + n_corners + c] = corner_index[c], before[c]
+        it[o + 2 * n_corners + c] = after[c]
+    o += 3 * n_corners
+    for c in range(n_joined):
+        it[o + c], it[o + n_joined + c] = corner_a[c], corner_b[c]
+    # the masks: kept; break points, field-of-view edges, angular points and break point
+    # features of the kept points; the joined angular points
+    bl = np.empty(n + 4 * m + n_corners, dtype=np.bool_)
+    for i in range(n):
+        bl[i] = kept[i]
+    o = n
+    for j in range(m):
+        bl[o + j], bl[o + m + j], bl[o + 2 * m + j] = is_break[j], fov_edge[j], is_corner[j]
+        bl[o + 3 * m + j] = is_break[j] and not fov_edge[j] and cluster[j] >= 0
+    o += 4 * m
+    for c in range(n_corners):
+        bl[o + c] = joined[c]
+    return True, scale, line_scale, (n, m, nl, n_corners, n_joined), fl, it, bl
