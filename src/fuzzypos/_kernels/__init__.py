@@ -3,9 +3,9 @@ they stand in for makes many small calls. Each kernel has its pure-numpy referen
 replaces, kept beside its caller) and ``tests/test_kernels.py`` checks the two against each
 other.
 
-Nothing here is imported, and nothing compiled, when ``fuzzypos`` is imported: a caller imports
-a kernel module on first use (which imports numba), and numba compiles each kernel on its first
-call, caching the machine code on disk (``__pycache__`` beside the module) for the next
+No kernel module is imported, and nothing compiled, when ``fuzzypos`` is imported (only this
+package and ``packing``, plain Python without numba): a caller imports a kernel module on first
+use (which imports numba), and numba compiles each kernel on its first call, caching the machine code on disk (``__pycache__`` beside the module) for the next
 process. ``FUZZYPOS_KERNELS=numpy`` in the environment makes the callers use the numpy
 references instead (slower; for comparison and for platforms without numba).
 """
