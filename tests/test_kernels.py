@@ -93,7 +93,7 @@ def test_the_grid_finds_the_kd_trees_nearest_point(n, spread, cell, radius, seed
     """Nearest within a radius, and whether any lies within it, as a KD-tree says (from a
     guess too, with a lower bound on the second nearest's distance); far-flung points (a grid
     over the budget) get larger cells, queries off the grid find nothing."""
-    from fuzzypos._kernels.grid import any_within, build_grid, nearest, nearest_two
+    from fuzzypos._kernels.grid import any_within, build_grid, nearest, nearest_bounded
 
     rng = np.random.default_rng(seed)
     xy = rng.uniform(-spread, spread, (n, 2)) * np.array([1.0, rng.uniform(0.0, 1.0)])
@@ -116,13 +116,18 @@ def test_the_grid_finds_the_kd_trees_nearest_point(n, spread, cell, radius, seed
         else:
             assert k == -1
         assert any_within(q[0], q[1], radius, geometry, shape, start, gxy) == (dq < radius)
-        # from no guess and from a guess: the same point, and a lower bound on how much
-        # further the second nearest lies
+        # from no guess and from a guess (the distance to some point): the same point, and a
+        # lower bound on how far every other point lies (where none is within the radius,
+        # every point, and at least the radius)
         second = d[row, 1] if n > 1 else math.inf
-        for guess in (-1, int(rng.integers(0, n))):
-            k2, d2b, gap = nearest_two(q[0], q[1], radius, guess, geometry, shape, start, gxy)
+        some = gxy[int(rng.integers(0, n))]
+        for guess in (math.inf, math.hypot(some[0] - q[0], some[1] - q[1])):
+            k2, d2b, far = nearest_bounded(q[0], q[1], radius, guess, geometry, shape, start, gxy)
             assert k2 == k and (k < 0 or d2b == d2)
-            assert gap == 0.0 if k < 0 else 0.0 <= gap <= second - dq + TOL
+            if k >= 0:
+                assert math.sqrt(d2) - TOL <= far <= second + TOL
+            else:
+                assert radius <= far <= dq + TOL
 
 
 def test_an_empty_grid_finds_nothing() -> None:

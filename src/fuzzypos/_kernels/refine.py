@@ -1,8 +1,9 @@
 """The point-to-line refinement as one compiled loop: pairing every point with the nearest
-surface point (through the surface's grid, built once per local map; a point that moved
-less than half the gap to its second nearest keeps its nearest without a search), the robust
-weights, the normal equations, the corridor's hold and the prior, the 3×3 solve, per
-Gauss-Newton iteration. The reference is ``fuzzypos.matching.surface.refine_point_to_line``
+surface point (through the surface's grid, built once per local map; a point that stays
+nearer to its last nearest than the bound its last search left on every other point, less
+how far it moved, keeps its nearest without a search) and each pair's robust weight and
+terms of the normal equations in the same pass, the corridor's hold and the prior, the 3×3
+solve, per Gauss-Newton iteration. The reference is ``fuzzypos.matching.surface.refine_point_to_line``
 with ``FUZZYPOS_KERNELS=numpy`` (``_refine_numpy``), the same steps in numpy with a KD-tree
 query per iteration. Also the inputs it is given: the scan points' weights
 (``Refiner.points``) and a keyframe's surface normals (``surface_points``)."""
@@ -16,7 +17,7 @@ from numpy.typing import NDArray
 
 from ._jit import kernel
 from ._select import kth_smallest, median
-from .grid import nearest_two
+from .grid import nearest_bounded
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -43,65 +44,131 @@ _SLACK = 1e-9
 @kernel
 def _pair(
     points: FloatArray,
+    radius: FloatArray,
+    weights: FloatArray,
     pose: FloatArray,
+    moved: FloatArray,
     gate: float,
     reach: FloatArray,
-    grid: tuple[FloatArray, IntArray, IntArray, IntArray, FloatArray],
-    ref_xy: FloatArray,
-    ref_normal: FloatArray,
-    out: FloatArray,
-    state: FloatArray,
+    geometry: FloatArray,
+    shape: IntArray,
+    cells: IntArray,
+    table: FloatArray,
+    scale: float,
+    sigma2: float,
+    trimming: bool,
+    rows: FloatArray,
+    w: FloatArray,
+    absr: FloatArray,
     last: IntArray,
-    moved: FloatArray,
-) -> int:
+    far: FloatArray,
+    H: FloatArray,
+    g: FloatArray,
+) -> tuple[int, float, float, float]:
     """The points moved by ``pose``, each paired with the nearest reference point within
-    ``gate`` (or its own ``reach``, where larger; ``reach`` empty: the gate alone). Rows of
-    ``out`` for the paired points, in order: the Jacobian (n_x, n_y, dr/dθ) of the residual
-    n·(T·p − q), the residual, the point's index and the reference's. Returns how many paired.
+    ``gate`` (or its own ``reach``, where larger; ``reach`` empty: the gate alone), and each
+    pair weighed: rows of ``rows`` for the paired points, in order, the Jacobian (n_x, n_y,
+    dr/dθ) of the residual r = n·(T·p − q) and r; ``w`` the pair's weight (both points'
+    certainty times Huber's at ``scale``, over σ² = ``sigma2``), ``absr`` |r|. Returns how
+    many paired and the translation block ``(a, b, c)`` of Σ w J Jᵀ; unless ``trimming``
+    (whose cut needs every weight first) ``H`` = Σ w J Jᵀ and ``g`` = Σ w J r, in the same
+    pass (the sums in the pairs' order, as pass by pass).
 
+    ``table`` holds the reference points in the grid's order (x, y, n_x, n_y, weight).
     What the last iteration's search left spares this one's: ``last[i]``, the grid entry
-    nearest to point i (−1: none within its bound), ``state[i, 0]`` how much further the
-    second nearest lay at least (the nearest stays while the point moves less than half
-    that) or, unpaired, how far around it nothing lay; ``state[i, 1]`` the point's distance
-    from the origin, with ``moved`` (the pose's |Δx| + |Δy| and |Δθ| since) a bound on how
-    far it moved."""
-    geometry, shape, start, order, gxy = grid
+    nearest to point i (−1: none within its bound), ``far[i]`` how far every other entry
+    lay at least (:func:`fuzzypos._kernels.grid.nearest_bounded`), with ``moved`` (the
+    pose's |Δx| + |Δy| and |Δθ| since) and ``radius`` (the points' distances from the
+    origin) a bound on how far the point moved since."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
+    a = b = cc = 0.0
+    h02 = h10 = h12 = h20 = h21 = h22 = 0.0
+    g0 = g1 = g2 = 0.0
+    spread = reach.shape[0] > 0
     m = 0
     for i in range(points.shape[0]):
         rx = c * points[i, 0] - s * points[i, 1]
         ry = s * points[i, 0] + c * points[i, 1]
         qx, qy = rx + pose[0], ry + pose[1]
         bound = gate
-        if reach.shape[0] > 0 and reach[i] > gate:
+        if spread and reach[i] > gate:
             bound = reach[i]
-        step = moved[0] + moved[1] * state[i, 1] + _SLACK
+        lower = far[i] - (moved[0] + moved[1] * radius[i] + _SLACK)
         k = last[i]
-        if k >= 0 and state[i, 0] > 2.0 * step:  # the same nearest point as last time
-            state[i, 0] -= 2.0 * step
-            dx, dy = gxy[k, 0] - qx, gxy[k, 1] - qy
-            if not dx * dx + dy * dy < bound * bound:
+        if k >= 0:
+            dx, dy = table[k, 0] - qx, table[k, 1] - qy
+            d2 = dx * dx + dy * dy
+            if lower > 0.0 and d2 < lower * lower:  # the same nearest point as last time
+                far[i] = lower
+            else:
+                k, d2, far[i] = nearest_bounded(
+                    qx, qy, bound, math.sqrt(d2), geometry, shape, cells, table
+                )
+                last[i] = k
+            if not (k >= 0 and d2 < bound * bound):
                 continue
-        elif k < 0 and state[i, 0] - step >= bound:  # still nothing within the bound
-            state[i, 0] -= step
+        elif lower >= bound:  # still nothing within the bound
+            far[i] = lower
             continue
         else:
-            k, _d2, gap = nearest_two(qx, qy, bound, k, geometry, shape, start, gxy)
+            k, _d2, far[i] = nearest_bounded(qx, qy, bound, math.inf, geometry, shape, cells, table)
             last[i] = k
             if k < 0:
-                state[i, 0] = bound  # nothing lies within the bound
                 continue
-            state[i, 0] = gap
-        j = order[k]
-        nx, ny = ref_normal[j, 0], ref_normal[j, 1]
-        out[m, 0] = nx
-        out[m, 1] = ny
-        out[m, 2] = nx * (-ry) + ny * rx  # d r / d θ
-        out[m, 3] = nx * (qx - ref_xy[j, 0]) + ny * (qy - ref_xy[j, 1])
-        out[m, 4] = i
-        out[m, 5] = j
+        nx, ny = table[k, 2], table[k, 3]
+        j0, j1, j2 = nx, ny, nx * (-ry) + ny * rx  # d r / d θ
+        res = nx * (qx - table[k, 0]) + ny * (qy - table[k, 1])
+        rows[m, 0], rows[m, 1], rows[m, 2], rows[m, 3] = j0, j1, j2, res
+        r = abs(res)
+        absr[m] = r
+        huber = 1.0 if r <= scale else scale / max(r, 1e-12)
+        wk = weights[i] * table[k, 4] * huber / sigma2
+        w[m] = wk
         m += 1
-    return m
+        ja = wk * j0
+        a += ja * j0
+        b += ja * j1
+        cc += wk * j1 * j1
+        if not trimming:  # (a, b and c are H's first two entries of its first two rows)
+            g0 += ja * res
+            h02 += ja * j2
+            ja = wk * j1
+            g1 += ja * res
+            h10 += ja * j0
+            h12 += ja * j2
+            ja = wk * j2
+            g2 += ja * res
+            h20 += ja * j0
+            h21 += ja * j1
+            h22 += ja * j2
+    if not trimming:
+        _store(H, g, a, b, h02, h10, cc, h12, h20, h21, h22, g0, g1, g2)
+    return m, a, b, cc
+
+
+@kernel
+def _store(
+    H: FloatArray,
+    g: FloatArray,
+    h00: float,
+    h01: float,
+    h02: float,
+    h10: float,
+    h11: float,
+    h12: float,
+    h20: float,
+    h21: float,
+    h22: float,
+    g0: float,
+    g1: float,
+    g2: float,
+) -> None:
+    """``H`` the 3×3 of those entries, ``g`` = (g0, g1, g2). (Σ (w a) b and Σ (w b) a may
+    differ in their last bit: both triangles are summed.)"""
+    H[0, 0], H[0, 1], H[0, 2] = h00, h01, h02
+    H[1, 0], H[1, 1], H[1, 2] = h10, h11, h12
+    H[2, 0], H[2, 1], H[2, 2] = h20, h21, h22
+    g[0], g[1], g[2] = g0, g1, g2
 
 
 @kernel
@@ -109,18 +176,27 @@ def _normal_equations(
     rows: FloatArray, w: FloatArray, m: int, H: FloatArray, g: FloatArray, square: bool
 ) -> None:
     """``H = Σ w J Jᵀ`` and ``g = Σ w J r`` over the first ``m`` rows (``square``: w² in ``H``)."""
-    for a in range(3):
-        g[a] = 0.0
-        for b in range(3):
-            H[a, b] = 0.0
+    h00 = h01 = h02 = h10 = h11 = h12 = h20 = h21 = h22 = 0.0
+    g0 = g1 = g2 = 0.0
     for k in range(m):
         wk = w[k] * w[k] if square else w[k]
-        r = rows[k, 3]
-        for a in range(3):
-            ja = wk * rows[k, a]
-            g[a] += ja * r
-            for b in range(3):
-                H[a, b] += ja * rows[k, b]
+        j0, j1, j2, r = rows[k, 0], rows[k, 1], rows[k, 2], rows[k, 3]
+        ja = wk * j0
+        g0 += ja * r
+        h00 += ja * j0
+        h01 += ja * j1
+        h02 += ja * j2
+        ja = wk * j1
+        g1 += ja * r
+        h10 += ja * j0
+        h11 += ja * j1
+        h12 += ja * j2
+        ja = wk * j2
+        g2 += ja * r
+        h20 += ja * j0
+        h21 += ja * j1
+        h22 += ja * j2
+    _store(H, g, h00, h01, h02, h10, h11, h12, h20, h21, h22, g0, g1, g2)
 
 
 @kernel
@@ -184,8 +260,12 @@ def _hold(
 def solve3(A: FloatArray, b: FloatArray, x: FloatArray) -> bool:
     """``x = A⁻¹ b`` for a 3×3 ``A`` by Gaussian elimination with partial pivoting (as LAPACK's
     dgesv); False where a pivot is exactly zero (numpy's LinAlgError)."""
-    M = A.copy()
-    v = b.copy()
+    return _solve_in_place(A.copy(), b.copy(), x)
+
+
+@kernel
+def _solve_in_place(M: FloatArray, v: FloatArray, x: FloatArray) -> bool:
+    """:func:`solve3` on ``M`` and ``v`` themselves (left eliminated: no copies)."""
     for col in range(3):
         p = col
         for r in range(col + 1, 3):
@@ -227,75 +307,19 @@ def _add_prior(
     full_prior: bool,
 ) -> None:
     """The prior as one more measurement: its diagonal information, or the full 3×3."""
-    dp = np.empty(3)
-    for i in range(3):
-        dp[i] = pose[i] - prior[i]
-    dp[2] = _wrap(dp[2])
+    d0, d1 = pose[0] - prior[0], pose[1] - prior[1]
+    d2 = _wrap(pose[2] - prior[2])
     for i in range(3):
         if full_prior:
-            for j in range(3):
-                H[i, j] += prior_info[i, j]
-                g[i] += prior_info[i, j] * dp[j]
+            H[i, 0] += prior_info[i, 0]
+            g[i] += prior_info[i, 0] * d0
+            H[i, 1] += prior_info[i, 1]
+            g[i] += prior_info[i, 1] * d1
+            H[i, 2] += prior_info[i, 2]
+            g[i] += prior_info[i, 2] * d2
         else:
             H[i, i] += prior_diag[i]
-            g[i] += prior_diag[i] * dp[i]
-
-
-@kernel
-def _weigh(
-    rows: FloatArray,
-    m: int,
-    weights: FloatArray,
-    ref_weight: FloatArray,
-    scale: float,
-    sigma2: float,
-    w: FloatArray,
-    absr: FloatArray,
-    H: FloatArray,
-    g: FloatArray,
-    trimming: bool,
-) -> tuple[float, float, float]:
-    """Each pair's weight (both points' certainty times Huber's at ``scale``, over σ²), the
-    translation block ``(a, b, c)`` of the weighted pairs and, unless ``trimming`` (whose
-    cut needs every weight first), :func:`_normal_equations`' ``H`` and ``g``: one pass over
-    the pairs (the same sums in the same order as pass by pass)."""
-    a, b, c = 0.0, 0.0, 0.0
-    h00 = h01 = h02 = h10 = h11 = h12 = h20 = h21 = h22 = 0.0
-    g0 = g1 = g2 = 0.0
-    for k in range(m):
-        r = abs(rows[k, 3])
-        absr[k] = r
-        huber = 1.0 if r <= scale else scale / max(r, 1e-12)
-        i, j = int(rows[k, 4]), int(rows[k, 5])
-        wk = weights[i] * ref_weight[j] * huber / sigma2
-        w[k] = wk
-        j0, j1, j2 = rows[k, 0], rows[k, 1], rows[k, 2]
-        a += wk * j0 * j0
-        b += wk * j0 * j1
-        c += wk * j1 * j1
-        if not trimming:
-            res = rows[k, 3]
-            ja = wk * j0
-            g0 += ja * res
-            h00 += ja * j0
-            h01 += ja * j1
-            h02 += ja * j2
-            ja = wk * j1
-            g1 += ja * res
-            h10 += ja * j0
-            h11 += ja * j1
-            h12 += ja * j2
-            ja = wk * j2
-            g2 += ja * res
-            h20 += ja * j0
-            h21 += ja * j1
-            h22 += ja * j2
-    if not trimming:
-        H[0, 0], H[0, 1], H[0, 2] = h00, h01, h02
-        H[1, 0], H[1, 1], H[1, 2] = h10, h11, h12
-        H[2, 0], H[2, 1], H[2, 2] = h20, h21, h22
-        g[0], g[1], g[2] = g0, g1, g2
-    return a, b, c
+            g[i] += prior_diag[i] * (d0 if i == 0 else (d1 if i == 1 else d2))
 
 
 @kernel
@@ -315,10 +339,10 @@ def _reach(spacing: FloatArray, pairing_spacing: float, min_distance: float) -> 
 
 @kernel
 def refine(
-    grid: tuple[FloatArray, IntArray, IntArray, IntArray, FloatArray],
-    ref_xy: FloatArray,
-    ref_normal: FloatArray,
-    ref_weight: FloatArray,
+    geometry: FloatArray,
+    shape: IntArray,
+    cells: IntArray,
+    table: FloatArray,
     points: FloatArray,
     weights: FloatArray,
     start: FloatArray,
@@ -335,30 +359,34 @@ def refine(
     """The whole refinement (``refine_point_to_line``): status (OK, TOO_FEW_PAIRS, SINGULAR),
     the pose, how many paired at the last iteration, how many of those within half the Huber
     scale, the points' information, the hold's term, whether it holds the start, Σ w² J Jᵀ and
-    the residuals' variance. ``params`` as :data:`PARAMS`; ``spacing``, each point's beam
-    spacing at its range (empty: none)."""
+    the residuals' variance. The reference: its grid's ``geometry``, ``shape`` and ``cells``
+    (``start``) and ``table``, its points in the grid's order (x, y, the normal's x and y,
+    the weight). ``params`` as :data:`PARAMS`; ``spacing``, each point's beam spacing at its
+    range (empty: none)."""
     scale, sigma, ratio, tolerance = params[0], params[1], params[2], params[3]
     trim_floor, conv_t, conv_r, trim_sigmas = params[4], params[5], params[6], params[7]
     reach = _reach(spacing, params[8], params[9])
     sigma2 = sigma**2
     n = points.shape[0]
-    rows = np.empty((n, 6))
+    rows = np.empty((n, 4))
     w, absr = np.empty(n), np.empty(n)
     H, g = np.empty((3, 3)), np.empty(3)
     info, term, delta = np.empty((3, 3)), np.zeros((3, 3)), np.empty(3)
     last = np.full(n, -1, dtype=np.int64)  # each point's nearest at the last iteration
-    state, moved = np.zeros((n, 2)), np.zeros(2)
+    far, radius, moved = np.zeros(n), np.empty(n), np.zeros(2)
     for i in range(n):
-        state[i, 1] = math.hypot(points[i, 0], points[i, 1])
+        radius[i] = math.hypot(points[i, 0], points[i, 1])
     pose = start.copy()
     start_xy = start[:2].copy()
     trimming, on_start, m = False, False, 0
     for it in range(iterations):
         gate = gates[min(it, gates.shape[0] - 1)]
-        m = _pair(points, pose, gate, reach, grid, ref_xy, ref_normal, rows, state, last, moved)
+        m, a, b, c = _pair(
+            points, radius, weights, pose, moved, gate, reach, geometry, shape, cells, table,
+            scale, sigma2, trimming, rows, w, absr, last, far, H, g,
+        )  # fmt: skip
         if m < 3:
             return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info, 0.0
-        a, b, c = _weigh(rows, m, weights, ref_weight, scale, sigma2, w, absr, H, g, trimming)
         if trimming:
             _trim(w, absr, m, trim_sigmas, trim_floor)
             _normal_equations(rows, w, m, H, g, False)
@@ -367,7 +395,7 @@ def refine(
                 info[i, j] = H[i, j]
         on_start = _hold(a, b, c, H, g, pose, start_xy, hold_xy, ratio, tolerance, term)
         _add_prior(H, g, pose, prior, prior_diag, prior_info, full_prior)
-        if not solve3(H, g, delta):
+        if not _solve_in_place(H, g, delta):
             return SINGULAR, pose, m, 0, info, term, False, info, 0.0
         for i in range(3):
             pose[i] -= delta[i]
@@ -392,7 +420,7 @@ def refine(
             clipped += r * r
     variance = scale * scale if used <= 3 else clipped / (used - 3)
     gradient = np.empty((3, 3))
-    _normal_equations(rows, w, m, gradient, np.empty(3), True)
+    _normal_equations(rows, w, m, gradient, g, True)
     return OK, pose, m, close, info, term, on_start, gradient, variance
 
 

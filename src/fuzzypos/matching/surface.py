@@ -56,12 +56,13 @@ class SurfacePoints:
         return build_grid(self.xy, GRID_CELL)
 
     @cached_property
-    def arrays(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """``xy``, ``normal`` and ``weight`` as contiguous float64 arrays (for the kernels)."""
-        return (
-            np.ascontiguousarray(self.xy, dtype=np.float64),
-            np.ascontiguousarray(self.normal, dtype=np.float64),
-            np.ascontiguousarray(self.weight, dtype=np.float64),
+    def table(self) -> FloatArray:
+        """The points in ``grid``'s order, a row each: x, y, the normal's x and y, the weight
+        (the compiled refinement's one look-up per pair; built once, on first use)."""
+        order = self.grid.order
+        return np.ascontiguousarray(
+            np.column_stack((self.grid.xy, self.normal[order], self.weight[order])),
+            dtype=np.float64,
         )
 
 
@@ -253,12 +254,12 @@ def _refine_compiled(
     prior = np.array(prior, dtype=np.float64)
     gates, params, info_prior, diagonal = _kernel_settings(cfg, max_distance, prior_scale)
     prior_info = diagonal if prior_information is None else f64(prior_information) / prior_scale**2
-    xy, normal, weight = reference.arrays
+    geometry, shape, cells, _order, _xy = reference.grid
     # (the hold's x and y: the kernel reads those two of the pose)
     status, pose, paired, close, info, hold_info, on_start, gradient, variance = kernel.refine(
-        reference.grid, xy, normal, weight, f64(points), f64(weights), start, prior, f64(hold),
-        gates, _NO_SPACING if spacing is None else f64(spacing), params, int(cfg.iterations),
-        info_prior, prior_info, prior_information is not None,
+        geometry, shape, cells, reference.table, f64(points), f64(weights), start, prior,
+        f64(hold), gates, _NO_SPACING if spacing is None else f64(spacing), params,
+        int(cfg.iterations), info_prior, prior_info, prior_information is not None,
     )  # fmt: skip
     if status != kernel.OK:
         return None
