@@ -13,9 +13,11 @@ while it stays nearer than that (``nearest_bounded``).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple, TypeVar, cast
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from ._jit import kernel
@@ -27,6 +29,16 @@ IntArray = NDArray[np.int64]
 #: cells rather than a grid larger than the points
 CELLS_PER_POINT = 64
 MIN_CELLS = 4096
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def inlined(func: _F) -> _F:
+    """A :func:`~fuzzypos._kernels._jit.kernel` that numba compiles into each kernel that calls
+    it (``inline="always"``): a call that passes arrays counts their references, which costs
+    more than a grid query's scan."""
+    return cast(_F, njit(cache=True, inline="always")(func))
+
+
 #: a bound on the distance to the points beyond a box of cells is lowered by this (m): a point
 #: on a cell's edge may have been rounded into the cell on either side
 _ROUNDING = 1e-9
@@ -95,7 +107,7 @@ def _sort_into_cells(
     return start, order
 
 
-@kernel
+@inlined
 def _cell_range(q: float, radius: float, origin: float, inv: float, n: int) -> tuple[int, int]:
     """The cells along one axis (of ``n``) that the interval ``q ± radius`` touches, clipped to
     the grid; an empty range (lo > hi) where it misses the grid (or ``q`` is not finite)."""
@@ -191,7 +203,7 @@ def any_within(
     return False
 
 
-@kernel
+@inlined
 def _clearance(
     qx: float,
     qy: float,
@@ -223,7 +235,7 @@ def _clearance(
     return clear - _ROUNDING
 
 
-@kernel
+@inlined
 def _scan_box_far(
     qx: float,
     qy: float,
@@ -262,7 +274,7 @@ def _scan_box_far(
     return best, best_d2, other, clear
 
 
-@kernel
+@inlined
 def nearest_bounded(
     qx: float,
     qy: float,

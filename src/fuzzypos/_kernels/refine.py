@@ -3,10 +3,11 @@ surface point (through the surface's grid, built once per local map; a point tha
 nearer to its last nearest than the bound its last search left on every other point, less
 how far it moved, keeps its nearest without a search) and each pair's robust weight and
 terms of the normal equations in the same pass, the corridor's hold and the prior, the 3×3
-solve, per Gauss-Newton iteration. The reference is ``fuzzypos.matching.surface.refine_point_to_line``
-with ``FUZZYPOS_KERNELS=numpy`` (``_refine_numpy``), the same steps in numpy with a KD-tree
-query per iteration. Also the inputs it is given: the scan points' weights
-(``Refiner.points``) and a keyframe's surface normals (``surface_points``)."""
+solve, per Gauss-Newton iteration. The reference is
+``fuzzypos.matching.surface.refine_point_to_line`` with ``FUZZYPOS_KERNELS=numpy``
+(``_refine_numpy``), the same steps in numpy with a KD-tree query per iteration. Also the
+inputs it is given: the scan points' weights (``Refiner.points``) and a keyframe's surface
+normals (``surface_points``)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 
 from ._jit import kernel
 from ._select import kth_smallest, median
-from .grid import nearest_bounded
+from .grid import inlined, nearest_bounded
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -41,7 +42,7 @@ OK, TOO_FEW_PAIRS, SINGULAR = 0, 1, 2
 _SLACK = 1e-9
 
 
-@kernel
+@inlined
 def _pair(
     points: FloatArray,
     radius: FloatArray,
@@ -146,7 +147,7 @@ def _pair(
     return m, a, b, cc
 
 
-@kernel
+@inlined
 def _store(
     H: FloatArray,
     g: FloatArray,
@@ -171,7 +172,7 @@ def _store(
     g[0], g[1], g[2] = g0, g1, g2
 
 
-@kernel
+@inlined
 def _normal_equations(
     rows: FloatArray, w: FloatArray, m: int, H: FloatArray, g: FloatArray, square: bool
 ) -> None:
@@ -199,7 +200,7 @@ def _normal_equations(
     _store(H, g, h00, h01, h02, h10, h11, h12, h20, h21, h22, g0, g1, g2)
 
 
-@kernel
+@inlined
 def _trim(w: FloatArray, absr: FloatArray, m: int, sigmas: float, floor: float) -> None:
     """Weight 0 for residuals beyond ``sigmas`` × the upper median of |r| (at least ``floor``)."""
     med = kth_smallest(absr[:m], m // 2)
@@ -209,7 +210,7 @@ def _trim(w: FloatArray, absr: FloatArray, m: int, sigmas: float, floor: float) 
             w[k] = 0.0
 
 
-@kernel
+@inlined
 def _hold(
     a: float,
     b: float,
@@ -263,7 +264,7 @@ def solve3(A: FloatArray, b: FloatArray, x: FloatArray) -> bool:
     return _solve_in_place(A.copy(), b.copy(), x)
 
 
-@kernel
+@inlined
 def _solve_in_place(M: FloatArray, v: FloatArray, x: FloatArray) -> bool:
     """:func:`solve3` on ``M`` and ``v`` themselves (left eliminated: no copies)."""
     for col in range(3):
@@ -290,13 +291,13 @@ def _solve_in_place(M: FloatArray, v: FloatArray, x: FloatArray) -> bool:
     return True
 
 
-@kernel
+@inlined
 def _wrap(a: float) -> float:
     """An angle wrapped into [−π, π) (Python's floored modulo, as the reference)."""
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-@kernel
+@inlined
 def _add_prior(
     H: FloatArray,
     g: FloatArray,
@@ -322,7 +323,7 @@ def _add_prior(
             g[i] += prior_diag[i] * (d0 if i == 0 else (d1 if i == 1 else d2))
 
 
-@kernel
+@inlined
 def _reach(spacing: FloatArray, pairing_spacing: float, min_distance: float) -> FloatArray:
     """How far each point may pair by its own beam ``spacing`` (``pairing_spacing`` of them);
     empty where none reaches beyond ``min_distance`` (the fixed distances decide) or no
