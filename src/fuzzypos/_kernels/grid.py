@@ -236,24 +236,22 @@ def _clearance(
 
 
 @inlined
-def _scan_box_far(
+def _scan_box_near(
     qx: float,
     qy: float,
     box: float,
-    radius: float,
     geometry: FloatArray,
     shape: IntArray,
     start: IntArray,
     xy: FloatArray,
-) -> tuple[int, float, float, float]:
-    """Of the cells within ``box`` of the query: the nearest point closer than ``radius``
-    (−1 where none; the first of equal ones), its squared distance, the squared distance of
-    the nearest other point scanned (at any distance; ∞ where none), and
+) -> tuple[int, float, int, float, float, float]:
+    """Of the cells within ``box`` of the query: the nearest point (−1 where none; the first
+    of equal ones in the grid's order) and its squared distance (∞ where none), the next
+    nearest and its, the squared distance of the nearest third point, and
     :func:`_clearance`, the distance beyond which the points not scanned lie."""
     x0, y0, inv = geometry[0], geometry[1], geometry[2]
     nx, ny = shape[0], shape[1]
-    best, best_d2 = -1, radius * radius
-    other = math.inf
+    first, first_d2, second, second_d2, third_d2 = -1, math.inf, -1, math.inf, math.inf
     ix0, ix1 = _cell_range(qx, box, x0, inv, nx)
     iy0, iy1 = _cell_range(qy, box, y0, inv, ny)
     if ix0 <= ix1 and iy0 <= iy1:
@@ -263,15 +261,17 @@ def _scan_box_far(
                 dx = xy[k, 0] - qx
                 dy = xy[k, 1] - qy
                 d2 = dx * dx + dy * dy
-                if d2 < best_d2:
-                    if best >= 0:
-                        other = best_d2
-                    best_d2 = d2
-                    best = k
-                elif d2 < other:
-                    other = d2
+                if d2 < second_d2:
+                    third_d2 = second_d2
+                    if d2 < first_d2:
+                        second, second_d2 = first, first_d2
+                        first, first_d2 = k, d2
+                    else:
+                        second, second_d2 = k, d2
+                elif d2 < third_d2:
+                    third_d2 = d2
     clear = _clearance(qx, qy, ix0, ix1, iy0, iy1, geometry, shape)
-    return best, best_d2, other, clear
+    return first, first_d2, second, second_d2, third_d2, clear
 
 
 @inlined
@@ -284,20 +284,24 @@ def nearest_bounded(
     shape: IntArray,
     start: IntArray,
     xy: FloatArray,
-) -> tuple[int, float, float]:
-    """:func:`nearest` (the same point: the first of equal ones in the grid's order), and a
-    lower bound on the distance to every other point (where none lies within ``radius``: to
-    every point, at least ``radius``): while the query stays nearer to its nearest than that
-    bound less how far it moved, the nearest stays. ``guess`` (∞: none), the distance to
+) -> tuple[int, float, int, float]:
+    """The nearest point to ``(qx, qy)`` (−1 where none was looked at) and its squared
+    distance: :func:`nearest`'s point (the first of equal ones in the grid's order) where
+    that is below ``radius``² (else every point lies at least ``radius`` away); the next
+    nearest point it looked at (−1: none) and a lower bound on the distance to every point
+    but those two. While the query stays nearer to one of the two than that bound less how
+    far it moved, the nearer of them is its nearest. ``guess`` (∞: none), the distance to
     some point, bounds the search where it lies within ``radius``: the cells within twice
     that (at least half a cell). Else the cells within one cell side first and, only where
     their nearest might not be the nearest of all, all within ``radius``."""
     side = geometry[3]
     box = min(radius, max(2.0 * guess, 0.5 * side)) if guess < radius else min(radius, side)
-    best, d2, other, clear = _scan_box_far(qx, qy, box, radius, geometry, shape, start, xy)
-    if box < radius and not (best >= 0 and d2 < clear * clear):
-        best, d2, other, clear = _scan_box_far(qx, qy, radius, radius, geometry, shape, start, xy)
-    far = min(math.sqrt(other), clear)
-    if best < 0:  # all within the radius scanned: every point lies beyond it
+    first, d2, second, _d2, third, clear = _scan_box_near(qx, qy, box, geometry, shape, start, xy)
+    if box < radius and not d2 < clear * clear:
+        first, d2, second, _d2, third, clear = _scan_box_near(
+            qx, qy, radius, geometry, shape, start, xy
+        )
+    far = min(math.sqrt(third), clear)
+    if not d2 < radius * radius:  # every point lies at least the radius away
         far = max(far, radius)
-    return best, d2, far
+    return first, d2, second, far

@@ -61,7 +61,7 @@ def _pair(
     rows: FloatArray,
     w: FloatArray,
     absr: FloatArray,
-    last: IntArray,
+    near: IntArray,
     far: FloatArray,
     H: FloatArray,
     g: FloatArray,
@@ -76,11 +76,12 @@ def _pair(
     pass (the sums in the pairs' order, as pass by pass).
 
     ``table`` holds the reference points in the grid's order (x, y, n_x, n_y, weight).
-    What the last iteration's search left spares this one's: ``last[i]``, the grid entry
-    nearest to point i (−1: none within its bound), ``far[i]`` how far every other entry
-    lay at least (:func:`fuzzypos._kernels.grid.nearest_bounded`), with ``moved`` (the
-    pose's |Δx| + |Δy| and |Δθ| since) and ``radius`` (the points' distances from the
-    origin) a bound on how far the point moved since."""
+    What the last search left spares the next iterations' searches: ``near[i]``, the two
+    grid entries nearest to point i then (−1: none), ``far[i]`` how far every other entry lay
+    at least (:func:`fuzzypos._kernels.grid.nearest_bounded`), less how far the point moved
+    since (``moved``: the pose's |Δx| + |Δy| and |Δθ| since, with ``radius`` the points'
+    distances from the origin, bounds that); while one of the two is nearer than that, the
+    nearer of them is the point's nearest."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
     a = b = cc = 0.0
     h02 = h10 = h12 = h20 = h21 = h22 = 0.0
@@ -95,27 +96,29 @@ def _pair(
         if spread and reach[i] > gate:
             bound = reach[i]
         lower = far[i] - (moved[0] + moved[1] * radius[i] + _SLACK)
-        k = last[i]
+        k, other = near[i, 0], near[i, 1]
+        d2 = math.inf
         if k >= 0:
             dx, dy = table[k, 0] - qx, table[k, 1] - qy
             d2 = dx * dx + dy * dy
-            if lower > 0.0 and d2 < lower * lower:  # the same nearest point as last time
-                far[i] = lower
-            else:
-                k, d2, far[i] = nearest_bounded(
-                    qx, qy, bound, math.sqrt(d2), geometry, shape, cells, table
-                )
-                last[i] = k
-            if not (k >= 0 and d2 < bound * bound):
-                continue
-        elif lower >= bound:  # still nothing within the bound
+            if other >= 0:
+                dx, dy = table[other, 0] - qx, table[other, 1] - qy
+                e2 = dx * dx + dy * dy
+                if e2 < d2 or (e2 == d2 and other < k):  # (the first of equal ones)
+                    k, other, d2 = other, k, e2
+                    near[i, 0], near[i, 1] = k, other
+        if lower > 0.0 and d2 < lower * lower:  # the nearer of the two is the nearest
+            far[i] = lower
+        elif lower >= bound:  # the two and every other point lie beyond the bound
             far[i] = lower
             continue
         else:
-            k, _d2, far[i] = nearest_bounded(qx, qy, bound, math.inf, geometry, shape, cells, table)
-            last[i] = k
-            if k < 0:
-                continue
+            k, d2, other, far[i] = nearest_bounded(
+                qx, qy, bound, math.sqrt(d2), geometry, shape, cells, table
+            )
+            near[i, 0], near[i, 1] = k, other
+        if not d2 < bound * bound:
+            continue
         nx, ny = table[k, 2], table[k, 3]
         j0, j1, j2 = nx, ny, nx * (-ry) + ny * rx  # d r / d θ
         res = nx * (qx - table[k, 0]) + ny * (qy - table[k, 1])
@@ -373,7 +376,7 @@ def refine(
     w, absr = np.empty(n), np.empty(n)
     H, g = np.empty((3, 3)), np.empty(3)
     info, term, delta = np.empty((3, 3)), np.zeros((3, 3)), np.empty(3)
-    last = np.full(n, -1, dtype=np.int64)  # each point's nearest at the last iteration
+    near = np.full((n, 2), -1, dtype=np.int64)  # each point's two nearest at its last search
     far, radius, moved = np.zeros(n), np.empty(n), np.zeros(2)
     for i in range(n):
         radius[i] = math.hypot(points[i, 0], points[i, 1])
@@ -384,7 +387,7 @@ def refine(
         gate = gates[min(it, gates.shape[0] - 1)]
         m, a, b, c = _pair(
             points, radius, weights, pose, moved, gate, reach, geometry, shape, cells, table,
-            scale, sigma2, trimming, rows, w, absr, last, far, H, g,
+            scale, sigma2, trimming, rows, w, absr, near, far, H, g,
         )  # fmt: skip
         if m < 3:
             return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info, 0.0
