@@ -359,14 +359,14 @@ def refine(
     prior_diag: FloatArray,
     prior_info: FloatArray,
     full_prior: bool,
-) -> tuple[int, FloatArray, int, int, FloatArray, FloatArray, bool, FloatArray, float]:
+) -> tuple[int, FloatArray, int, int, FloatArray, FloatArray, bool, FloatArray]:
     """The whole refinement (``refine_point_to_line``): status (OK, TOO_FEW_PAIRS, SINGULAR),
     the pose, how many paired at the last iteration, how many of those within half the Huber
-    scale, the points' information, the hold's term, whether it holds the start, Σ w² J Jᵀ and
-    the residuals' variance. The reference: its grid's ``geometry``, ``shape`` and ``cells``
-    (``start``) and ``table``, its points in the grid's order (x, y, the normal's x and y,
-    the weight). ``params`` as :data:`PARAMS`; ``spacing``, each point's beam spacing at its
-    range (empty: none)."""
+    scale, the points' information, the hold's term, whether it holds the start, and the
+    gradient's covariance σ_r² Σ w² J Jᵀ (σ_r² the residuals' variance). The reference: its
+    grid's ``geometry``, ``shape`` and ``cells`` (``start``) and ``table``, its points in the
+    grid's order (x, y, the normal's x and y, the weight). ``params`` as :data:`PARAMS`;
+    ``spacing``, each point's beam spacing at its range (empty: none)."""
     scale, sigma, ratio, tolerance = params[0], params[1], params[2], params[3]
     trim_floor, conv_t, conv_r, trim_sigmas = params[4], params[5], params[6], params[7]
     reach = _reach(spacing, params[8], params[9])
@@ -390,7 +390,7 @@ def refine(
             scale, sigma2, trimming, rows, w, absr, near, far, H, g,
         )  # fmt: skip
         if m < 3:
-            return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info, 0.0
+            return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info
         if trimming:
             _trim(w, absr, m, trim_sigmas, trim_floor)
             _normal_equations(rows, w, m, H, g, False)
@@ -400,7 +400,7 @@ def refine(
         on_start = _hold(a, b, c, H, g, pose, start_xy, hold_xy, ratio, tolerance, term)
         _add_prior(H, g, pose, prior, prior_diag, prior_info, full_prior)
         if not _solve_in_place(H, g, delta):
-            return SINGULAR, pose, m, 0, info, term, False, info, 0.0
+            return SINGULAR, pose, m, 0, info, term, False, info
         for i in range(3):
             pose[i] -= delta[i]
         moved[0], moved[1] = abs(delta[0]) + abs(delta[1]), abs(delta[2])
@@ -425,7 +425,10 @@ def refine(
     variance = scale * scale if used <= 3 else clipped / (used - 3)
     gradient = np.empty((3, 3))
     _normal_equations(rows, w, m, gradient, g, True)
-    return OK, pose, m, close, info, term, on_start, gradient, variance
+    for i in range(3):
+        for j in range(3):
+            gradient[i, j] = variance * gradient[i, j]
+    return OK, pose, m, close, info, term, on_start, gradient
 
 
 @kernel
