@@ -292,10 +292,11 @@ def nearest_bounded(
     but those two. While the query stays nearer to one of the two than that bound less how
     far it moved, the nearer of them is its nearest. ``guess`` (∞: none), the distance to
     some point, bounds the search where it lies within ``radius``: the cells within twice
-    that (at least half a cell). Else the cells within one cell side first and, only where
-    their nearest might not be the nearest of all, all within ``radius``."""
+    that (at least half a cell). Else the cells within half a cell side first (a point next
+    to a surface lies that near to it) and, only where their nearest might not be the
+    nearest of all, all within ``radius``."""
     side = geometry[3]
-    box = min(radius, max(2.0 * guess, 0.5 * side)) if guess < radius else min(radius, side)
+    box = min(radius, max(2.0 * guess, 0.5 * side)) if guess < radius else min(radius, 0.5 * side)
     first, d2, second, _d2, third, clear = _scan_box_near(qx, qy, box, geometry, shape, start, xy)
     if box < radius and not d2 < clear * clear:
         first, d2, second, _d2, third, clear = _scan_box_near(

@@ -378,8 +378,8 @@ def refine(
     info, term, delta = np.empty((3, 3)), np.zeros((3, 3)), np.empty(3)
     near = np.full((n, 2), -1, dtype=np.int64)  # each point's two nearest at its last search
     far, radius, moved = np.zeros(n), np.empty(n), np.zeros(2)
-    for i in range(n):
-        radius[i] = math.hypot(points[i, 0], points[i, 1])
+    for i in range(n):  # (its rounding far below _SLACK: cheaper than math.hypot)
+        radius[i] = math.sqrt(points[i, 0] * points[i, 0] + points[i, 1] * points[i, 1])
     pose = start.copy()
     start_xy = start[:2].copy()
     trimming, on_start, m = False, False, 0
