@@ -63,6 +63,7 @@ def _pair(
     absr: FloatArray,
     near: IntArray,
     far: FloatArray,
+    seen: FloatArray,
     H: FloatArray,
     g: FloatArray,
 ) -> tuple[int, float, float, float]:
@@ -79,9 +80,11 @@ def _pair(
     What the last search left spares the next iterations' searches: ``near[i]``, the two
     grid entries nearest to point i then (−1: none), ``far[i]`` how far every other entry lay
     at least (:func:`fuzzypos._kernels.grid.nearest_bounded`), less how far the point moved
-    since (``moved``: the pose's |Δx| + |Δy| and |Δθ| since, with ``radius`` the points'
-    distances from the origin, bounds that); while one of the two is nearer than that, the
-    nearer of them is the point's nearest."""
+    since (``moved``: the pose's |Δx| + |Δy| and |Δθ| since the last iteration, with
+    ``radius`` the points' distances from the origin, bounds that); while one of the two is
+    nearer than that, the nearer of them is the point's nearest. Where that bound fails,
+    ``seen[i]`` (where the point was at its last search, and its bound then) gives the exact
+    way it moved since, before a search."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
     a = b = cc = 0.0
     h02 = h10 = h12 = h20 = h21 = h22 = 0.0
@@ -107,7 +110,12 @@ def _pair(
                 if e2 < d2 or (e2 == d2 and other < k):  # (the first of equal ones)
                     k, other, d2 = other, k, e2
                     near[i, 0], near[i, 1] = k, other
-        if lower > 0.0 and d2 < lower * lower:  # the nearer of the two is the nearest
+        hit = lower > 0.0 and d2 < lower * lower
+        if not (hit or lower >= bound):  # the bound less the way since the search, exactly
+            dx, dy = qx - seen[i, 0], qy - seen[i, 1]
+            lower = seen[i, 2] - (math.sqrt(dx * dx + dy * dy) + _SLACK)
+            hit = lower > 0.0 and d2 < lower * lower
+        if hit:  # the nearer of the two is the nearest
             far[i] = lower
         elif lower >= bound:  # the two and every other point lie beyond the bound
             far[i] = lower
@@ -117,6 +125,7 @@ def _pair(
                 qx, qy, bound, math.sqrt(d2), geometry, shape, cells, table
             )
             near[i, 0], near[i, 1] = k, other
+            seen[i, 0], seen[i, 1], seen[i, 2] = qx, qy, far[i]
         if not d2 < bound * bound:
             continue
         nx, ny = table[k, 2], table[k, 3]
@@ -378,6 +387,7 @@ def refine(
     info, term, delta = np.empty((3, 3)), np.zeros((3, 3)), np.empty(3)
     near = np.full((n, 2), -1, dtype=np.int64)  # each point's two nearest at its last search
     far, radius, moved = np.zeros(n), np.empty(n), np.zeros(2)
+    seen = np.zeros((n, 3))  # where each point was at its last search, and its bound then
     for i in range(n):  # (its rounding far below _SLACK: cheaper than math.hypot)
         radius[i] = math.sqrt(points[i, 0] * points[i, 0] + points[i, 1] * points[i, 1])
     pose = start.copy()
@@ -387,7 +397,7 @@ def refine(
         gate = gates[min(it, gates.shape[0] - 1)]
         m, a, b, c = _pair(
             points, radius, weights, pose, moved, gate, reach, geometry, shape, cells, table,
-            scale, sigma2, trimming, rows, w, absr, near, far, H, g,
+            scale, sigma2, trimming, rows, w, absr, near, far, seen, H, g,
         )  # fmt: skip
         if m < 3:
             return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info
