@@ -139,6 +139,41 @@ def test_the_grid_finds_the_kd_trees_nearest_point(n, spread, cell, radius, seed
             assert np.all(rest >= far - TOL)
 
 
+@BUDGET
+@given(
+    values=st.lists(
+        st.tuples(
+            st.floats(allow_nan=True, allow_infinity=True),
+            st.floats(allow_nan=True, allow_infinity=True),
+        ),
+        min_size=1,
+        max_size=40,
+    )
+)
+def test_the_grids_extent_is_numpys(values) -> None:
+    """The least and greatest x and y, as numpy's ``min``/``max`` along the points (a NaN
+    among them too)."""
+    from fuzzypos._kernels.grid import _extent
+
+    xy = np.array(values, dtype=np.float64).reshape(-1, 2)
+    lo, hi = _extent(xy)
+    np.testing.assert_array_equal(np.array(lo), xy.min(axis=0))
+    np.testing.assert_array_equal(np.array(hi), xy.max(axis=0))
+
+
+@BUDGET
+@given(pose=poses, seed=st.integers(0, 1000))
+def test_the_surface_table_is_the_surface_in_the_grids_order(pose, seed) -> None:
+    """The refinement's table: each grid entry's point, normal and weight (those of the
+    surface point ``order`` gives), bit for bit."""
+    f = extract_features(scan_at(pose, seed), CFG)
+    surface = surface_points(f.points, f.ranges, f.uncertainty, R)
+    order = surface.grid.order
+    want = np.column_stack((surface.xy[order], surface.normal[order], surface.weight[order]))
+    assert surface.table.tobytes() == np.ascontiguousarray(want).tobytes()
+    assert surface.table.shape == (len(surface), 5)
+
+
 def test_an_empty_grid_finds_nothing() -> None:
     from fuzzypos._kernels.grid import any_within, build_grid, nearest, nearest_bounded
 

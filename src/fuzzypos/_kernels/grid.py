@@ -69,7 +69,7 @@ def build_grid(xy: FloatArray, cell: float) -> Grid:
             np.zeros(0, dtype=np.int64),
             np.zeros((0, 2)),
         )
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    lo, hi = _extent(pts)
     w, h = float(hi[0] - lo[0]), float(hi[1] - lo[1])
     budget = CELLS_PER_POINT * n + MIN_CELLS
     # the least side s with (w/s + 1)(h/s + 1) ≤ budget: budget·s² − (w + h)·s − w·h = 0
@@ -79,6 +79,25 @@ def build_grid(xy: FloatArray, cell: float) -> Grid:
     geometry = np.array([float(lo[0]), float(lo[1]), 1.0 / side, side])
     start, order = _sort_into_cells(pts, geometry, nx, ny)
     return Grid(geometry, np.array([nx, ny], dtype=np.int64), start, order, pts[order])
+
+
+@kernel
+def _extent(xy: FloatArray) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The least and the greatest x and y of ``xy`` (n ≥ 1, 2): ``xy.min(axis=0)`` and
+    ``xy.max(axis=0)`` (a NaN too), without numpy's reduction's overhead."""
+    x0 = x1 = xy[0, 0]
+    y0 = y1 = xy[0, 1]
+    for i in range(1, xy.shape[0]):
+        x, y = xy[i, 0], xy[i, 1]
+        if x < x0 or x != x:
+            x0 = x
+        if x > x1 or x != x:
+            x1 = x
+        if y < y0 or y != y:
+            y0 = y
+        if y > y1 or y != y:
+            y1 = y
+    return (x0, y0), (x1, y1)
 
 
 @kernel

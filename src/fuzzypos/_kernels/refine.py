@@ -442,6 +442,22 @@ def refine(
 
 
 @kernel
+def surface_table(
+    xy: FloatArray, normal: FloatArray, weight: FloatArray, order: IntArray
+) -> FloatArray:
+    """:func:`refine`'s ``table``: the surface's points in the grid's ``order`` (``xy``
+    already in it), a row each: x, y, the normal's x and y, the weight."""
+    n = order.shape[0]
+    table = np.empty((n, 5))
+    for k in range(n):
+        j = order[k]
+        table[k, 0], table[k, 1] = xy[k, 0], xy[k, 1]
+        table[k, 2], table[k, 3] = normal[j, 0], normal[j, 1]
+        table[k, 4] = weight[j]
+    return table
+
+
+@kernel
 def scan_weights(
     points: FloatArray,
     ranges: FloatArray,

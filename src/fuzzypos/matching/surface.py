@@ -60,11 +60,10 @@ class SurfacePoints:
     def table(self) -> FloatArray:
         """The points in ``grid``'s order, a row each: x, y, the normal's x and y, the weight
         (the compiled refinement's one look-up per pair; built once, on first use)."""
-        order = self.grid.order
-        return np.ascontiguousarray(
-            np.column_stack((self.grid.xy, self.normal[order], self.weight[order])),
-            dtype=np.float64,
-        )
+        from .._kernels.refine import surface_table
+
+        grid = self.grid
+        return surface_table(grid.xy, f64(self.normal), f64(self.weight), grid.order)
 
 
 #: the side (m) of the surface grid's cells: about the refinement's pairing distance
