@@ -51,33 +51,25 @@ def _pair(
     moved: FloatArray,
     gate: float,
     reach: FloatArray,
-    geometry: FloatArray,
-    shape: IntArray,
-    cells: IntArray,
-    table: FloatArray,
+    surface: tuple[FloatArray, IntArray, IntArray, FloatArray],
     scale: float,
     sigma2: float,
     trimming: bool,
-    rows: FloatArray,
-    w: FloatArray,
-    absr: FloatArray,
-    near: IntArray,
-    far: FloatArray,
-    seen: FloatArray,
-    H: FloatArray,
-    g: FloatArray,
+    out: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    state: tuple[IntArray, FloatArray, FloatArray],
 ) -> tuple[int, float, float, float]:
     """The points moved by ``pose``, each paired with the nearest reference point within
     ``gate`` (or its own ``reach``, where larger; ``reach`` empty: the gate alone), and each
-    pair weighed: rows of ``rows`` for the paired points, in order, the Jacobian (n_x, n_y,
-    dr/dθ) of the residual r = n·(T·p − q) and r; ``w`` the pair's weight (both points'
-    certainty times Huber's at ``scale``, over σ² = ``sigma2``), ``absr`` |r|. Returns how
-    many paired and the translation block ``(a, b, c)`` of Σ w J Jᵀ; unless ``trimming``
-    (whose cut needs every weight first) ``H`` = Σ w J Jᵀ and ``g`` = Σ w J r, in the same
-    pass (the sums in the pairs' order, as pass by pass).
+    pair weighed. ``out`` = (rows, w, absr, H, g): rows of ``rows`` for the paired points, in
+    order, the Jacobian (n_x, n_y, dr/dθ) of the residual r = n·(T·p − q) and r; ``w`` the
+    pair's weight (both points' certainty times Huber's at ``scale``, over σ² = ``sigma2``),
+    ``absr`` |r|; unless ``trimming`` (whose cut needs every weight first) ``H`` = Σ w J Jᵀ
+    and ``g`` = Σ w J r, in the same pass (the sums in the pairs' order, as pass by pass).
+    Returns how many paired and the translation block ``(a, b, c)`` of Σ w J Jᵀ.
 
-    ``table`` holds the reference points in the grid's order (x, y, n_x, n_y, weight).
-    What the last search left spares the next iterations' searches: ``near[i]``, the two
+    ``surface``: the grid's geometry, shape and cells, and ``table``, the reference points
+    in the grid's order (x, y, n_x, n_y, weight). ``state`` = (near, far, seen), what the
+    last search left spares the next iterations' searches: ``near[i]``, the two
     grid entries nearest to point i then (−1: none), ``far[i]`` how far every other entry lay
     at least (:func:`fuzzypos._kernels.grid.nearest_bounded`), less how far the point moved
     since (``moved``: the pose's |Δx| + |Δy| and |Δθ| since the last iteration, with
@@ -85,6 +77,9 @@ def _pair(
     nearer than that, the nearer of them is the point's nearest. Where that bound fails,
     ``seen[i]`` (where the point was at its last search, and its bound then) gives the exact
     way it moved since, before a search."""
+    geometry, shape, cells, table = surface
+    rows, w, absr, H, g = out
+    near, far, seen = state
     c, s = math.cos(pose[2]), math.sin(pose[2])
     a = b = cc = 0.0
     h02 = h10 = h12 = h20 = h21 = h22 = 0.0
@@ -95,9 +90,7 @@ def _pair(
         rx = c * points[i, 0] - s * points[i, 1]
         ry = s * points[i, 0] + c * points[i, 1]
         qx, qy = rx + pose[0], ry + pose[1]
-        bound = gate
-        if spread and reach[i] > gate:
-            bound = reach[i]
+        bound = reach[i] if spread and reach[i] > gate else gate
         lower = far[i] - (moved[0] + moved[1] * radius[i] + _SLACK)
         k, other = near[i, 0], near[i, 1]
         d2 = math.inf
@@ -139,21 +132,13 @@ def _pair(
         w[m] = wk
         m += 1
         ja = wk * j0
-        a += ja * j0
-        b += ja * j1
-        cc += wk * j1 * j1
+        a, b, cc = a + ja * j0, b + ja * j1, cc + wk * j1 * j1
         if not trimming:  # (a, b and c are H's first two entries of its first two rows)
-            g0 += ja * res
-            h02 += ja * j2
+            g0, h02 = g0 + ja * res, h02 + ja * j2
             ja = wk * j1
-            g1 += ja * res
-            h10 += ja * j0
-            h12 += ja * j2
+            g1, h10, h12 = g1 + ja * res, h10 + ja * j0, h12 + ja * j2
             ja = wk * j2
-            g2 += ja * res
-            h20 += ja * j0
-            h21 += ja * j1
-            h22 += ja * j2
+            g2, h20, h21, h22 = g2 + ja * res, h20 + ja * j0, h21 + ja * j1, h22 + ja * j2
     if not trimming:
         _store(H, g, a, b, h02, h10, cc, h12, h20, h21, h22, g0, g1, g2)
     return m, a, b, cc
@@ -390,14 +375,15 @@ def refine(
     seen = np.zeros((n, 3))  # where each point was at its last search, and its bound then
     for i in range(n):  # (its rounding far below _SLACK: cheaper than math.hypot)
         radius[i] = math.sqrt(points[i, 0] * points[i, 0] + points[i, 1] * points[i, 1])
+    surface, out, state = (geometry, shape, cells, table), (rows, w, absr, H, g), (near, far, seen)
     pose = start.copy()
     start_xy = start[:2].copy()
     trimming, on_start, m = False, False, 0
     for it in range(iterations):
         gate = gates[min(it, gates.shape[0] - 1)]
         m, a, b, c = _pair(
-            points, radius, weights, pose, moved, gate, reach, geometry, shape, cells, table,
-            scale, sigma2, trimming, rows, w, absr, near, far, seen, H, g,
+            points, radius, weights, pose, moved, gate, reach, surface, scale, sigma2,
+            trimming, out, state,
         )  # fmt: skip
         if m < 3:
             return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info
