@@ -91,9 +91,9 @@ def scan_at(pose: tuple[float, float, float], seed: int, beams: int = 360) -> An
 )
 def test_the_grid_finds_the_kd_trees_nearest_point(n, spread, cell, radius, seed) -> None:
     """Nearest within a radius, and whether any lies within it, as a KD-tree says (from a
-    guess too, with a lower bound on the second nearest's distance); far-flung points (a grid
+    guess too, with a lower bound on the other points' distance); far-flung points (a grid
     over the budget) get larger cells, queries off the grid find nothing."""
-    from fuzzypos._kernels.grid import any_within, build_grid, nearest, nearest_two
+    from fuzzypos._kernels.grid import any_within, build_grid, nearest, nearest_bounded
 
     rng = np.random.default_rng(seed)
     xy = rng.uniform(-spread, spread, (n, 2)) * np.array([1.0, rng.uniform(0.0, 1.0)])
@@ -109,28 +109,79 @@ def test_the_grid_finds_the_kd_trees_nearest_point(n, spread, cell, radius, seed
     assert grid.start[-1] == n and sorted(grid.order) == list(range(n))
     assert grid.start.size - 1 == grid.shape[0] * grid.shape[1] <= 64 * n + 4096
     geometry, shape, start, order, gxy = grid
-    for row, (q, dq, jq) in enumerate(zip(queries, d[:, 0], j[:, 0])):
+    for q, dq, jq in zip(queries, d[:, 0], j[:, 0]):
         k, d2 = nearest(q[0], q[1], radius, geometry, shape, start, gxy)
         if dq < radius:
             assert order[k] == jq and math.sqrt(d2) == pytest.approx(dq, abs=TOL)
         else:
             assert k == -1
         assert any_within(q[0], q[1], radius, geometry, shape, start, gxy) == (dq < radius)
-        # from no guess and from a guess: the same point, and a lower bound on how much
-        # further the second nearest lies
-        second = d[row, 1] if n > 1 else math.inf
-        for guess in (-1, int(rng.integers(0, n))):
-            k2, d2b, gap = nearest_two(q[0], q[1], radius, guess, geometry, shape, start, gxy)
-            assert k2 == k and (k < 0 or d2b == d2)
-            assert gap == 0.0 if k < 0 else 0.0 <= gap <= second - dq + TOL
+        # from no guess and from a guess (the distance to some point): the same point within
+        # the radius (else one at least that far), the next nearest it saw, and a lower
+        # bound on how far every point but those two lies (at least the radius where none
+        # is within it)
+        some = gxy[int(rng.integers(0, n))]
+        dx, dy = gxy[:, 0] - q[0], gxy[:, 1] - q[1]
+        dist2 = dx * dx + dy * dy
+        for guess in (math.inf, math.hypot(some[0] - q[0], some[1] - q[1])):
+            k2, d2b, other, far = nearest_bounded(
+                q[0], q[1], radius, guess, geometry, shape, start, gxy
+            )
+            if dq < radius:
+                assert k2 == k and d2b == d2
+            else:
+                assert not d2b < radius**2 and radius <= far
+            if k2 >= 0:
+                assert d2b == dist2[k2] and (other < 0 or dist2[other] >= d2b)
+            else:
+                assert other == -1 and d2b == math.inf
+            rest = np.delete(np.sqrt(dist2), [i for i in (k2, other) if i >= 0])
+            assert np.all(rest >= far - TOL)
+
+
+@BUDGET
+@given(
+    values=st.lists(
+        st.tuples(
+            st.floats(allow_nan=True, allow_infinity=True),
+            st.floats(allow_nan=True, allow_infinity=True),
+        ),
+        min_size=1,
+        max_size=40,
+    )
+)
+def test_the_grids_extent_is_numpys(values) -> None:
+    """The least and greatest x and y, as numpy's ``min``/``max`` along the points (a NaN
+    among them too)."""
+    from fuzzypos._kernels.grid import _extent
+
+    xy = np.array(values, dtype=np.float64).reshape(-1, 2)
+    lo, hi = _extent(xy)
+    np.testing.assert_array_equal(np.array(lo), xy.min(axis=0))
+    np.testing.assert_array_equal(np.array(hi), xy.max(axis=0))
+
+
+@BUDGET
+@given(pose=poses, seed=st.integers(0, 1000))
+def test_the_surface_table_is_the_surface_in_the_grids_order(pose, seed) -> None:
+    """The refinement's table: each grid entry's point, normal and weight (those of the
+    surface point ``order`` gives), bit for bit."""
+    f = extract_features(scan_at(pose, seed), CFG)
+    surface = surface_points(f.points, f.ranges, f.uncertainty, R)
+    order = surface.grid.order
+    want = np.column_stack((surface.xy[order], surface.normal[order], surface.weight[order]))
+    assert surface.table.tobytes() == np.ascontiguousarray(want).tobytes()
+    assert surface.table.shape == (len(surface), 5)
 
 
 def test_an_empty_grid_finds_nothing() -> None:
-    from fuzzypos._kernels.grid import any_within, build_grid, nearest
+    from fuzzypos._kernels.grid import any_within, build_grid, nearest, nearest_bounded
 
     geometry, shape, start, _order, gxy = build_grid(np.zeros((0, 2)), 0.2)
     assert nearest(0.0, 0.0, 1.0, geometry, shape, start, gxy)[0] == -1
     assert not any_within(0.0, 0.0, 1.0, geometry, shape, start, gxy)
+    k, d2, other, far = nearest_bounded(0.0, 0.0, 1.0, math.inf, geometry, shape, start, gxy)
+    assert (k, d2, other) == (-1, math.inf, -1) and far >= 1.0
     assert nearest(np.nan, 0.0, 1.0, *build_grid(np.ones((3, 2)), 0.2)[:3], gxy)[0] == -1
 
 

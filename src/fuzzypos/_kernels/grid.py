@@ -5,15 +5,19 @@ Cells are squares of side ``cell``; the points are sorted by cell and ``start[c]
 are cell ``c``'s (``c = ix · ny + iy``) in ``order``/``xy``: the cells of one column of the
 grid are contiguous, so a query scans one stretch of points per column of the square around
 it. It looks within one cell side first and, only where nothing lies that near, within its
-whole radius (or, from a guess, within twice the guess's distance).
+whole radius (or, from a guess, within twice the guess's distance). The cells it scanned
+also bound how far every other point lies: the refinement's iterations keep a point's nearest
+while it stays nearer than that (``nearest_bounded``).
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple, TypeVar, cast
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from ._jit import kernel
@@ -25,6 +29,19 @@ IntArray = NDArray[np.int64]
 #: cells rather than a grid larger than the points
 CELLS_PER_POINT = 64
 MIN_CELLS = 4096
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def inlined(func: _F) -> _F:
+    """A :func:`~fuzzypos._kernels._jit.kernel` that numba compiles into each kernel that calls
+    it (``inline="always"``): a call that passes arrays counts their references, which costs
+    more than a grid query's scan."""
+    return cast(_F, njit(cache=True, inline="always")(func))
+
+
+#: a bound on the distance to the points beyond a box of cells is lowered by this (m): a point
+#: on a cell's edge may have been rounded into the cell on either side
+_ROUNDING = 1e-9
 
 
 class Grid(NamedTuple):
@@ -52,7 +69,7 @@ def build_grid(xy: FloatArray, cell: float) -> Grid:
             np.zeros(0, dtype=np.int64),
             np.zeros((0, 2)),
         )
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    lo, hi = _extent(pts)
     w, h = float(hi[0] - lo[0]), float(hi[1] - lo[1])
     budget = CELLS_PER_POINT * n + MIN_CELLS
     # the least side s with (w/s + 1)(h/s + 1) ≤ budget: budget·s² − (w + h)·s − w·h = 0
@@ -62,6 +79,25 @@ def build_grid(xy: FloatArray, cell: float) -> Grid:
     geometry = np.array([float(lo[0]), float(lo[1]), 1.0 / side, side])
     start, order = _sort_into_cells(pts, geometry, nx, ny)
     return Grid(geometry, np.array([nx, ny], dtype=np.int64), start, order, pts[order])
+
+
+@kernel
+def _extent(xy: FloatArray) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The least and the greatest x and y of ``xy`` (n ≥ 1, 2): ``xy.min(axis=0)`` and
+    ``xy.max(axis=0)`` (a NaN too), without numpy's reduction's overhead."""
+    x0 = x1 = xy[0, 0]
+    y0 = y1 = xy[0, 1]
+    for i in range(1, xy.shape[0]):
+        x, y = xy[i, 0], xy[i, 1]
+        if x < x0 or x != x:
+            x0 = x
+        if x > x1 or x != x:
+            x1 = x
+        if y < y0 or y != y:
+            y0 = y
+        if y > y1 or y != y:
+            y1 = y
+    return (x0, y0), (x1, y1)
 
 
 @kernel
@@ -90,7 +126,7 @@ def _sort_into_cells(
     return start, order
 
 
-@kernel
+@inlined
 def _cell_range(q: float, radius: float, origin: float, inv: float, n: int) -> tuple[int, int]:
     """The cells along one axis (of ``n``) that the interval ``q ± radius`` touches, clipped to
     the grid; an empty range (lo > hi) where it misses the grid (or ``q`` is not finite)."""
@@ -158,75 +194,6 @@ def nearest(
 
 
 @kernel
-def _scan_box_two(
-    qx: float,
-    qy: float,
-    radius: float,
-    geometry: FloatArray,
-    shape: IntArray,
-    start: IntArray,
-    xy: FloatArray,
-) -> tuple[int, float, float]:
-    """The nearest point closer than ``radius`` in the cells within it (−1 where none), its
-    squared distance, and the second nearest's (at most ``radius``²)."""
-    x0, y0, inv = geometry[0], geometry[1], geometry[2]
-    nx, ny = shape[0], shape[1]
-    best, best_d2 = -1, radius * radius
-    second_d2 = best_d2
-    ix0, ix1 = _cell_range(qx, radius, x0, inv, nx)
-    iy0, iy1 = _cell_range(qy, radius, y0, inv, ny)
-    if iy0 > iy1:
-        return best, best_d2, second_d2
-    for ix in range(ix0, ix1 + 1):
-        row = ix * ny
-        for k in range(start[row + iy0], start[row + iy1 + 1]):
-            dx = xy[k, 0] - qx
-            dy = xy[k, 1] - qy
-            d2 = dx * dx + dy * dy
-            if d2 < best_d2:
-                second_d2 = best_d2
-                best_d2 = d2
-                best = k
-            elif d2 < second_d2:
-                second_d2 = d2
-    return best, best_d2, second_d2
-
-
-@kernel
-def nearest_two(
-    qx: float,
-    qy: float,
-    radius: float,
-    guess: int,
-    geometry: FloatArray,
-    shape: IntArray,
-    start: IntArray,
-    xy: FloatArray,
-) -> tuple[int, float, float]:
-    """:func:`nearest`, and how much further than it the second nearest point lies at least
-    (a lower bound: 0 where none paired): a query that moves by less than half that keeps
-    its nearest point. ``guess`` (−1: none), an entry near the query (e.g. its last match),
-    bounds the search where it lies within ``radius``: the square around the query of twice
-    its distance (at least half a cell)."""
-    side = geometry[3]
-    if guess >= 0:
-        dx, dy = xy[guess, 0] - qx, xy[guess, 1] - qy
-        d = math.sqrt(dx * dx + dy * dy)
-        if d < radius:
-            box = min(radius, max(2.0 * d, 0.5 * side))
-            best, d2, second = _scan_box_two(qx, qy, box, geometry, shape, start, xy)
-            # anything outside the square lies further than ``box``
-            return best, d2, math.sqrt(second) - math.sqrt(d2)
-    first = min(radius, side)
-    best, d2, second = _scan_box_two(qx, qy, first, geometry, shape, start, xy)
-    if best < 0 and radius > side:
-        best, d2, second = _scan_box_two(qx, qy, radius, geometry, shape, start, xy)
-    if best < 0:
-        return best, d2, 0.0
-    return best, d2, math.sqrt(second) - math.sqrt(d2)
-
-
-@kernel
 def any_within(
     qx: float,
     qy: float,
@@ -253,3 +220,108 @@ def any_within(
             if dx * dx + dy * dy < r2:
                 return True
     return False
+
+
+@inlined
+def _clearance(
+    qx: float,
+    qy: float,
+    ix0: int,
+    ix1: int,
+    iy0: int,
+    iy1: int,
+    geometry: FloatArray,
+    shape: IntArray,
+) -> float:
+    """A lower bound on the distance from ``(qx, qy)`` to every point outside the cells
+    ``ix0..ix1`` × ``iy0..iy1`` (a box of the grid, or an empty range where the query's square
+    missed it): the way to the nearest side of the box that has cells beyond it (less
+    ``_ROUNDING``: a point on a cell's edge may have been rounded into either cell)."""
+    x0, y0, side = geometry[0], geometry[1], geometry[3]
+    nx, ny = shape[0], shape[1]
+    if ix0 > ix1 or iy0 > iy1:  # off the grid: the way to its extent along either axis
+        gap: float = max(x0 - qx, qx - (x0 + nx * side), y0 - qy, qy - (y0 + ny * side))
+        return gap - _ROUNDING
+    clear = math.inf
+    if ix0 > 0:
+        clear = min(clear, qx - (x0 + ix0 * side))
+    if ix1 < nx - 1:
+        clear = min(clear, x0 + (ix1 + 1) * side - qx)
+    if iy0 > 0:
+        clear = min(clear, qy - (y0 + iy0 * side))
+    if iy1 < ny - 1:
+        clear = min(clear, y0 + (iy1 + 1) * side - qy)
+    return clear - _ROUNDING
+
+
+@inlined
+def _scan_box_near(
+    qx: float,
+    qy: float,
+    box: float,
+    geometry: FloatArray,
+    shape: IntArray,
+    start: IntArray,
+    xy: FloatArray,
+) -> tuple[int, float, int, float, float, float]:
+    """Of the cells within ``box`` of the query: the nearest point (−1 where none; the first
+    of equal ones in the grid's order) and its squared distance (∞ where none), the next
+    nearest and its, the squared distance of the nearest third point, and
+    :func:`_clearance`, the distance beyond which the points not scanned lie."""
+    x0, y0, inv = geometry[0], geometry[1], geometry[2]
+    nx, ny = shape[0], shape[1]
+    first, first_d2, second, second_d2, third_d2 = -1, math.inf, -1, math.inf, math.inf
+    ix0, ix1 = _cell_range(qx, box, x0, inv, nx)
+    iy0, iy1 = _cell_range(qy, box, y0, inv, ny)
+    if ix0 <= ix1 and iy0 <= iy1:
+        for ix in range(ix0, ix1 + 1):
+            row = ix * ny
+            for k in range(start[row + iy0], start[row + iy1 + 1]):
+                dx = xy[k, 0] - qx
+                dy = xy[k, 1] - qy
+                d2 = dx * dx + dy * dy
+                if d2 < second_d2:
+                    third_d2 = second_d2
+                    if d2 < first_d2:
+                        second, second_d2 = first, first_d2
+                        first, first_d2 = k, d2
+                    else:
+                        second, second_d2 = k, d2
+                elif d2 < third_d2:
+                    third_d2 = d2
+    clear = _clearance(qx, qy, ix0, ix1, iy0, iy1, geometry, shape)
+    return first, first_d2, second, second_d2, third_d2, clear
+
+
+@inlined
+def nearest_bounded(
+    qx: float,
+    qy: float,
+    radius: float,
+    guess: float,
+    geometry: FloatArray,
+    shape: IntArray,
+    start: IntArray,
+    xy: FloatArray,
+) -> tuple[int, float, int, float]:
+    """The nearest point to ``(qx, qy)`` (−1 where none was looked at) and its squared
+    distance: :func:`nearest`'s point (the first of equal ones in the grid's order) where
+    that is below ``radius``² (else every point lies at least ``radius`` away); the next
+    nearest point it looked at (−1: none) and a lower bound on the distance to every point
+    but those two. While the query stays nearer to one of the two than that bound less how
+    far it moved, the nearer of them is its nearest. ``guess`` (∞: none), the distance to
+    some point, bounds the search where it lies within ``radius``: the cells within twice
+    that (at least half a cell). Else the cells within half a cell side first (a point next
+    to a surface lies that near to it) and, only where their nearest might not be the
+    nearest of all, all within ``radius``."""
+    side = geometry[3]
+    box = min(radius, max(2.0 * guess, 0.5 * side)) if guess < radius else min(radius, 0.5 * side)
+    first, d2, second, _d2, third, clear = _scan_box_near(qx, qy, box, geometry, shape, start, xy)
+    if box < radius and not d2 < clear * clear:
+        first, d2, second, _d2, third, clear = _scan_box_near(
+            qx, qy, radius, geometry, shape, start, xy
+        )
+    far = min(math.sqrt(third), clear)
+    if not d2 < radius * radius:  # every point lies at least the radius away
+        far = max(far, radius)
+    return first, d2, second, far

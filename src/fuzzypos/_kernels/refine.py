@@ -1,11 +1,13 @@
 """The point-to-line refinement as one compiled loop: pairing every point with the nearest
-surface point (through the surface's grid, built once per local map; a point that moved
-less than half the gap to its second nearest keeps its nearest without a search), the robust
-weights, the normal equations, the corridor's hold and the prior, the 3×3 solve, per
-Gauss-Newton iteration. The reference is ``fuzzypos.matching.surface.refine_point_to_line``
-with ``FUZZYPOS_KERNELS=numpy`` (``_refine_numpy``), the same steps in numpy with a KD-tree
-query per iteration. Also the inputs it is given: the scan points' weights
-(``Refiner.points``) and a keyframe's surface normals (``surface_points``)."""
+surface point (through the surface's grid, built once per local map; a point that stays
+nearer to its last nearest than the bound its last search left on every other point, less
+how far it moved, keeps its nearest without a search) and each pair's robust weight and
+terms of the normal equations in the same pass, the corridor's hold and the prior, the 3×3
+solve, per Gauss-Newton iteration. The reference is
+``fuzzypos.matching.surface.refine_point_to_line`` with ``FUZZYPOS_KERNELS=numpy``
+(``_refine_numpy``), the same steps in numpy with a KD-tree query per iteration. Also the
+inputs it is given: the scan points' weights (``Refiner.points``) and a keyframe's surface
+normals (``surface_points``)."""
 
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ from numpy.typing import NDArray
 
 from ._jit import kernel
 from ._select import kth_smallest, median
-from .grid import nearest_two
+from .grid import inlined, nearest_bounded
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -40,90 +42,162 @@ OK, TOO_FEW_PAIRS, SINGULAR = 0, 1, 2
 _SLACK = 1e-9
 
 
-@kernel
+@inlined
 def _pair(
     points: FloatArray,
+    radius: FloatArray,
+    weights: FloatArray,
     pose: FloatArray,
+    moved: FloatArray,
     gate: float,
     reach: FloatArray,
-    grid: tuple[FloatArray, IntArray, IntArray, IntArray, FloatArray],
-    ref_xy: FloatArray,
-    ref_normal: FloatArray,
-    out: FloatArray,
-    state: FloatArray,
-    last: IntArray,
-    moved: FloatArray,
-) -> int:
+    surface: tuple[FloatArray, IntArray, IntArray, FloatArray],
+    scale: float,
+    sigma2: float,
+    trimming: bool,
+    out: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    state: tuple[IntArray, FloatArray, FloatArray],
+) -> tuple[int, float, float, float]:
     """The points moved by ``pose``, each paired with the nearest reference point within
-    ``gate`` (or its own ``reach``, where larger; ``reach`` empty: the gate alone). Rows of
-    ``out`` for the paired points, in order: the Jacobian (n_x, n_y, dr/dθ) of the residual
-    n·(T·p − q), the residual, the point's index and the reference's. Returns how many paired.
+    ``gate`` (or its own ``reach``, where larger; ``reach`` empty: the gate alone), and each
+    pair weighed. ``out`` = (rows, w, absr, H, g): rows of ``rows`` for the paired points, in
+    order, the Jacobian (n_x, n_y, dr/dθ) of the residual r = n·(T·p − q) and r; ``w`` the
+    pair's weight (both points' certainty times Huber's at ``scale``, over σ² = ``sigma2``),
+    ``absr`` |r|; unless ``trimming`` (whose cut needs every weight first) ``H`` = Σ w J Jᵀ
+    and ``g`` = Σ w J r, in the same pass (the sums in the pairs' order, as pass by pass).
+    Returns how many paired and the translation block ``(a, b, c)`` of Σ w J Jᵀ.
 
-    What the last iteration's search left spares this one's: ``last[i]``, the grid entry
-    nearest to point i (−1: none within its bound), ``state[i, 0]`` how much further the
-    second nearest lay at least (the nearest stays while the point moves less than half
-    that) or, unpaired, how far around it nothing lay; ``state[i, 1]`` the point's distance
-    from the origin, with ``moved`` (the pose's |Δx| + |Δy| and |Δθ| since) a bound on how
-    far it moved."""
-    geometry, shape, start, order, gxy = grid
+    ``surface``: the grid's geometry, shape and cells, and ``table``, the reference points
+    in the grid's order (x, y, n_x, n_y, weight). ``state`` = (near, far, seen), what the
+    last search left spares the next iterations' searches: ``near[i]``, the two
+    grid entries nearest to point i then (−1: none), ``far[i]`` how far every other entry lay
+    at least (:func:`fuzzypos._kernels.grid.nearest_bounded`), less how far the point moved
+    since (``moved``: the pose's |Δx| + |Δy| and |Δθ| since the last iteration, with
+    ``radius`` the points' distances from the origin, bounds that); while one of the two is
+    nearer than that, the nearer of them is the point's nearest. Where that bound fails,
+    ``seen[i]`` (where the point was at its last search, and its bound then) gives the exact
+    way it moved since, before a search."""
+    geometry, shape, cells, table = surface
+    rows, w, absr, H, g = out
+    near, far, seen = state
     c, s = math.cos(pose[2]), math.sin(pose[2])
+    a = b = cc = 0.0
+    h02 = h10 = h12 = h20 = h21 = h22 = 0.0
+    g0 = g1 = g2 = 0.0
+    spread = reach.shape[0] > 0
     m = 0
     for i in range(points.shape[0]):
         rx = c * points[i, 0] - s * points[i, 1]
         ry = s * points[i, 0] + c * points[i, 1]
         qx, qy = rx + pose[0], ry + pose[1]
-        bound = gate
-        if reach.shape[0] > 0 and reach[i] > gate:
-            bound = reach[i]
-        step = moved[0] + moved[1] * state[i, 1] + _SLACK
-        k = last[i]
-        if k >= 0 and state[i, 0] > 2.0 * step:  # the same nearest point as last time
-            state[i, 0] -= 2.0 * step
-            dx, dy = gxy[k, 0] - qx, gxy[k, 1] - qy
-            if not dx * dx + dy * dy < bound * bound:
-                continue
-        elif k < 0 and state[i, 0] - step >= bound:  # still nothing within the bound
-            state[i, 0] -= step
+        bound = reach[i] if spread and reach[i] > gate else gate
+        lower = far[i] - (moved[0] + moved[1] * radius[i] + _SLACK)
+        k, other = near[i, 0], near[i, 1]
+        d2 = math.inf
+        if k >= 0:
+            dx, dy = table[k, 0] - qx, table[k, 1] - qy
+            d2 = dx * dx + dy * dy
+            if other >= 0:
+                dx, dy = table[other, 0] - qx, table[other, 1] - qy
+                e2 = dx * dx + dy * dy
+                if e2 < d2 or (e2 == d2 and other < k):  # (the first of equal ones)
+                    k, other, d2 = other, k, e2
+                    near[i, 0], near[i, 1] = k, other
+        hit = lower > 0.0 and d2 < lower * lower
+        if not (hit or lower >= bound):  # the bound less the way since the search, exactly
+            dx, dy = qx - seen[i, 0], qy - seen[i, 1]
+            lower = seen[i, 2] - (math.sqrt(dx * dx + dy * dy) + _SLACK)
+            hit = lower > 0.0 and d2 < lower * lower
+        if hit:  # the nearer of the two is the nearest
+            far[i] = lower
+        elif lower >= bound:  # the two and every other point lie beyond the bound
+            far[i] = lower
             continue
         else:
-            k, _d2, gap = nearest_two(qx, qy, bound, k, geometry, shape, start, gxy)
-            last[i] = k
-            if k < 0:
-                state[i, 0] = bound  # nothing lies within the bound
-                continue
-            state[i, 0] = gap
-        j = order[k]
-        nx, ny = ref_normal[j, 0], ref_normal[j, 1]
-        out[m, 0] = nx
-        out[m, 1] = ny
-        out[m, 2] = nx * (-ry) + ny * rx  # d r / d θ
-        out[m, 3] = nx * (qx - ref_xy[j, 0]) + ny * (qy - ref_xy[j, 1])
-        out[m, 4] = i
-        out[m, 5] = j
+            k, d2, other, far[i] = nearest_bounded(
+                qx, qy, bound, math.sqrt(d2), geometry, shape, cells, table
+            )
+            near[i, 0], near[i, 1] = k, other
+            seen[i, 0], seen[i, 1], seen[i, 2] = qx, qy, far[i]
+        if not d2 < bound * bound:
+            continue
+        nx, ny = table[k, 2], table[k, 3]
+        j0, j1, j2 = nx, ny, nx * (-ry) + ny * rx  # d r / d θ
+        res = nx * (qx - table[k, 0]) + ny * (qy - table[k, 1])
+        rows[m, 0], rows[m, 1], rows[m, 2], rows[m, 3] = j0, j1, j2, res
+        r = abs(res)
+        absr[m] = r
+        huber = 1.0 if r <= scale else scale / max(r, 1e-12)
+        wk = weights[i] * table[k, 4] * huber / sigma2
+        w[m] = wk
         m += 1
-    return m
+        ja = wk * j0
+        a, b, cc = a + ja * j0, b + ja * j1, cc + wk * j1 * j1
+        if not trimming:  # (a, b and c are H's first two entries of its first two rows)
+            g0, h02 = g0 + ja * res, h02 + ja * j2
+            ja = wk * j1
+            g1, h10, h12 = g1 + ja * res, h10 + ja * j0, h12 + ja * j2
+            ja = wk * j2
+            g2, h20, h21, h22 = g2 + ja * res, h20 + ja * j0, h21 + ja * j1, h22 + ja * j2
+    if not trimming:
+        _store(H, g, a, b, h02, h10, cc, h12, h20, h21, h22, g0, g1, g2)
+    return m, a, b, cc
 
 
-@kernel
+@inlined
+def _store(
+    H: FloatArray,
+    g: FloatArray,
+    h00: float,
+    h01: float,
+    h02: float,
+    h10: float,
+    h11: float,
+    h12: float,
+    h20: float,
+    h21: float,
+    h22: float,
+    g0: float,
+    g1: float,
+    g2: float,
+) -> None:
+    """``H`` the 3×3 of those entries, ``g`` = (g0, g1, g2). (Σ (w a) b and Σ (w b) a may
+    differ in their last bit: both triangles are summed.)"""
+    H[0, 0], H[0, 1], H[0, 2] = h00, h01, h02
+    H[1, 0], H[1, 1], H[1, 2] = h10, h11, h12
+    H[2, 0], H[2, 1], H[2, 2] = h20, h21, h22
+    g[0], g[1], g[2] = g0, g1, g2
+
+
+@inlined
 def _normal_equations(
     rows: FloatArray, w: FloatArray, m: int, H: FloatArray, g: FloatArray, square: bool
 ) -> None:
     """``H = Σ w J Jᵀ`` and ``g = Σ w J r`` over the first ``m`` rows (``square``: w² in ``H``)."""
-    for a in range(3):
-        g[a] = 0.0
-        for b in range(3):
-            H[a, b] = 0.0
+    h00 = h01 = h02 = h10 = h11 = h12 = h20 = h21 = h22 = 0.0
+    g0 = g1 = g2 = 0.0
     for k in range(m):
         wk = w[k] * w[k] if square else w[k]
-        r = rows[k, 3]
-        for a in range(3):
-            ja = wk * rows[k, a]
-            g[a] += ja * r
-            for b in range(3):
-                H[a, b] += ja * rows[k, b]
+        j0, j1, j2, r = rows[k, 0], rows[k, 1], rows[k, 2], rows[k, 3]
+        ja = wk * j0
+        g0 += ja * r
+        h00 += ja * j0
+        h01 += ja * j1
+        h02 += ja * j2
+        ja = wk * j1
+        g1 += ja * r
+        h10 += ja * j0
+        h11 += ja * j1
+        h12 += ja * j2
+        ja = wk * j2
+        g2 += ja * r
+        h20 += ja * j0
+        h21 += ja * j1
+        h22 += ja * j2
+    _store(H, g, h00, h01, h02, h10, h11, h12, h20, h21, h22, g0, g1, g2)
 
 
-@kernel
+@inlined
 def _trim(w: FloatArray, absr: FloatArray, m: int, sigmas: float, floor: float) -> None:
     """Weight 0 for residuals beyond ``sigmas`` × the upper median of |r| (at least ``floor``)."""
     med = kth_smallest(absr[:m], m // 2)
@@ -133,7 +207,7 @@ def _trim(w: FloatArray, absr: FloatArray, m: int, sigmas: float, floor: float) 
             w[k] = 0.0
 
 
-@kernel
+@inlined
 def _hold(
     a: float,
     b: float,
@@ -184,8 +258,12 @@ def _hold(
 def solve3(A: FloatArray, b: FloatArray, x: FloatArray) -> bool:
     """``x = A⁻¹ b`` for a 3×3 ``A`` by Gaussian elimination with partial pivoting (as LAPACK's
     dgesv); False where a pivot is exactly zero (numpy's LinAlgError)."""
-    M = A.copy()
-    v = b.copy()
+    return _solve_in_place(A.copy(), b.copy(), x)
+
+
+@inlined
+def _solve_in_place(M: FloatArray, v: FloatArray, x: FloatArray) -> bool:
+    """:func:`solve3` on ``M`` and ``v`` themselves (left eliminated: no copies)."""
     for col in range(3):
         p = col
         for r in range(col + 1, 3):
@@ -210,13 +288,13 @@ def solve3(A: FloatArray, b: FloatArray, x: FloatArray) -> bool:
     return True
 
 
-@kernel
+@inlined
 def _wrap(a: float) -> float:
     """An angle wrapped into [−π, π) (Python's floored modulo, as the reference)."""
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-@kernel
+@inlined
 def _add_prior(
     H: FloatArray,
     g: FloatArray,
@@ -227,78 +305,22 @@ def _add_prior(
     full_prior: bool,
 ) -> None:
     """The prior as one more measurement: its diagonal information, or the full 3×3."""
-    dp = np.empty(3)
-    for i in range(3):
-        dp[i] = pose[i] - prior[i]
-    dp[2] = _wrap(dp[2])
+    d0, d1 = pose[0] - prior[0], pose[1] - prior[1]
+    d2 = _wrap(pose[2] - prior[2])
     for i in range(3):
         if full_prior:
-            for j in range(3):
-                H[i, j] += prior_info[i, j]
-                g[i] += prior_info[i, j] * dp[j]
+            H[i, 0] += prior_info[i, 0]
+            g[i] += prior_info[i, 0] * d0
+            H[i, 1] += prior_info[i, 1]
+            g[i] += prior_info[i, 1] * d1
+            H[i, 2] += prior_info[i, 2]
+            g[i] += prior_info[i, 2] * d2
         else:
             H[i, i] += prior_diag[i]
-            g[i] += prior_diag[i] * dp[i]
+            g[i] += prior_diag[i] * (d0 if i == 0 else (d1 if i == 1 else d2))
 
 
-@kernel
-def _weigh(
-    rows: FloatArray,
-    m: int,
-    weights: FloatArray,
-    ref_weight: FloatArray,
-    scale: float,
-    sigma2: float,
-    w: FloatArray,
-    absr: FloatArray,
-    H: FloatArray,
-    g: FloatArray,
-    trimming: bool,
-) -> tuple[float, float, float]:
-    """Each pair's weight (both points' certainty times Huber's at ``scale``, over σ²), the
-    translation block ``(a, b, c)`` of the weighted pairs and, unless ``trimming`` (whose
-    cut needs every weight first), :func:`_normal_equations`' ``H`` and ``g``: one pass over
-    the pairs (the same sums in the same order as pass by pass)."""
-    a, b, c = 0.0, 0.0, 0.0
-    h00 = h01 = h02 = h10 = h11 = h12 = h20 = h21 = h22 = 0.0
-    g0 = g1 = g2 = 0.0
-    for k in range(m):
-        r = abs(rows[k, 3])
-        absr[k] = r
-        huber = 1.0 if r <= scale else scale / max(r, 1e-12)
-        i, j = int(rows[k, 4]), int(rows[k, 5])
-        wk = weights[i] * ref_weight[j] * huber / sigma2
-        w[k] = wk
-        j0, j1, j2 = rows[k, 0], rows[k, 1], rows[k, 2]
-        a += wk * j0 * j0
-        b += wk * j0 * j1
-        c += wk * j1 * j1
-        if not trimming:
-            res = rows[k, 3]
-            ja = wk * j0
-            g0 += ja * res
-            h00 += ja * j0
-            h01 += ja * j1
-            h02 += ja * j2
-            ja = wk * j1
-            g1 += ja * res
-            h10 += ja * j0
-            h11 += ja * j1
-            h12 += ja * j2
-            ja = wk * j2
-            g2 += ja * res
-            h20 += ja * j0
-            h21 += ja * j1
-            h22 += ja * j2
-    if not trimming:
-        H[0, 0], H[0, 1], H[0, 2] = h00, h01, h02
-        H[1, 0], H[1, 1], H[1, 2] = h10, h11, h12
-        H[2, 0], H[2, 1], H[2, 2] = h20, h21, h22
-        g[0], g[1], g[2] = g0, g1, g2
-    return a, b, c
-
-
-@kernel
+@inlined
 def _reach(spacing: FloatArray, pairing_spacing: float, min_distance: float) -> FloatArray:
     """How far each point may pair by its own beam ``spacing`` (``pairing_spacing`` of them);
     empty where none reaches beyond ``min_distance`` (the fixed distances decide) or no
@@ -315,10 +337,10 @@ def _reach(spacing: FloatArray, pairing_spacing: float, min_distance: float) -> 
 
 @kernel
 def refine(
-    grid: tuple[FloatArray, IntArray, IntArray, IntArray, FloatArray],
-    ref_xy: FloatArray,
-    ref_normal: FloatArray,
-    ref_weight: FloatArray,
+    geometry: FloatArray,
+    shape: IntArray,
+    cells: IntArray,
+    table: FloatArray,
     points: FloatArray,
     weights: FloatArray,
     start: FloatArray,
@@ -331,34 +353,40 @@ def refine(
     prior_diag: FloatArray,
     prior_info: FloatArray,
     full_prior: bool,
-) -> tuple[int, FloatArray, int, int, FloatArray, FloatArray, bool, FloatArray, float]:
+) -> tuple[int, FloatArray, int, int, FloatArray, FloatArray, bool, FloatArray]:
     """The whole refinement (``refine_point_to_line``): status (OK, TOO_FEW_PAIRS, SINGULAR),
     the pose, how many paired at the last iteration, how many of those within half the Huber
-    scale, the points' information, the hold's term, whether it holds the start, Σ w² J Jᵀ and
-    the residuals' variance. ``params`` as :data:`PARAMS`; ``spacing``, each point's beam
-    spacing at its range (empty: none)."""
+    scale, the points' information, the hold's term, whether it holds the start, and the
+    gradient's covariance σ_r² Σ w² J Jᵀ (σ_r² the residuals' variance). The reference: its
+    grid's ``geometry``, ``shape`` and ``cells`` (``start``) and ``table``, its points in the
+    grid's order (x, y, the normal's x and y, the weight). ``params`` as :data:`PARAMS`;
+    ``spacing``, each point's beam spacing at its range (empty: none)."""
     scale, sigma, ratio, tolerance = params[0], params[1], params[2], params[3]
     trim_floor, conv_t, conv_r, trim_sigmas = params[4], params[5], params[6], params[7]
     reach = _reach(spacing, params[8], params[9])
     sigma2 = sigma**2
     n = points.shape[0]
-    rows = np.empty((n, 6))
+    rows = np.empty((n, 4))
     w, absr = np.empty(n), np.empty(n)
     H, g = np.empty((3, 3)), np.empty(3)
     info, term, delta = np.empty((3, 3)), np.zeros((3, 3)), np.empty(3)
-    last = np.full(n, -1, dtype=np.int64)  # each point's nearest at the last iteration
-    state, moved = np.zeros((n, 2)), np.zeros(2)
-    for i in range(n):
-        state[i, 1] = math.hypot(points[i, 0], points[i, 1])
+    near = np.full((n, 2), -1, dtype=np.int64)  # each point's two nearest at its last search
+    far, radius, moved = np.zeros(n), np.empty(n), np.zeros(2)
+    seen = np.zeros((n, 3))  # where each point was at its last search, and its bound then
+    for i in range(n):  # (its rounding far below _SLACK: cheaper than math.hypot)
+        radius[i] = math.sqrt(points[i, 0] * points[i, 0] + points[i, 1] * points[i, 1])
+    surface, out, state = (geometry, shape, cells, table), (rows, w, absr, H, g), (near, far, seen)
     pose = start.copy()
     start_xy = start[:2].copy()
     trimming, on_start, m = False, False, 0
     for it in range(iterations):
         gate = gates[min(it, gates.shape[0] - 1)]
-        m = _pair(points, pose, gate, reach, grid, ref_xy, ref_normal, rows, state, last, moved)
+        m, a, b, c = _pair(
+            points, radius, weights, pose, moved, gate, reach, surface, scale, sigma2,
+            trimming, out, state,
+        )  # fmt: skip
         if m < 3:
-            return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info, 0.0
-        a, b, c = _weigh(rows, m, weights, ref_weight, scale, sigma2, w, absr, H, g, trimming)
+            return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info
         if trimming:
             _trim(w, absr, m, trim_sigmas, trim_floor)
             _normal_equations(rows, w, m, H, g, False)
@@ -367,8 +395,8 @@ def refine(
                 info[i, j] = H[i, j]
         on_start = _hold(a, b, c, H, g, pose, start_xy, hold_xy, ratio, tolerance, term)
         _add_prior(H, g, pose, prior, prior_diag, prior_info, full_prior)
-        if not solve3(H, g, delta):
-            return SINGULAR, pose, m, 0, info, term, False, info, 0.0
+        if not _solve_in_place(H, g, delta):
+            return SINGULAR, pose, m, 0, info, term, False, info
         for i in range(3):
             pose[i] -= delta[i]
         moved[0], moved[1] = abs(delta[0]) + abs(delta[1]), abs(delta[2])
@@ -392,8 +420,27 @@ def refine(
             clipped += r * r
     variance = scale * scale if used <= 3 else clipped / (used - 3)
     gradient = np.empty((3, 3))
-    _normal_equations(rows, w, m, gradient, np.empty(3), True)
-    return OK, pose, m, close, info, term, on_start, gradient, variance
+    _normal_equations(rows, w, m, gradient, g, True)
+    for i in range(3):
+        for j in range(3):
+            gradient[i, j] = variance * gradient[i, j]
+    return OK, pose, m, close, info, term, on_start, gradient
+
+
+@kernel
+def surface_table(
+    xy: FloatArray, normal: FloatArray, weight: FloatArray, order: IntArray
+) -> FloatArray:
+    """:func:`refine`'s ``table``: the surface's points in the grid's ``order`` (``xy``
+    already in it), a row each: x, y, the normal's x and y, the weight."""
+    n = order.shape[0]
+    table = np.empty((n, 5))
+    for k in range(n):
+        j = order[k]
+        table[k, 0], table[k, 1] = xy[k, 0], xy[k, 1]
+        table[k, 2], table[k, 3] = normal[j, 0], normal[j, 1]
+        table[k, 4] = weight[j]
+    return table
 
 
 @kernel

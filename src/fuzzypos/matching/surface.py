@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
+from types import ModuleType
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -56,13 +57,13 @@ class SurfacePoints:
         return build_grid(self.xy, GRID_CELL)
 
     @cached_property
-    def arrays(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """``xy``, ``normal`` and ``weight`` as contiguous float64 arrays (for the kernels)."""
-        return (
-            np.ascontiguousarray(self.xy, dtype=np.float64),
-            np.ascontiguousarray(self.normal, dtype=np.float64),
-            np.ascontiguousarray(self.weight, dtype=np.float64),
-        )
+    def table(self) -> FloatArray:
+        """The points in ``grid``'s order, a row each: x, y, the normal's x and y, the weight
+        (the compiled refinement's one look-up per pair; built once, on first use)."""
+        from .._kernels.refine import surface_table
+
+        grid = self.grid
+        return surface_table(grid.xy, f64(self.normal), f64(self.weight), grid.order)
 
 
 #: the side (m) of the surface grid's cells: about the refinement's pairing distance
@@ -196,6 +197,40 @@ class Refinement:
     prior: FloatArray = field(default_factory=lambda: np.zeros(3))
     gradient_covariance: FloatArray = field(default_factory=lambda: np.zeros((3, 3)))
 
+    @classmethod
+    def _trusted(
+        cls,
+        increment: FloatArray,
+        n_paired: int,
+        inlier_fraction: float,
+        close_fraction: float,
+        information: FloatArray,
+        prior_information: FloatArray,
+        hold_information: FloatArray,
+        hold_on_start: bool,
+        start: FloatArray,
+        prior: FloatArray,
+        gradient_covariance: FloatArray,
+    ) -> Refinement:
+        """The refinement of every field, as the constructor builds it, straight into the
+        instance's dict (the frozen dataclass's ``__init__`` sets each of the eleven through
+        ``object.__setattr__``, over a microsecond a call more; the compiled refinement's)."""
+        r = object.__new__(cls)
+        r.__dict__.update(
+            increment=increment,
+            n_paired=n_paired,
+            inlier_fraction=inlier_fraction,
+            close_fraction=close_fraction,
+            information=information,
+            prior_information=prior_information,
+            hold_information=hold_information,
+            hold_on_start=hold_on_start,
+            start=start,
+            prior=prior,
+            gradient_covariance=gradient_covariance,
+        )
+        return r
+
 
 def refine_point_to_line(
     reference: SurfacePoints,
@@ -247,35 +282,40 @@ def _refine_compiled(
     spacing: FloatArray | None,
 ) -> Refinement | None:
     """:func:`refine_point_to_line` as one compiled loop (``fuzzypos._kernels.refine``)."""
-    from .._kernels import refine as kernel
-
+    kernel = _KERNEL[0] if _KERNEL else _load_kernel()
     start = np.array(start, dtype=np.float64)
     prior = np.array(prior, dtype=np.float64)
     gates, params, info_prior, diagonal = _kernel_settings(cfg, max_distance, prior_scale)
-    prior_info = diagonal if prior_information is None else f64(prior_information) / prior_scale**2
-    xy, normal, weight = reference.arrays
+    full = prior_information is not None
+    prior_info = f64(prior_information) / prior_scale**2 if full else diagonal
+    geometry, shape, cells, _order, _xy = reference.grid
+    table = reference.table
+    contiguous = np.ascontiguousarray
     # (the hold's x and y: the kernel reads those two of the pose)
-    status, pose, paired, close, info, hold_info, on_start, gradient, variance = kernel.refine(
-        reference.grid, xy, normal, weight, f64(points), f64(weights), start, prior, f64(hold),
-        gates, _NO_SPACING if spacing is None else f64(spacing), params, int(cfg.iterations),
-        info_prior, prior_info, prior_information is not None,
+    status, pose, paired, close, info, hold_info, on_start, covariance = kernel.refine(
+        geometry, shape, cells, table, contiguous(points, dtype=np.float64),
+        contiguous(weights, dtype=np.float64), start, prior, contiguous(hold, dtype=np.float64),
+        gates, _NO_SPACING if spacing is None else contiguous(spacing, dtype=np.float64),
+        params, int(cfg.iterations), info_prior, prior_info, full,
     )  # fmt: skip
-    if status != kernel.OK:
+    if status:  # (not kernel.OK)
         return None
     n = points.shape[0]
-    return Refinement(
-        pose,
-        int(paired),
-        paired / n,
-        close / n,
-        information=info,
-        prior_information=prior_info.copy() if prior_information is None else prior_info,
-        hold_information=hold_info,
-        hold_on_start=bool(on_start),
-        start=start,
-        prior=prior,
-        gradient_covariance=variance * gradient,
-    )
+    return Refinement._trusted(
+        pose, paired, paired / n, close / n, info, prior_info if full else prior_info.copy(),
+        hold_info, on_start, start, prior, covariance,
+    )  # fmt: skip
+
+
+_KERNEL: list[ModuleType] = []  # fuzzypos._kernels.refine, once imported
+
+
+def _load_kernel() -> ModuleType:
+    """The refinement's kernels' module, imported on first use (it imports numba)."""
+    from .._kernels import refine
+
+    _KERNEL.append(refine)
+    return refine
 
 
 @same_as_last_call
