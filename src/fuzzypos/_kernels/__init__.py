@@ -5,9 +5,10 @@ other.
 
 No kernel module is imported, and nothing compiled, when ``fuzzypos`` is imported (only this
 package and ``packing``, plain Python without numba): a caller imports a kernel module on first
-use (which imports numba), and numba compiles each kernel on its first call, caching the machine code on disk (``__pycache__`` beside the module) for the next
-process. ``FUZZYPOS_KERNELS=numpy`` in the environment makes the callers use the numpy
-references instead (slower; for comparison and for platforms without numba).
+use (which imports numba), and numba compiles each kernel on its first call, caching the
+machine code on disk (``__pycache__`` beside the module) for the next process.
+``FUZZYPOS_KERNELS=numpy`` in the environment makes the callers use the numpy references
+instead (slower; for comparison and for platforms without numba).
 """
 
 from __future__ import annotations
