@@ -1,0 +1,55 @@
+"""The peers benchmark's simulated logs (``benchmarks/bench_peers.py --logs sim360``): written
+as CARMEN logs that read back with the scanner's beams, and relations that are the truth's."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from fuzzypos import sim
+from fuzzypos.demo import DemoSettings
+from fuzzypos.evaluation import relations_errors
+from fuzzypos.io import read_relations
+from fuzzypos.logs import open_log
+
+BENCH = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_peers.py"
+
+
+@pytest.fixture(scope="module")
+def bench() -> ModuleType:
+    """The benchmark as a module (its import pins the thread counts: put back afterwards)."""
+    saved = dict(os.environ)
+    spec = importlib.util.spec_from_file_location("bench_peers", BENCH)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+    return module
+
+
+def test_the_simulated_log_reads_back_and_its_relations_are_the_truth(bench, tmp_path) -> None:
+    log, relations_path = bench.simulated_log(tmp_path, "sim360")
+    records = list(open_log(log).records())
+    run = sim.simulate_run(
+        sim.gym(), sim.CommandedPath.circle(4.0, 3.0, 0.3),
+        DemoSettings().scanner, DemoSettings().slip, 0, with_scans=False,
+    )  # fmt: skip
+    assert len(records) == len(run.true_poses) > 2000
+    assert all(len(r.scan.ranges) == 360 for r in records[:50])
+    stamps = np.array([r.scan.stamp for r in records])
+    relations = read_relations(relations_path)
+    local = relations.t2 - relations.t1 <= 10.0
+    assert 0 < local.sum() < len(local)  # local relations and long ones
+    truth = relations_errors(stamps, run.true_poses, relations)
+    assert truth.all.matched == len(local)
+    assert truth.all.translation_m.mean < 1e-9 and truth.all.rotation_deg.mean < 1e-7
+    odometry = np.array([r.odometry.as_array() for r in records])
+    assert relations_errors(stamps, odometry, relations).all.translation_m.mean > 0.01
