@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._jit import kernel
-from ._select import kth_smallest, median
+from ._select import kth_smallest_in, median
 from .grid import inlined, nearest_bounded
 
 FloatArray = NDArray[np.float64]
@@ -198,9 +198,12 @@ def _normal_equations(
 
 
 @inlined
-def _trim(w: FloatArray, absr: FloatArray, m: int, sigmas: float, floor: float) -> None:
-    """Weight 0 for residuals beyond ``sigmas`` × the upper median of |r| (at least ``floor``)."""
-    med = kth_smallest(absr[:m], m // 2)
+def _trim(
+    w: FloatArray, absr: FloatArray, m: int, sigmas: float, floor: float, scratch: FloatArray
+) -> None:
+    """Weight 0 for residuals beyond ``sigmas`` × the upper median of |r| (at least ``floor``;
+    ``scratch``, at least ``m`` long, for the selection's copy)."""
+    med = kth_smallest_in(absr[:m], m // 2, scratch)
     cut = max(sigmas * med, floor)
     for k in range(m):
         if absr[k] > cut:
@@ -367,7 +370,7 @@ def refine(
     sigma2 = sigma**2
     n = points.shape[0]
     rows = np.empty((n, 4))
-    w, absr = np.empty(n), np.empty(n)
+    w, absr, scratch = np.empty(n), np.empty(n), np.empty(n)
     H, g = np.empty((3, 3)), np.empty(3)
     info, term, delta = np.empty((3, 3)), np.zeros((3, 3)), np.empty(3)
     near = np.full((n, 2), -1, dtype=np.int64)  # each point's two nearest at its last search
@@ -388,7 +391,7 @@ def refine(
         if m < 3:
             return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info
         if trimming:
-            _trim(w, absr, m, trim_sigmas, trim_floor)
+            _trim(w, absr, m, trim_sigmas, trim_floor, scratch)
             _normal_equations(rows, w, m, H, g, False)
         for i in range(3):
             for j in range(3):
