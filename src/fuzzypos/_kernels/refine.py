@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from ._jit import kernel
 from ._select import kth_smallest_in, median
-from .grid import inlined, nearest_bounded
+from .grid import frame_of, inlined, nearest_in
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -71,13 +71,14 @@ def _pair(
     in the grid's order (x, y, n_x, n_y, weight). ``state`` = (near, far, seen), what the
     last search left spares the next iterations' searches: ``near[i]``, the two
     grid entries nearest to point i then (−1: none), ``far[i]`` how far every other entry lay
-    at least (:func:`fuzzypos._kernels.grid.nearest_bounded`), less how far the point moved
+    at least (:func:`fuzzypos._kernels.grid.nearest_in`), less how far the point moved
     since (``moved``: the pose's |Δx| + |Δy| and |Δθ| since the last iteration, with
     ``radius`` the points' distances from the origin, bounds that); while one of the two is
     nearer than that, the nearer of them is the point's nearest. Where that bound fails,
     ``seen[i]`` (where the point was at its last search, and its bound then) gives the exact
     way it moved since, before a search."""
     geometry, shape, cells, table = surface
+    frame = frame_of(geometry, shape)
     rows, w, absr, H, g = out
     near, far, seen = state
     c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -114,9 +115,7 @@ def _pair(
             far[i] = lower
             continue
         else:
-            k, d2, other, far[i] = nearest_bounded(
-                qx, qy, bound, math.sqrt(d2), geometry, shape, cells, table
-            )
+            k, d2, other, far[i] = nearest_in(qx, qy, bound, math.sqrt(d2), frame, cells, table)
             near[i, 0], near[i, 1] = k, other
             seen[i, 0], seen[i, 1], seen[i, 2] = qx, qy, far[i]
         if not d2 < bound * bound:
