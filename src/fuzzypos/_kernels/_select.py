@@ -45,3 +45,37 @@ def median(values: FloatArray) -> float:
     if n % 2:
         return kth_smallest(values, mid)
     return 0.5 * (kth_smallest(values, mid - 1) + kth_smallest(values, mid))
+
+
+@kernel
+def kth_smallest_in(values: FloatArray, k: int, scratch: FloatArray) -> float:
+    """:func:`kth_smallest` with ``scratch`` (at least as long as ``values``) for the copy, by
+    quickselect with branch-free partitions (Lomuto's, about the median of three): about a
+    quarter of the time of :func:`kth_smallest`'s on a few hundred values, though as slow as
+    a sort where most of them are equal."""
+    n = values.shape[0]
+    a = scratch
+    for i in range(n):
+        a[i] = values[i]
+    lo, hi = 0, n - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        x, y, z = a[lo], a[mid], a[hi]
+        p = mid if (x <= y) == (y <= z) else (lo if (y <= x) == (x <= z) else hi)
+        pivot = a[p]
+        a[p] = a[hi]
+        store = lo
+        for i in range(lo, hi):  # a[lo:store] < pivot ≤ a[store:i], whichever way x goes
+            x = a[i]
+            a[i] = a[store]
+            a[store] = x
+            store += x < pivot
+        a[hi] = a[store]
+        a[store] = pivot
+        if k < store:
+            hi = store - 1
+        elif k > store:
+            lo = store + 1
+        else:
+            return float(pivot)
+    return float(a[k])

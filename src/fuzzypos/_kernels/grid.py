@@ -30,6 +30,8 @@ IntArray = NDArray[np.int64]
 CELLS_PER_POINT = 64
 MIN_CELLS = 4096
 _F = TypeVar("_F", bound=Callable[..., Any])
+#: a grid's geometry and shape as scalars (:func:`frame_of`)
+Frame = tuple[float, float, float, float, int, int]
 
 
 def inlined(func: _F) -> _F:
@@ -230,15 +232,13 @@ def _clearance(
     ix1: int,
     iy0: int,
     iy1: int,
-    geometry: FloatArray,
-    shape: IntArray,
+    frame: Frame,
 ) -> float:
     """A lower bound on the distance from ``(qx, qy)`` to every point outside the cells
     ``ix0..ix1`` × ``iy0..iy1`` (a box of the grid, or an empty range where the query's square
     missed it): the way to the nearest side of the box that has cells beyond it (less
     ``_ROUNDING``: a point on a cell's edge may have been rounded into either cell)."""
-    x0, y0, side = geometry[0], geometry[1], geometry[3]
-    nx, ny = shape[0], shape[1]
+    x0, y0, _inv, side, nx, ny = frame
     if ix0 > ix1 or iy0 > iy1:  # off the grid: the way to its extent along either axis
         gap: float = max(x0 - qx, qx - (x0 + nx * side), y0 - qy, qy - (y0 + ny * side))
         return gap - _ROUNDING
@@ -259,8 +259,7 @@ def _scan_box_near(
     qx: float,
     qy: float,
     box: float,
-    geometry: FloatArray,
-    shape: IntArray,
+    frame: Frame,
     start: IntArray,
     xy: FloatArray,
 ) -> tuple[int, float, int, float, float, float]:
@@ -268,8 +267,7 @@ def _scan_box_near(
     of equal ones in the grid's order) and its squared distance (∞ where none), the next
     nearest and its, the squared distance of the nearest third point, and
     :func:`_clearance`, the distance beyond which the points not scanned lie."""
-    x0, y0, inv = geometry[0], geometry[1], geometry[2]
-    nx, ny = shape[0], shape[1]
+    x0, y0, inv, _side, nx, ny = frame
     first, first_d2, second, second_d2, third_d2 = -1, math.inf, -1, math.inf, math.inf
     ix0, ix1 = _cell_range(qx, box, x0, inv, nx)
     iy0, iy1 = _cell_range(qy, box, y0, inv, ny)
@@ -289,7 +287,7 @@ def _scan_box_near(
                         second, second_d2 = k, d2
                 elif d2 < third_d2:
                     third_d2 = d2
-    clear = _clearance(qx, qy, ix0, ix1, iy0, iy1, geometry, shape)
+    clear = _clearance(qx, qy, ix0, ix1, iy0, iy1, frame)
     return first, first_d2, second, second_d2, third_d2, clear
 
 
@@ -304,6 +302,26 @@ def nearest_bounded(
     start: IntArray,
     xy: FloatArray,
 ) -> tuple[int, float, int, float]:
+    """:func:`nearest_in` the grid of ``geometry`` and ``shape``."""
+    return nearest_in(qx, qy, radius, guess, frame_of(geometry, shape), start, xy)
+
+
+@inlined
+def frame_of(geometry: FloatArray, shape: IntArray) -> Frame:
+    """A grid's geometry and shape as scalars: (x0, y0, 1/cell, cell, nx, ny)."""
+    return geometry[0], geometry[1], geometry[2], geometry[3], shape[0], shape[1]
+
+
+@inlined
+def nearest_in(
+    qx: float,
+    qy: float,
+    radius: float,
+    guess: float,
+    frame: Frame,
+    start: IntArray,
+    xy: FloatArray,
+) -> tuple[int, float, int, float]:
     """The nearest point to ``(qx, qy)`` (−1 where none was looked at) and its squared
     distance: :func:`nearest`'s point (the first of equal ones in the grid's order) where
     that is below ``radius``² (else every point lies at least ``radius`` away); the next
@@ -313,14 +331,13 @@ def nearest_bounded(
     some point, bounds the search where it lies within ``radius``: the cells within twice
     that (at least half a cell). Else the cells within half a cell side first (a point next
     to a surface lies that near to it) and, only where their nearest might not be the
-    nearest of all, all within ``radius``."""
-    side = geometry[3]
+    nearest of all, all within ``radius``. ``frame``: :func:`frame_of` the grid (scalars, which
+    an inlined call does not count references of, as it does an array's)."""
+    side = frame[3]
     box = min(radius, max(2.0 * guess, 0.5 * side)) if guess < radius else min(radius, 0.5 * side)
-    first, d2, second, _d2, third, clear = _scan_box_near(qx, qy, box, geometry, shape, start, xy)
+    first, d2, second, _d2, third, clear = _scan_box_near(qx, qy, box, frame, start, xy)
     if box < radius and not d2 < clear * clear:
-        first, d2, second, _d2, third, clear = _scan_box_near(
-            qx, qy, radius, geometry, shape, start, xy
-        )
+        first, d2, second, _d2, third, clear = _scan_box_near(qx, qy, radius, frame, start, xy)
     far = min(math.sqrt(third), clear)
     if not d2 < radius * radius:  # every point lies at least the radius away
         far = max(far, radius)

@@ -17,8 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._jit import kernel
-from ._select import kth_smallest, median
-from .grid import inlined, nearest_bounded
+from ._select import kth_smallest_in, median
+from .grid import frame_of, inlined, nearest_in
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -71,13 +71,14 @@ def _pair(
     in the grid's order (x, y, n_x, n_y, weight). ``state`` = (near, far, seen), what the
     last search left spares the next iterations' searches: ``near[i]``, the two
     grid entries nearest to point i then (−1: none), ``far[i]`` how far every other entry lay
-    at least (:func:`fuzzypos._kernels.grid.nearest_bounded`), less how far the point moved
+    at least (:func:`fuzzypos._kernels.grid.nearest_in`), less how far the point moved
     since (``moved``: the pose's |Δx| + |Δy| and |Δθ| since the last iteration, with
     ``radius`` the points' distances from the origin, bounds that); while one of the two is
     nearer than that, the nearer of them is the point's nearest. Where that bound fails,
     ``seen[i]`` (where the point was at its last search, and its bound then) gives the exact
     way it moved since, before a search."""
     geometry, shape, cells, table = surface
+    frame = frame_of(geometry, shape)
     rows, w, absr, H, g = out
     near, far, seen = state
     c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -114,9 +115,7 @@ def _pair(
             far[i] = lower
             continue
         else:
-            k, d2, other, far[i] = nearest_bounded(
-                qx, qy, bound, math.sqrt(d2), geometry, shape, cells, table
-            )
+            k, d2, other, far[i] = nearest_in(qx, qy, bound, math.sqrt(d2), frame, cells, table)
             near[i, 0], near[i, 1] = k, other
             seen[i, 0], seen[i, 1], seen[i, 2] = qx, qy, far[i]
         if not d2 < bound * bound:
@@ -198,9 +197,12 @@ def _normal_equations(
 
 
 @inlined
-def _trim(w: FloatArray, absr: FloatArray, m: int, sigmas: float, floor: float) -> None:
-    """Weight 0 for residuals beyond ``sigmas`` × the upper median of |r| (at least ``floor``)."""
-    med = kth_smallest(absr[:m], m // 2)
+def _trim(
+    w: FloatArray, absr: FloatArray, m: int, sigmas: float, floor: float, scratch: FloatArray
+) -> None:
+    """Weight 0 for residuals beyond ``sigmas`` × the upper median of |r| (at least ``floor``;
+    ``scratch``, at least ``m`` long, for the selection's copy)."""
+    med = kth_smallest_in(absr[:m], m // 2, scratch)
     cut = max(sigmas * med, floor)
     for k in range(m):
         if absr[k] > cut:
@@ -353,11 +355,12 @@ def refine(
     prior_diag: FloatArray,
     prior_info: FloatArray,
     full_prior: bool,
-) -> tuple[int, FloatArray, int, int, FloatArray, FloatArray, bool, FloatArray]:
+) -> tuple[int, int, int, bool, FloatArray]:
     """The whole refinement (``refine_point_to_line``): status (OK, TOO_FEW_PAIRS, SINGULAR),
-    the pose, how many paired at the last iteration, how many of those within half the Huber
-    scale, the points' information, the hold's term, whether it holds the start, and the
-    gradient's covariance σ_r² Σ w² J Jᵀ (σ_r² the residuals' variance). The reference: its
+    how many paired at the last iteration, how many of those within half the Huber scale,
+    whether the hold holds the start, and one (4, 3, 3) array (one to return, not four): the
+    pose (its first row), the points' information, the hold's term and the gradient's
+    covariance σ_r² Σ w² J Jᵀ (σ_r² the residuals' variance). The reference: its
     grid's ``geometry``, ``shape`` and ``cells`` (``start``) and ``table``, its points in the
     grid's order (x, y, the normal's x and y, the weight). ``params`` as :data:`PARAMS`;
     ``spacing``, each point's beam spacing at its range (empty: none)."""
@@ -367,16 +370,17 @@ def refine(
     sigma2 = sigma**2
     n = points.shape[0]
     rows = np.empty((n, 4))
-    w, absr = np.empty(n), np.empty(n)
+    w, absr, scratch = np.empty(n), np.empty(n), np.empty(n)
     H, g = np.empty((3, 3)), np.empty(3)
-    info, term, delta = np.empty((3, 3)), np.zeros((3, 3)), np.empty(3)
+    result, delta = np.zeros((4, 3, 3)), np.empty(3)
+    pose, info, term, gradient = result[0, 0], result[1], result[2], result[3]
     near = np.full((n, 2), -1, dtype=np.int64)  # each point's two nearest at its last search
     far, radius, moved = np.zeros(n), np.empty(n), np.zeros(2)
     seen = np.zeros((n, 3))  # where each point was at its last search, and its bound then
     for i in range(n):  # (its rounding far below _SLACK: cheaper than math.hypot)
         radius[i] = math.sqrt(points[i, 0] * points[i, 0] + points[i, 1] * points[i, 1])
     surface, out, state = (geometry, shape, cells, table), (rows, w, absr, H, g), (near, far, seen)
-    pose = start.copy()
+    pose[0], pose[1], pose[2] = start[0], start[1], start[2]
     start_xy = start[:2].copy()
     trimming, on_start, m = False, False, 0
     for it in range(iterations):
@@ -386,9 +390,9 @@ def refine(
             trimming, out, state,
         )  # fmt: skip
         if m < 3:
-            return TOO_FEW_PAIRS, pose, m, 0, info, term, False, info
+            return TOO_FEW_PAIRS, m, 0, False, result
         if trimming:
-            _trim(w, absr, m, trim_sigmas, trim_floor)
+            _trim(w, absr, m, trim_sigmas, trim_floor, scratch)
             _normal_equations(rows, w, m, H, g, False)
         for i in range(3):
             for j in range(3):
@@ -396,7 +400,7 @@ def refine(
         on_start = _hold(a, b, c, H, g, pose, start_xy, hold_xy, ratio, tolerance, term)
         _add_prior(H, g, pose, prior, prior_diag, prior_info, full_prior)
         if not _solve_in_place(H, g, delta):
-            return SINGULAR, pose, m, 0, info, term, False, info
+            return SINGULAR, m, 0, False, result
         for i in range(3):
             pose[i] -= delta[i]
         moved[0], moved[1] = abs(delta[0]) + abs(delta[1]), abs(delta[2])
@@ -419,12 +423,11 @@ def refine(
             r = min(absr[k], scale)
             clipped += r * r
     variance = scale * scale if used <= 3 else clipped / (used - 3)
-    gradient = np.empty((3, 3))
     _normal_equations(rows, w, m, gradient, g, True)
     for i in range(3):
         for j in range(3):
             gradient[i, j] = variance * gradient[i, j]
-    return OK, pose, m, close, info, term, on_start, gradient
+    return OK, m, close, on_start, result
 
 
 @kernel

@@ -292,7 +292,7 @@ def _refine_compiled(
     table = reference.table
     contiguous = np.ascontiguousarray
     # (the hold's x and y: the kernel reads those two of the pose)
-    status, pose, paired, close, info, hold_info, on_start, covariance = kernel.refine(
+    status, paired, close, on_start, result = kernel.refine(
         geometry, shape, cells, table, contiguous(points, dtype=np.float64),
         contiguous(weights, dtype=np.float64), start, prior, contiguous(hold, dtype=np.float64),
         gates, _NO_SPACING if spacing is None else contiguous(spacing, dtype=np.float64),
@@ -302,8 +302,8 @@ def _refine_compiled(
         return None
     n = points.shape[0]
     return Refinement._trusted(
-        pose, paired, paired / n, close / n, info, prior_info if full else prior_info.copy(),
-        hold_info, on_start, start, prior, covariance,
+        result[0, 0], paired, paired / n, close / n, result[1],
+        prior_info if full else prior_info.copy(), result[2], on_start, start, prior, result[3],
     )  # fmt: skip
 
 
