@@ -263,8 +263,8 @@ def _assert_same(x: Any, y: Any, name: str) -> None:
 @given(pose=poses, seed=st.integers(0, 1000), beams=st.sampled_from([180, 360]))
 def test_the_packed_features_are_the_staged_ones(pose, seed, beams) -> None:
     """The one compiled call's features (views of its three packed arrays, most taken out on
-    first use) against the staged chain's, field by field to the bit, and their point
-    features too."""
+    first use) against the staged chain's, field by field to the bit, the lines' lengths
+    (the call's own, for line matching) and normals' angles, and their point features too."""
     scan = scan_at(pose, seed, beams)
     kernels._ENABLED = True
     packed = features_module._extract_compiled(scan, rule_bases(CFG.fuzzy), CFG)
@@ -276,6 +276,9 @@ def test_the_packed_features_are_the_staged_ones(pose, seed, beams) -> None:
     for f, g in ((packed, staged), (packed.lines, staged.lines)):
         for name in _fields(f):
             _assert_same(getattr(f, name), getattr(g, name), name)
+    assert "length" in vars(packed.lines)  # (the call's, not the cached property's)
+    for name in ("length", "normal_angle"):
+        _assert_same(getattr(packed.lines, name), getattr(staged.lines, name), name)
     for name in _fields(packed._corners):
         _assert_same(getattr(packed._corners, name), getattr(staged._corners, name), name)
     for kind in ("angular_points", "virtual_points", "break_points", "points_of_interest"):

@@ -475,11 +475,12 @@ def _floats(
     """:func:`scan_features`' floats end to end: points (n, 2), ranges, β, uncertainty; the
     kept points (m, 2), their uncertainty and ranges; the lines' normal (L, 2), distance,
     start (L, 2), end (L, 2), centre (L, 2), σ, δ, uncertainty, angle and distance variance
-    (``lt``: ``finish_lines``' table); the angular points' intersections (C, 2) and the
-    joined ones' d_v."""
+    (``lt``: ``finish_lines``' table) and the length (``Lines.length``, for line matching:
+    libm's ``hypot``, numpy's too; the normal's angle is left to numpy, whose ``arctan2`` is
+    not libm's); the angular points' intersections (C, 2) and the joined ones' d_v."""
     n, m, nl = rng.shape[0], ku.shape[0], f_line.shape[0]
     n_corners, n_joined = corner_xy.shape[0], corner_dv.shape[0]
-    fl = np.empty(5 * n + 4 * m + 14 * nl + 2 * n_corners + n_joined)
+    fl = np.empty(5 * n + 4 * m + 15 * nl + 2 * n_corners + n_joined)
     for i in range(n):
         fl[2 * i], fl[2 * i + 1] = points[i, 0], points[i, 1]
         fl[2 * n + i], fl[3 * n + i], fl[4 * n + i] = rng[i], beta[i], u[i]
@@ -498,7 +499,8 @@ def _floats(
         fl[o + 9 * nl + k], fl[o + 10 * nl + k] = lt[k, 7], lt[k, 8]
         fl[o + 11 * nl + k] = f_line[k]
         fl[o + 12 * nl + k], fl[o + 13 * nl + k] = lt[k, 9], lt[k, 10]
-    o += 14 * nl
+        fl[o + 14 * nl + k] = math.hypot(end[k, 0] - start[k, 0], end[k, 1] - start[k, 1])
+    o += 15 * nl
     for c in range(n_corners):
         fl[o + 2 * c], fl[o + 2 * c + 1] = corner_xy[c, 0], corner_xy[c, 1]
     o += 2 * n_corners

@@ -112,8 +112,8 @@ LAYOUT: dict[str, dict[str, _Where]] = {
         "kept_points": (0, (5, 0, 0, 0, 0), _M, 2),
         "kept_uncertainty": (0, (5, 2, 0, 0, 0), _M, 1),
         "kept_ranges": (0, (5, 3, 0, 0, 0), _M, 1),
-        "corner_xy": (0, (5, 4, 14, 0, 0), _C, 2),
-        "corner_dv": (0, (5, 4, 14, 2, 0), _J, 1),
+        "corner_xy": (0, (5, 4, 15, 0, 0), _C, 2),
+        "corner_dv": (0, (5, 4, 15, 2, 0), _J, 1),
         "corner_index": (1, (1, 3, 3, 0, 0), _C, 1),
         "seg_before": (1, (1, 3, 3, 1, 0), _C, 1),
         "seg_after": (1, (1, 3, 3, 2, 0), _C, 1),
@@ -213,6 +213,7 @@ def unpacked(
             "uncertainty": fl[o + 11 * nl : o + 12 * nl],
             "angle_variance": fl[o + 12 * nl : o + 13 * nl],
             "distance_variance": fl[o + 13 * nl : o + 14 * nl],
+            "length": fl[o + 14 * nl : o + 15 * nl],
             "_packed": packed,
         })  # fmt: skip
     context["lines"] = lines
