@@ -319,3 +319,41 @@ def test_a_scan_without_lines_has_the_empty_lines() -> None:
     f = features_module._extract_compiled(sparse, rule_bases(CFG.fuzzy), CFG)
     assert f is not None and len(f.lines) == 0 and f.lines.angle_variance is None
     assert f.lines.normal.shape == (0, 2) and f.kept_index.shape == f.cluster.shape
+
+
+# -- the chain's settings in one array ----------------------------------------------------------
+def _floats(n: int) -> st.SearchStrategy[np.ndarray]:
+    return st.lists(st.floats(-1e3, 1e3), min_size=n, max_size=n).map(np.array)
+
+
+@st.composite
+def _tables(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    rows, cols, n2 = draw(st.integers(1, 6)), draw(st.integers(1, 6)), draw(st.integers(1, 6))
+    table = draw(_floats(rows * cols)).reshape(rows, cols)
+    return draw(_floats(rows)), draw(_floats(n2)), table, draw(st.floats()), draw(st.floats())
+
+
+@BUDGET
+@given(
+    bands=st.integers(0, 3).flatmap(lambda k: st.tuples(_floats(k), _floats(k))),
+    front=_floats(12),
+    line=_floats(6),
+    sine=st.floats(-1.0, 1.0),
+    point_tables=_tables(),
+    line_tables=_tables(),
+)
+def test_the_chains_settings_are_taken_apart_as_they_were_put_together(
+    bands, front, line, sine, point_tables, line_tables
+) -> None:
+    """``packing.chain_settings`` and ``_kernels.front.settings_of``: every array and number
+    back, to the bit and in its shape (NaN bounds included)."""
+    kernels._ENABLED = True
+    settings = packing.chain_settings(
+        bands[0], bands[1], front, line, sine, point_tables, line_tables
+    )
+    got = _front().settings_of(settings)
+    want = (bands[0], bands[1], front, line, sine, point_tables, line_tables)
+    for x, y in zip(got, want, strict=True):
+        for a, b in zip(x, y, strict=True) if isinstance(x, tuple) else ((x, y),):
+            assert np.shape(a) == np.shape(b)
+            assert np.asarray(a, dtype=np.float64).tobytes() == np.asarray(b).tobytes()

@@ -514,23 +514,54 @@ def _floats(
 ChainSizes = tuple[int, int, int, int, int]
 
 
+#: a rule base's tables: its two inputs' grids, its table and its output's bounds
+Tables = tuple[FloatArray, FloatArray, FloatArray, float, float]
+
+
+@kernel
+def settings_of(
+    settings: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, Tables, Tables]:
+    """The arrays of ``fuzzypos._kernels.packing.chain_settings`` (views of it): the
+    no-return bands' lower and upper bounds, :func:`scan_front`'s params (:data:`PARAMS`),
+    :func:`fit_lines`' params, the sine of the least angle lines are joined at and the point
+    and line rule bases' tables."""
+    s = settings
+    n_bands = int(s[0])
+    pg1, pg2, pr, pc = int(s[1]), int(s[2]), int(s[3]), int(s[4])
+    lg1, lg2, lr, lc = int(s[5]), int(s[6]), int(s[7]), int(s[8])
+    o = 14
+    front_params, line_params = s[o : o + 12], s[o + 12 : o + 18]
+    o += 18
+    band_lo, band_hi = s[o : o + n_bands], s[o + n_bands : o + 2 * n_bands]
+    o += 2 * n_bands
+    point_tables = (
+        s[o : o + pg1], s[o + pg1 : o + pg1 + pg2],
+        s[o + pg1 + pg2 : o + pg1 + pg2 + pr * pc].reshape((pr, pc)), s[9], s[10],
+    )  # fmt: skip
+    o += pg1 + pg2 + pr * pc
+    line_tables = (
+        s[o : o + lg1], s[o + lg1 : o + lg1 + lg2],
+        s[o + lg1 + lg2 : o + lg1 + lg2 + lr * lc].reshape((lr, lc)), s[11], s[12],
+    )  # fmt: skip
+    return band_lo, band_hi, front_params, line_params, s[13], point_tables, line_tables
+
+
 @kernel
 def scan_features(
     ranges: FloatArray,
     directions: FloatArray,
     valid: BoolArray,
-    band_lo: FloatArray,
-    band_hi: FloatArray,
     angle_increment: float,
-    sensor_pose: tuple[float, float, float],
+    sensor_x: float,
+    sensor_y: float,
+    sensor_theta: float,
     closed: bool,
-    front_params: FloatArray,
-    point_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
-    line_params: FloatArray,
-    line_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
-    min_sine: float,
+    settings: FloatArray,
 ) -> tuple[bool, float, float, ChainSizes, FloatArray, IntArray, BoolArray]:
-    """The whole compiled chain of ``fuzzypos.features.extract_features`` in one call:
+    """The whole compiled chain of ``fuzzypos.features.extract_features`` in one call
+    (``settings``: the config's, ``fuzzypos._kernels.packing.chain_settings``, as
+    :func:`settings_of` takes them apart; the sensor's pose on the robot as three numbers):
     :func:`usable_points` (``directions``: the beams' :func:`beam_directions`),
     :func:`scan_front`, the kept points, :func:`fit_lines` and the lines' arrays
     (``features._lines_of_table``), the lines on either side of each angular point and
@@ -543,9 +574,11 @@ def scan_features(
     ``segmentation.ScanSegments`` without the raw segments; the kept points, uncertainty and
     ranges; the arrays of ``features.Lines``, joined at the corners; the corners' context,
     ``features._CornerContext``)."""
+    config = settings_of(settings)
+    band_lo, band_hi, front_params, line_params, min_sine, point_tables, line_tables = config
     beam_index, rng, p_sensor, points = usable_points(
-        ranges, directions, valid, band_lo, band_hi, angle_increment,
-        sensor_pose[0], sensor_pose[1], sensor_pose[2],
+        ranges, directions, valid, band_lo, band_hi, angle_increment, sensor_x, sensor_y,
+        sensor_theta,
     )  # fmt: skip
     g1, g2, table, lo, hi = point_tables
     done, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg = (

@@ -21,7 +21,9 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from .front import ChainSizes
 
-__all__ = ["LAYOUT", "Packed", "Unpacks", "front", "new", "scanner", "unpacked"]
+__all__ = [
+    "LAYOUT", "Packed", "Unpacks", "chain_settings", "front", "new", "scanner", "unpacked",
+]  # fmt: skip
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -143,6 +145,35 @@ class Unpacks:
             value = packed.view(where)
             self.__dict__[name] = value
             return value
+
+
+#: a rule base's tables as the compiled chain reads them: the grids of its two inputs, its
+#: table and the bounds its output is clamped to (``fuzzy.RuleBase``)
+_Tables = tuple[FloatArray, FloatArray, FloatArray, float, float]
+
+
+def chain_settings(
+    band_lo: FloatArray, band_hi: FloatArray, front_params: FloatArray,
+    line_params: FloatArray, min_sine: float, point_tables: _Tables, line_tables: _Tables,
+) -> FloatArray:  # fmt: skip
+    """:func:`~fuzzypos._kernels.front.scan_features`' settings of a config in one float
+    array (each array handed to a compiled call costs about 0.1 µs, a tuple of them more):
+    the sizes (the no-return bands, then each rule base's two grids and its table's rows and
+    columns), the rule bases' bounds (points', lines'), the sine of the least angle lines are
+    joined at, the front's and the lines' params, then the bands' bounds and each rule base's
+    grids and table (``_kernels.front.settings_of`` takes them apart). Not to be written to
+    (writable all the same: a read-only array is another type to numba, compiled anew)."""
+    pg1, pg2, pt, plo, phi = point_tables
+    lg1, lg2, lt, llo, lhi = line_tables
+    sizes = [band_lo.shape[0], *pg1.shape, *pg2.shape, *pt.shape, *lg1.shape, *lg2.shape]
+    sizes += [*lt.shape]
+    head = [*sizes, plo, phi, llo, lhi, min_sine]
+    parts = [np.array(head, dtype=np.float64), front_params, line_params, band_lo, band_hi]
+    parts += [pg1, pg2, pt.ravel(), lg1, lg2, lt.ravel()]
+    for part in parts:
+        assert part.dtype == np.float64
+    out: FloatArray = np.concatenate(parts)
+    return out
 
 
 @lru_cache(maxsize=1)
