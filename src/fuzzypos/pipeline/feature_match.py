@@ -168,7 +168,7 @@ class FeatureMatcher:
             return None, 0
         settings = self._line_settings[from_prior]
         found, est, n_pairs = _kernels().match_lines(
-            self._arrays_of(prev), self._arrays_of(curr), np.array(pose, dtype=np.float64),
+            *self._arrays_of(prev), *self._arrays_of(curr), np.array(pose, dtype=np.float64),
             np.array(prior, dtype=np.float64), settings, self._line_params, int(m.line_passes),
             int(m.line_min_pairs),
         )  # fmt: skip
