@@ -258,9 +258,8 @@ def scan_front(
     beta = np.empty(n)
     for i in range(n):
         beta[i] = 0.0 if isolated[i] else math.atan2(cross[i], dot[i])
-    u = np.zeros(n)
-    if n:
-        u = bilinear(ranges / scale, beta, g1, g2, table, lo, hi)
+    # (the ranges themselves at a scale of 1: r / 1 is r, and no array to allocate)
+    u = bilinear(ranges if scale == 1.0 else ranges / scale, beta, g1, g2, table, lo, hi)
     # 3. filtering (§3.1)
     kept = beta > params[3]
     kept_index = np.nonzero(kept)[0]
