@@ -226,8 +226,9 @@ def unpacked(
     :func:`~fuzzypos._kernels.front.scan_features`' packed arrays, views of them where
     :data:`LAYOUT` has them (``context``: the corners' context's other fields, but its lines
     and scales; ``empty_lines()`` where there is no line). What the positioner reads of every
-    scan (the points, their ranges and uncertainty, the lines for matching) is taken out here,
-    the rest on first use (:class:`Unpacks`)."""
+    scan (the points, their ranges and uncertainty, the lines' arrays line matching reads:
+    not their ends, since their lengths come with them) is taken out here, the rest on first
+    use (:class:`Unpacks`)."""
     features_cls, lines_cls, context_cls = classes
     n, m, nl = sizes[0], sizes[1], sizes[2]
     packed = Packed(sizes, fl, it, bl)
@@ -238,10 +239,7 @@ def unpacked(
         lines = new(lines_cls, {
             "normal": fl[o : o + 2 * nl].reshape(nl, 2),
             "distance": fl[o + 2 * nl : o + 3 * nl],
-            "start": fl[o + 3 * nl : o + 5 * nl].reshape(nl, 2),
-            "end": fl[o + 5 * nl : o + 7 * nl].reshape(nl, 2),
             "centre": fl[o + 7 * nl : o + 9 * nl].reshape(nl, 2),
-            "uncertainty": fl[o + 11 * nl : o + 12 * nl],
             "angle_variance": fl[o + 12 * nl : o + 13 * nl],
             "distance_variance": fl[o + 13 * nl : o + 14 * nl],
             "length": fl[o + 14 * nl : o + 15 * nl],
