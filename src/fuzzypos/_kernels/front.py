@@ -20,6 +20,7 @@ from ._select import kth_smallest
 from .fuzzy import bilinear
 from .segmentation import (
     break_points,
+    break_points_of_steps,
     clusters,
     corner_arms,
     detection_terms,
@@ -266,7 +267,8 @@ def scan_front(
     kp = points[kept_index]
     t2 = t2_valid[kept_index]
     # 4. break points (eq. 13) and clusters (§3.3) on the filtered points
-    is_break, split = break_points(kp, t2, gap_difference, closed)
+    kp_steps = steps(kp, closed)  # (also the arms' spacing below, where the scan is open)
+    is_break, split = break_points_of_steps(kp_steps, t2, gap_difference, closed)
     m = kept_index.shape[0]
     if closed and m:
         first = -1
@@ -290,9 +292,8 @@ def scan_front(
         fov_edge[m - 1] = True
     cluster = clusters(split, int(params[4]))
     # 5. angular points (eq. 14)
-    arms_cross, arms_dot, inside = corner_arms(
-        kp, cluster, steps(kp, False), params[5], int(params[6])
-    )
+    arm_spacing = kp_steps if not closed else steps(kp, False)  # (kp turned to the seam)
+    arms_cross, arms_dot, inside = corner_arms(kp, cluster, arm_spacing, params[5], int(params[6]))
     angle = np.empty(m)
     for j in range(m):
         angle[j] = abs(math.atan2(arms_cross[j], arms_dot[j])) if inside[j] else math.pi
