@@ -357,3 +357,36 @@ def test_the_chains_settings_are_taken_apart_as_they_were_put_together(
         for a, b in zip(x, y, strict=True) if isinstance(x, tuple) else ((x, y),):
             assert np.shape(a) == np.shape(b)
             assert np.asarray(a, dtype=np.float64).tobytes() == np.asarray(b).tobytes()
+
+
+# -- eq. 14's interior angles ------------------------------------------------------------------
+@BUDGET
+@given(
+    arms=st.lists(
+        st.tuples(st.floats(-10.0, 10.0), st.floats(-10.0, 10.0), st.booleans()),
+        min_size=1,
+        max_size=40,
+    ),
+    threshold=st.floats(0.01, math.pi - 0.01),
+    near=st.booleans(),
+)
+def test_the_interior_angles_are_atan2s_where_within_the_threshold(arms, threshold, near):
+    """Each angle is |atan2(cross, dot)| to the bit where the point is inside its cluster and
+    the angle within the threshold (or close to it); π outside, or where atan2's angle is
+    wider than the threshold (``near``: arms at the threshold's angle itself, to the last
+    bits)."""
+    if near:  # arms at the threshold (give or take a few ulps): the exact path
+        arms = [(r * math.sin(threshold + e), r * math.cos(threshold + e), True)
+                for (r, e) in ((abs(c) + 0.1, d * 1e-15) for c, d, _ in arms)]  # fmt: skip
+    cross = np.array([a[0] for a in arms])
+    dot = np.array([a[1] for a in arms])
+    inside = np.array([a[2] for a in arms])
+    got = _front().interior_angles(cross, dot, inside, threshold)
+    for c, d, i, g in zip(cross, dot, inside, got, strict=True):
+        exact = abs(math.atan2(c, d))  # (libm's, as the kernel's)
+        if not i:
+            assert g == math.pi
+        elif g != exact:
+            assert g == math.pi and exact > threshold
+        if i and exact <= threshold:
+            assert g == exact

@@ -222,6 +222,28 @@ def _sorted(values: FloatArray) -> FloatArray:
 
 
 @kernel
+def interior_angles(
+    cross: FloatArray, dot: FloatArray, inside: BoolArray, threshold: float
+) -> FloatArray:
+    """Eq. 14's interior angles |atan2(cross, dot)| of the points ``inside`` their clusters, π
+    outside; π also where the angle is surely wider than ``threshold``: its cosine below the
+    threshold's by 1e-6, the angle then wider by as much (arccos is at least that steep), far
+    beyond atan2's rounding. Only whether an angle is within the threshold, and which is the
+    sharpest of those, matters (``sharpest_of_runs``), and most points lie along walls (near
+    π), where atan2 would cost the most of this."""
+    n = cross.shape[0]
+    wider = math.cos(threshold) - 1e-6
+    angle = np.empty(n)
+    for j in range(n):
+        x, y = dot[j], cross[j]
+        if not inside[j] or x < wider * math.sqrt(x * x + y * y):
+            angle[j] = math.pi
+        else:
+            angle[j] = abs(math.atan2(y, x))
+    return angle
+
+
+@kernel
 def scan_front(
     p_sensor: FloatArray,
     points: FloatArray,
@@ -294,9 +316,7 @@ def scan_front(
     # 5. angular points (eq. 14)
     arm_spacing = kp_steps if not closed else steps(kp, False)  # (kp turned to the seam)
     arms_cross, arms_dot, inside = corner_arms(kp, cluster, arm_spacing, params[5], int(params[6]))
-    angle = np.empty(m)
-    for j in range(m):
-        angle[j] = abs(math.atan2(arms_cross[j], arms_dot[j])) if inside[j] else math.pi
+    angle = interior_angles(arms_cross, arms_dot, inside, params[7])
     is_corner = sharpest_of_runs(angle, cluster, params[7])
     # 6. the segments lines are fitted to (§3.5)
     raw_seg, segment = segments(cluster, is_corner, int(params[8]), False)
