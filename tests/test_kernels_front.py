@@ -263,8 +263,8 @@ def _assert_same(x: Any, y: Any, name: str) -> None:
 @given(pose=poses, seed=st.integers(0, 1000), beams=st.sampled_from([180, 360]))
 def test_the_packed_features_are_the_staged_ones(pose, seed, beams) -> None:
     """The one compiled call's features (views of its three packed arrays, most taken out on
-    first use) against the staged chain's, field by field to the bit, and their point
-    features too."""
+    first use) against the staged chain's, field by field to the bit, the lines' lengths
+    (the call's own, for line matching) and normals' angles, and their point features too."""
     scan = scan_at(pose, seed, beams)
     kernels._ENABLED = True
     packed = features_module._extract_compiled(scan, rule_bases(CFG.fuzzy), CFG)
@@ -276,6 +276,9 @@ def test_the_packed_features_are_the_staged_ones(pose, seed, beams) -> None:
     for f, g in ((packed, staged), (packed.lines, staged.lines)):
         for name in _fields(f):
             _assert_same(getattr(f, name), getattr(g, name), name)
+    assert "length" in vars(packed.lines)  # (the call's, not the cached property's)
+    for name in ("length", "normal_angle"):
+        _assert_same(getattr(packed.lines, name), getattr(staged.lines, name), name)
     for name in _fields(packed._corners):
         _assert_same(getattr(packed._corners, name), getattr(staged._corners, name), name)
     for kind in ("angular_points", "virtual_points", "break_points", "points_of_interest"):
@@ -316,3 +319,74 @@ def test_a_scan_without_lines_has_the_empty_lines() -> None:
     f = features_module._extract_compiled(sparse, rule_bases(CFG.fuzzy), CFG)
     assert f is not None and len(f.lines) == 0 and f.lines.angle_variance is None
     assert f.lines.normal.shape == (0, 2) and f.kept_index.shape == f.cluster.shape
+
+
+# -- the chain's settings in one array ----------------------------------------------------------
+def _floats(n: int) -> st.SearchStrategy[np.ndarray]:
+    return st.lists(st.floats(-1e3, 1e3), min_size=n, max_size=n).map(np.array)
+
+
+@st.composite
+def _tables(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    rows, cols, n2 = draw(st.integers(1, 6)), draw(st.integers(1, 6)), draw(st.integers(1, 6))
+    table = draw(_floats(rows * cols)).reshape(rows, cols)
+    return draw(_floats(rows)), draw(_floats(n2)), table, draw(st.floats()), draw(st.floats())
+
+
+@BUDGET
+@given(
+    bands=st.integers(0, 3).flatmap(lambda k: st.tuples(_floats(k), _floats(k))),
+    front=_floats(12),
+    line=_floats(6),
+    sine=st.floats(-1.0, 1.0),
+    point_tables=_tables(),
+    line_tables=_tables(),
+)
+def test_the_chains_settings_are_taken_apart_as_they_were_put_together(
+    bands, front, line, sine, point_tables, line_tables
+) -> None:
+    """``packing.chain_settings`` and ``_kernels.front.settings_of``: every array and number
+    back, to the bit and in its shape (NaN bounds included)."""
+    kernels._ENABLED = True
+    settings = packing.chain_settings(
+        bands[0], bands[1], front, line, sine, point_tables, line_tables
+    )
+    got = _front().settings_of(settings)
+    want = (bands[0], bands[1], front, line, sine, point_tables, line_tables)
+    for x, y in zip(got, want, strict=True):
+        for a, b in zip(x, y, strict=True) if isinstance(x, tuple) else ((x, y),):
+            assert np.shape(a) == np.shape(b)
+            assert np.asarray(a, dtype=np.float64).tobytes() == np.asarray(b).tobytes()
+
+
+# -- eq. 14's interior angles ------------------------------------------------------------------
+@BUDGET
+@given(
+    arms=st.lists(
+        st.tuples(st.floats(-10.0, 10.0), st.floats(-10.0, 10.0), st.booleans()),
+        min_size=1,
+        max_size=40,
+    ),
+    threshold=st.floats(0.01, math.pi - 0.01),
+    near=st.booleans(),
+)
+def test_the_interior_angles_are_atan2s_where_within_the_threshold(arms, threshold, near):
+    """Each angle is |atan2(cross, dot)| to the bit where the point is inside its cluster and
+    the angle within the threshold (or close to it); π outside, or where atan2's angle is
+    wider than the threshold (``near``: arms at the threshold's angle itself, to the last
+    bits)."""
+    if near:  # arms at the threshold (give or take a few ulps): the exact path
+        arms = [(r * math.sin(threshold + e), r * math.cos(threshold + e), True)
+                for (r, e) in ((abs(c) + 0.1, d * 1e-15) for c, d, _ in arms)]  # fmt: skip
+    cross = np.array([a[0] for a in arms])
+    dot = np.array([a[1] for a in arms])
+    inside = np.array([a[2] for a in arms])
+    got = _front().interior_angles(cross, dot, inside, threshold)
+    for c, d, i, g in zip(cross, dot, inside, got, strict=True):
+        exact = abs(math.atan2(c, d))  # (libm's, as the kernel's)
+        if not i:
+            assert g == math.pi
+        elif g != exact:
+            assert g == math.pi and exact > threshold
+        if i and exact <= threshold:
+            assert g == exact

@@ -617,26 +617,17 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
 
 
 @same_as_last_call
-def _chain_inputs(
-    cfg: Config, bases: RuleBases
-) -> (
-    tuple[
-        FloatArray, FloatArray, FloatArray, FloatArray, float,
-        tuple[FloatArray, FloatArray, FloatArray, float, float],
-        tuple[FloatArray, FloatArray, FloatArray, float, float],
-    ]
-    | None
-):  # fmt: skip
-    """``_kernels.front.scan_features``' inputs of a config and its rule bases (not to be
-    written to): the no-return bands' bounds, the front's and the lines' params, the sine of
-    the least angle lines are joined at, and the point and line rule bases' tables; None where
-    a rule base is off the interpolation's path."""
+def _chain_inputs(cfg: Config, bases: RuleBases) -> FloatArray | None:
+    """``_kernels.front.scan_features``' settings of a config and its rule bases in one array
+    (``packing.chain_settings``; read-only): the no-return bands' bounds, the front's and the
+    lines' params, the sine of the least angle lines are joined at, and the point and line
+    rule bases' tables; None where a rule base is off the interpolation's path."""
     pb, lb = bases.points, bases.lines
     if pb._grids is None or lb._grids is None:
         return None
     lo, hi = _band_bounds_of(cfg.scanner)
     front = _front_params(cfg.segmentation, cfg.angular_points, cfg.fuzzy, cfg.filtering, cfg.lines)
-    return (
+    return packing.chain_settings(
         lo, hi, front, _line_params(cfg.lines, cfg.fuzzy),
         math.sin(cfg.virtual_points.min_intersection_angle),
         (*pb._grids, pb._table, pb._centre_lo, pb._centre_hi),
@@ -649,16 +640,14 @@ def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Feature
     front, the lines and their joins at the angular points, which the staged chain computes
     in four calls with numpy between them); None for a gapless 360° ring or rule bases off
     the interpolation's path (then the staged chain runs)."""
-    inputs = _chain_inputs(cfg, bases)
-    if inputs is None:
+    settings = _chain_inputs(cfg, bases)
+    if settings is None:
         return None
-    lo, hi, front_params, line_params, min_sine, point_tables, line_tables = inputs
     sp = scan.sensor_pose
     directions, closed = packing.scanner(scan)
     done, scale, line_scale, sizes, fl, it, bl = packing.front().scan_features(
-        scan.ranges, directions, scan.valid, lo, hi, scan.angle_increment,
-        (sp.x, sp.y, sp.theta), closed, front_params, point_tables, line_params, line_tables,
-        min_sine,
+        scan.ranges, directions, scan.valid, scan.angle_increment, sp.x, sp.y, sp.theta, closed,
+        settings,
     )  # fmt: skip
     if not done:
         return None

@@ -20,6 +20,7 @@ from ._select import kth_smallest
 from .fuzzy import bilinear
 from .segmentation import (
     break_points,
+    break_points_of_steps,
     clusters,
     corner_arms,
     detection_terms,
@@ -221,6 +222,28 @@ def _sorted(values: FloatArray) -> FloatArray:
 
 
 @kernel
+def interior_angles(
+    cross: FloatArray, dot: FloatArray, inside: BoolArray, threshold: float
+) -> FloatArray:
+    """Eq. 14's interior angles |atan2(cross, dot)| of the points ``inside`` their clusters, π
+    outside; π also where the angle is surely wider than ``threshold``: its cosine below the
+    threshold's by 1e-6, the angle then wider by as much (arccos is at least that steep), far
+    beyond atan2's rounding. Only whether an angle is within the threshold, and which is the
+    sharpest of those, matters (``sharpest_of_runs``), and most points lie along walls (near
+    π), where atan2 would cost the most of this."""
+    n = cross.shape[0]
+    wider = math.cos(threshold) - 1e-6
+    angle = np.empty(n)
+    for j in range(n):
+        x, y = dot[j], cross[j]
+        if not inside[j] or x < wider * math.sqrt(x * x + y * y):
+            angle[j] = math.pi
+        else:
+            angle[j] = abs(math.atan2(y, x))
+    return angle
+
+
+@kernel
 def scan_front(
     p_sensor: FloatArray,
     points: FloatArray,
@@ -258,16 +281,16 @@ def scan_front(
     beta = np.empty(n)
     for i in range(n):
         beta[i] = 0.0 if isolated[i] else math.atan2(cross[i], dot[i])
-    u = np.zeros(n)
-    if n:
-        u = bilinear(ranges / scale, beta, g1, g2, table, lo, hi)
+    # (the ranges themselves at a scale of 1: r / 1 is r, and no array to allocate)
+    u = bilinear(ranges if scale == 1.0 else ranges / scale, beta, g1, g2, table, lo, hi)
     # 3. filtering (§3.1)
     kept = beta > params[3]
     kept_index = np.nonzero(kept)[0]
     kp = points[kept_index]
     t2 = t2_valid[kept_index]
     # 4. break points (eq. 13) and clusters (§3.3) on the filtered points
-    is_break, split = break_points(kp, t2, gap_difference, closed)
+    kp_steps = steps(kp, closed)  # (also the arms' spacing below, where the scan is open)
+    is_break, split = break_points_of_steps(kp_steps, t2, gap_difference, closed)
     m = kept_index.shape[0]
     if closed and m:
         first = -1
@@ -291,12 +314,9 @@ def scan_front(
         fov_edge[m - 1] = True
     cluster = clusters(split, int(params[4]))
     # 5. angular points (eq. 14)
-    arms_cross, arms_dot, inside = corner_arms(
-        kp, cluster, steps(kp, False), params[5], int(params[6])
-    )
-    angle = np.empty(m)
-    for j in range(m):
-        angle[j] = abs(math.atan2(arms_cross[j], arms_dot[j])) if inside[j] else math.pi
+    arm_spacing = kp_steps if not closed else steps(kp, False)  # (kp turned to the seam)
+    arms_cross, arms_dot, inside = corner_arms(kp, cluster, arm_spacing, params[5], int(params[6]))
+    angle = interior_angles(arms_cross, arms_dot, inside, params[7])
     is_corner = sharpest_of_runs(angle, cluster, params[7])
     # 6. the segments lines are fitted to (§3.5)
     raw_seg, segment = segments(cluster, is_corner, int(params[8]), False)
@@ -475,11 +495,12 @@ def _floats(
     """:func:`scan_features`' floats end to end: points (n, 2), ranges, β, uncertainty; the
     kept points (m, 2), their uncertainty and ranges; the lines' normal (L, 2), distance,
     start (L, 2), end (L, 2), centre (L, 2), σ, δ, uncertainty, angle and distance variance
-    (``lt``: ``finish_lines``' table); the angular points' intersections (C, 2) and the
-    joined ones' d_v."""
+    (``lt``: ``finish_lines``' table) and the length (``Lines.length``, for line matching:
+    libm's ``hypot``, numpy's too; the normal's angle is left to numpy, whose ``arctan2`` is
+    not libm's); the angular points' intersections (C, 2) and the joined ones' d_v."""
     n, m, nl = rng.shape[0], ku.shape[0], f_line.shape[0]
     n_corners, n_joined = corner_xy.shape[0], corner_dv.shape[0]
-    fl = np.empty(5 * n + 4 * m + 14 * nl + 2 * n_corners + n_joined)
+    fl = np.empty(5 * n + 4 * m + 15 * nl + 2 * n_corners + n_joined)
     for i in range(n):
         fl[2 * i], fl[2 * i + 1] = points[i, 0], points[i, 1]
         fl[2 * n + i], fl[3 * n + i], fl[4 * n + i] = rng[i], beta[i], u[i]
@@ -498,7 +519,8 @@ def _floats(
         fl[o + 9 * nl + k], fl[o + 10 * nl + k] = lt[k, 7], lt[k, 8]
         fl[o + 11 * nl + k] = f_line[k]
         fl[o + 12 * nl + k], fl[o + 13 * nl + k] = lt[k, 9], lt[k, 10]
-    o += 14 * nl
+        fl[o + 14 * nl + k] = math.hypot(end[k, 0] - start[k, 0], end[k, 1] - start[k, 1])
+    o += 15 * nl
     for c in range(n_corners):
         fl[o + 2 * c], fl[o + 2 * c + 1] = corner_xy[c, 0], corner_xy[c, 1]
     o += 2 * n_corners
@@ -512,23 +534,54 @@ def _floats(
 ChainSizes = tuple[int, int, int, int, int]
 
 
+#: a rule base's tables: its two inputs' grids, its table and its output's bounds
+Tables = tuple[FloatArray, FloatArray, FloatArray, float, float]
+
+
+@kernel
+def settings_of(
+    settings: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float, Tables, Tables]:
+    """The arrays of ``fuzzypos._kernels.packing.chain_settings`` (views of it): the
+    no-return bands' lower and upper bounds, :func:`scan_front`'s params (:data:`PARAMS`),
+    :func:`fit_lines`' params, the sine of the least angle lines are joined at and the point
+    and line rule bases' tables."""
+    s = settings
+    n_bands = int(s[0])
+    pg1, pg2, pr, pc = int(s[1]), int(s[2]), int(s[3]), int(s[4])
+    lg1, lg2, lr, lc = int(s[5]), int(s[6]), int(s[7]), int(s[8])
+    o = 14
+    front_params, line_params = s[o : o + 12], s[o + 12 : o + 18]
+    o += 18
+    band_lo, band_hi = s[o : o + n_bands], s[o + n_bands : o + 2 * n_bands]
+    o += 2 * n_bands
+    point_tables = (
+        s[o : o + pg1], s[o + pg1 : o + pg1 + pg2],
+        s[o + pg1 + pg2 : o + pg1 + pg2 + pr * pc].reshape((pr, pc)), s[9], s[10],
+    )  # fmt: skip
+    o += pg1 + pg2 + pr * pc
+    line_tables = (
+        s[o : o + lg1], s[o + lg1 : o + lg1 + lg2],
+        s[o + lg1 + lg2 : o + lg1 + lg2 + lr * lc].reshape((lr, lc)), s[11], s[12],
+    )  # fmt: skip
+    return band_lo, band_hi, front_params, line_params, s[13], point_tables, line_tables
+
+
 @kernel
 def scan_features(
     ranges: FloatArray,
     directions: FloatArray,
     valid: BoolArray,
-    band_lo: FloatArray,
-    band_hi: FloatArray,
     angle_increment: float,
-    sensor_pose: tuple[float, float, float],
+    sensor_x: float,
+    sensor_y: float,
+    sensor_theta: float,
     closed: bool,
-    front_params: FloatArray,
-    point_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
-    line_params: FloatArray,
-    line_tables: tuple[FloatArray, FloatArray, FloatArray, float, float],
-    min_sine: float,
+    settings: FloatArray,
 ) -> tuple[bool, float, float, ChainSizes, FloatArray, IntArray, BoolArray]:
-    """The whole compiled chain of ``fuzzypos.features.extract_features`` in one call:
+    """The whole compiled chain of ``fuzzypos.features.extract_features`` in one call
+    (``settings``: the config's, ``fuzzypos._kernels.packing.chain_settings``, as
+    :func:`settings_of` takes them apart; the sensor's pose on the robot as three numbers):
     :func:`usable_points` (``directions``: the beams' :func:`beam_directions`),
     :func:`scan_front`, the kept points, :func:`fit_lines` and the lines' arrays
     (``features._lines_of_table``), the lines on either side of each angular point and
@@ -541,9 +594,11 @@ def scan_features(
     ``segmentation.ScanSegments`` without the raw segments; the kept points, uncertainty and
     ranges; the arrays of ``features.Lines``, joined at the corners; the corners' context,
     ``features._CornerContext``)."""
+    config = settings_of(settings)
+    band_lo, band_hi, front_params, line_params, min_sine, point_tables, line_tables = config
     beam_index, rng, p_sensor, points = usable_points(
-        ranges, directions, valid, band_lo, band_hi, angle_increment,
-        sensor_pose[0], sensor_pose[1], sensor_pose[2],
+        ranges, directions, valid, band_lo, band_hi, angle_increment, sensor_x, sensor_y,
+        sensor_theta,
     )  # fmt: skip
     g1, g2, table, lo, hi = point_tables
     done, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg = (

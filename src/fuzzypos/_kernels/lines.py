@@ -62,7 +62,8 @@ def pair_lines(
         for p in range(1, n_prev):
             if cost[p, q] < cost[best_prev[q], q]:
                 best_prev[q] = p
-    rows, cols = np.empty(n_prev, dtype=np.int64), np.empty(n_prev, dtype=np.int64)
+    pairs = np.empty((2, n_prev), dtype=np.int64)  # rows and columns, one allocation
+    rows, cols = pairs[0], pairs[1]
     m = 0
     for p in range(n_prev):
         j = 0
@@ -72,7 +73,7 @@ def pair_lines(
         if cost[p, j] < np.inf and best_prev[j] == p:
             rows[m], cols[m] = p, j
             m += 1
-    return rows[:m].copy(), cols[:m].copy()
+    return rows[:m], cols[:m]
 
 
 @kernel
@@ -151,7 +152,8 @@ def increment_from_lines(
         params[4],
     )
     n = prev_angle.shape[0]
-    raw, delta = np.empty(n), np.empty(n)
+    work = np.empty((5, n))  # the per-pair arrays, one allocation
+    raw, delta, nx, ny, rhs = work[0], work[1], work[2], work[3], work[4]
     for k in range(n):
         raw[k] = prev_angle[k] - curr_angle[k] - start[2]
         delta[k] = (raw[k] + _HALF_PI) % math.pi - _HALF_PI  # rotation left after ``start``
@@ -163,7 +165,6 @@ def increment_from_lines(
             num += w_a * delta[k]
             den += w_a
     theta = start[2] + num / den
-    nx, ny, rhs = np.empty(n), np.empty(n), np.empty(n)
     for k in range(n):
         # n: the mean of the previous normal and the current one rotated by θ
         turn = raw[k] - delta[k]
@@ -191,8 +192,20 @@ def increment_from_lines(
 
 @kernel
 def match_lines(
-    prev: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
-    curr: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    pa: FloatArray,
+    pd: FloatArray,
+    pn: FloatArray,
+    pc: FloatArray,
+    pl: FloatArray,
+    pav: FloatArray,
+    pdv: FloatArray,
+    ca: FloatArray,
+    cd: FloatArray,
+    _cn: FloatArray,
+    cc: FloatArray,
+    cl: FloatArray,
+    cav: FloatArray,
+    cdv: FloatArray,
     start: FloatArray,
     prior: FloatArray,
     gates: FloatArray,
@@ -202,13 +215,13 @@ def match_lines(
 ) -> tuple[bool, FloatArray, int]:
     """``fuzzypos.pipeline.feature_match.FeatureMatcher.match_lines`` in one loop: pair the
     lines from ``start``, the increment from the pairs, and again from it while it moves
-    enough to change the pairs. ``prev``/``curr``: each scan's lines' (normal angle,
-    distance, normal, centre, length, angle variance, distance variance); ``gates`` = (the
+    enough to change the pairs. ``pa``…``pdv`` and ``ca``…``cdv``: each scan's lines'
+    (normal angle, distance, normal, centre, length, angle variance, distance variance), one
+    array each (a tuple of arrays costs more to hand over; the current normals are not
+    read); ``gates`` = (the
     first pass's angle and distance gates, the later passes', the overlap margin, the repair
     fraction); ``params`` as :func:`increment_from_lines`. Returns whether the lines gave an
     increment, the increment and how many pairs it rests on."""
-    pa, pd, pn, pc, pl, pav, pdv = prev
-    ca, cd, cc, cl, cav, cdv = curr[0], curr[1], curr[3], curr[4], curr[5], curr[6]
     pose = start.copy()
     pair_gates = np.empty(3)
     pair_gates[0], pair_gates[1], pair_gates[2] = gates[0], gates[1], gates[4]
@@ -218,12 +231,14 @@ def match_lines(
         m = rows.shape[0]
         if m < min_pairs or m < 2:
             break
-        av, dv = np.empty(m), np.empty(m)
+        paired = np.empty((6, m))  # the pairs' arrays, one allocation
         for k in range(m):
-            av[k] = pav[rows[k]] + cav[cols[k]]
-            dv[k] = pdv[rows[k]] + cdv[cols[k]]
+            i, j = rows[k], cols[k]
+            paired[0, k], paired[1, k], paired[2, k], paired[3, k] = pa[i], pd[i], ca[j], cd[j]
+            paired[4, k] = pav[i] + cav[j]
+            paired[5, k] = pdv[i] + cdv[j]
         new = increment_from_lines(
-            pa[rows], pd[rows], ca[cols], cd[cols], av, dv, pose, prior, params
+            paired[0], paired[1], paired[2], paired[3], paired[4], paired[5], pose, prior, params
         )
         moved_t = abs(new[0] - pose[0]) + abs(new[1] - pose[1])
         moved_r = abs(new[2] - pose[2])

@@ -21,7 +21,9 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from .front import ChainSizes
 
-__all__ = ["LAYOUT", "Packed", "Unpacks", "front", "new", "scanner", "unpacked"]
+__all__ = [
+    "LAYOUT", "Packed", "Unpacks", "chain_settings", "front", "new", "scanner", "unpacked",
+]  # fmt: skip
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -112,8 +114,8 @@ LAYOUT: dict[str, dict[str, _Where]] = {
         "kept_points": (0, (5, 0, 0, 0, 0), _M, 2),
         "kept_uncertainty": (0, (5, 2, 0, 0, 0), _M, 1),
         "kept_ranges": (0, (5, 3, 0, 0, 0), _M, 1),
-        "corner_xy": (0, (5, 4, 14, 0, 0), _C, 2),
-        "corner_dv": (0, (5, 4, 14, 2, 0), _J, 1),
+        "corner_xy": (0, (5, 4, 15, 0, 0), _C, 2),
+        "corner_dv": (0, (5, 4, 15, 2, 0), _J, 1),
         "corner_index": (1, (1, 3, 3, 0, 0), _C, 1),
         "seg_before": (1, (1, 3, 3, 1, 0), _C, 1),
         "seg_after": (1, (1, 3, 3, 2, 0), _C, 1),
@@ -143,6 +145,35 @@ class Unpacks:
             value = packed.view(where)
             self.__dict__[name] = value
             return value
+
+
+#: a rule base's tables as the compiled chain reads them: the grids of its two inputs, its
+#: table and the bounds its output is clamped to (``fuzzy.RuleBase``)
+_Tables = tuple[FloatArray, FloatArray, FloatArray, float, float]
+
+
+def chain_settings(
+    band_lo: FloatArray, band_hi: FloatArray, front_params: FloatArray,
+    line_params: FloatArray, min_sine: float, point_tables: _Tables, line_tables: _Tables,
+) -> FloatArray:  # fmt: skip
+    """:func:`~fuzzypos._kernels.front.scan_features`' settings of a config in one float
+    array (each array handed to a compiled call costs about 0.1 µs, a tuple of them more):
+    the sizes (the no-return bands, then each rule base's two grids and its table's rows and
+    columns), the rule bases' bounds (points', lines'), the sine of the least angle lines are
+    joined at, the front's and the lines' params, then the bands' bounds and each rule base's
+    grids and table (``_kernels.front.settings_of`` takes them apart). Not to be written to
+    (writable all the same: a read-only array is another type to numba, compiled anew)."""
+    pg1, pg2, pt, plo, phi = point_tables
+    lg1, lg2, lt, llo, lhi = line_tables
+    sizes = [band_lo.shape[0], *pg1.shape, *pg2.shape, *pt.shape, *lg1.shape, *lg2.shape]
+    sizes += [*lt.shape]
+    head = [*sizes, plo, phi, llo, lhi, min_sine]
+    parts = [np.array(head, dtype=np.float64), front_params, line_params, band_lo, band_hi]
+    parts += [pg1, pg2, pt.ravel(), lg1, lg2, lt.ravel()]
+    for part in parts:
+        assert part.dtype == np.float64
+    out: FloatArray = np.concatenate(parts)
+    return out
 
 
 @lru_cache(maxsize=1)
@@ -195,8 +226,9 @@ def unpacked(
     :func:`~fuzzypos._kernels.front.scan_features`' packed arrays, views of them where
     :data:`LAYOUT` has them (``context``: the corners' context's other fields, but its lines
     and scales; ``empty_lines()`` where there is no line). What the positioner reads of every
-    scan (the points, their ranges and uncertainty, the lines for matching) is taken out here,
-    the rest on first use (:class:`Unpacks`)."""
+    scan (the points, their ranges and uncertainty, the lines' arrays line matching reads:
+    not their ends, since their lengths come with them) is taken out here, the rest on first
+    use (:class:`Unpacks`)."""
     features_cls, lines_cls, context_cls = classes
     n, m, nl = sizes[0], sizes[1], sizes[2]
     packed = Packed(sizes, fl, it, bl)
@@ -207,12 +239,10 @@ def unpacked(
         lines = new(lines_cls, {
             "normal": fl[o : o + 2 * nl].reshape(nl, 2),
             "distance": fl[o + 2 * nl : o + 3 * nl],
-            "start": fl[o + 3 * nl : o + 5 * nl].reshape(nl, 2),
-            "end": fl[o + 5 * nl : o + 7 * nl].reshape(nl, 2),
             "centre": fl[o + 7 * nl : o + 9 * nl].reshape(nl, 2),
-            "uncertainty": fl[o + 11 * nl : o + 12 * nl],
             "angle_variance": fl[o + 12 * nl : o + 13 * nl],
             "distance_variance": fl[o + 13 * nl : o + 14 * nl],
+            "length": fl[o + 14 * nl : o + 15 * nl],
             "_packed": packed,
         })  # fmt: skip
     context["lines"] = lines

@@ -42,8 +42,15 @@ def break_points(
 ) -> tuple[BoolArray, BoolArray]:
     """Eq. 13 over an ordered sequence: ``(is_break_point, split)``, ``split[j]`` a cut between
     points j and j+1 (a step longer than its T2 and by T1 than a step beside it)."""
-    n = points.shape[0]
-    step = steps(points, closed)
+    return break_points_of_steps(steps(points, closed), thresholds, gap_difference, closed)
+
+
+@kernel
+def break_points_of_steps(
+    step: FloatArray, thresholds: FloatArray, gap_difference: float, closed: bool
+) -> tuple[BoolArray, BoolArray]:
+    """:func:`break_points` of the sequence's :func:`steps` (``closed`` as they were taken)."""
+    n = step.shape[0]
     split = np.zeros(n, dtype=np.bool_)
     for j in range(n):
         s = step[j]

@@ -168,7 +168,7 @@ class FeatureMatcher:
             return None, 0
         settings = self._line_settings[from_prior]
         found, est, n_pairs = _kernels().match_lines(
-            self._arrays_of(prev), self._arrays_of(curr), np.array(pose, dtype=np.float64),
+            *self._arrays_of(prev), *self._arrays_of(curr), np.array(pose, dtype=np.float64),
             np.array(prior, dtype=np.float64), settings, self._line_params, int(m.line_passes),
             int(m.line_min_pairs),
         )  # fmt: skip
@@ -185,14 +185,20 @@ _LineArrays = tuple[
 
 
 def _line_arrays(lines: Lines) -> _LineArrays:
-    """What the line-matching kernel reads of a scan's lines. The normals' angles and the
-    lengths are :class:`~fuzzypos.features.Lines`' ``normal_angle`` and ``length``, the same
-    numpy expressions (so the same values) but not through the cached properties: their
-    lookup (a lock each) costs more than the arithmetic, and the matcher reads them once."""
-    normal, start, end = lines.normal, lines.start, lines.end
+    """What the line-matching kernel reads of a scan's lines. The normals' angles are
+    :class:`~fuzzypos.features.Lines`' ``normal_angle``, the same numpy expression (so the same
+    values) but not through the cached property: its lookup (a lock) costs more than the
+    arithmetic, and the matcher reads it once. The lengths are ``Lines.length``: the compiled
+    chain's (the same values) where it made the lines, whose arrays are then contiguous float64
+    views of its packed arrays already (no conversion)."""
+    normal = lines.normal
     angle = np.arctan2(normal[:, 1], normal[:, 0])
-    length = np.hypot(end[:, 0] - start[:, 0], end[:, 1] - start[:, 1])
+    if "_packed" in lines.__dict__:  # the compiled chain's views
+        return (
+            angle, lines.distance, normal, lines.centre, lines.length, lines.angle_variance,
+            lines.distance_variance,
+        )  # type: ignore[return-value]  # fmt: skip
     return (
-        f64(angle), f64(lines.distance), f64(normal), f64(lines.centre), f64(length),
+        f64(angle), f64(lines.distance), f64(normal), f64(lines.centre), f64(lines.length),
         f64(lines.angle_variance), f64(lines.distance_variance),
     )  # fmt: skip
