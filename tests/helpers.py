@@ -1,9 +1,10 @@
 """Helpers the test modules share (import them with ``from helpers import …``; pytest's default
 ``prepend`` import mode puts ``tests/`` on ``sys.path``): where the shared logs are
 (:data:`DATA`), a small simulated CARMEN log (:func:`write_sim_log`), a relations file
-(:func:`write_relations`), ROS1/ROS2 bags written with rosbags' writers (:func:`make_bag`
-with :func:`standard`'s scans and odometry), and pipes a thread fills (:func:`fifo_with`,
-:func:`pipe_with`)."""
+(:func:`write_relations`), the compiled kernels against their numpy references
+(:func:`numpy_kernels`, :func:`both`), ROS1/ROS2 bags written with rosbags' writers
+(:func:`make_bag` with :func:`standard`'s scans and odometry), and pipes a thread fills
+(:func:`fifo_with`, :func:`pipe_with`)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+import fuzzypos._kernels as kernels
 from fuzzypos import sim
 from fuzzypos.demo import DemoSettings
 from fuzzypos.geometry import compose, relative, wrap_angle
@@ -283,3 +285,24 @@ def pipe_with(data: bytes) -> Iterator[Path]:
     finally:
         writer.join(5)
         os.close(r)
+
+
+# -- the compiled kernels and their references -------------------------------------------
+@contextlib.contextmanager
+def numpy_kernels() -> Iterator[None]:
+    """The numpy references in place of the compiled kernels, for the duration."""
+    saved = kernels._ENABLED
+    kernels._ENABLED = False
+    try:
+        yield
+    finally:
+        kernels._ENABLED = saved
+
+
+def both(call: Callable[[], Any]) -> tuple[Any, Any]:
+    """``call()`` with the compiled kernels, then with the numpy references."""
+    kernels._ENABLED = True
+    compiled = call()
+    with numpy_kernels():
+        reference = call()
+    return compiled, reference

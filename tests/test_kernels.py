@@ -9,8 +9,6 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from dataclasses import replace
 from typing import Any
 
@@ -32,6 +30,7 @@ from fuzzypos.matching import search as search_module
 from fuzzypos.matching import surface as surface_module
 from fuzzypos.matching import surface_points
 from fuzzypos.pipeline import Positioner
+from helpers import both, numpy_kernels
 
 CFG = Config()
 R = CFG.refinement
@@ -40,26 +39,6 @@ TOL = 1e-9
 BUDGET = settings(
     max_examples=60, deadline=None, suppress_health_check=[HealthCheck.filter_too_much]
 )
-
-
-@contextmanager
-def numpy_kernels() -> Iterator[None]:
-    """The numpy references in place of the compiled kernels, for the duration."""
-    saved = kernels._ENABLED
-    kernels._ENABLED = False
-    try:
-        yield
-    finally:
-        kernels._ENABLED = saved
-
-
-def both(call: Callable[[], Any]) -> tuple[Any, Any]:
-    """``call()`` with the compiled kernels, then with the numpy references."""
-    kernels._ENABLED = True
-    compiled = call()
-    with numpy_kernels():
-        reference = call()
-    return compiled, reference
 
 
 def scanner(beams: int = 360, noise: float = 0.01) -> sim.ScannerModel:

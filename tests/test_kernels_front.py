@@ -9,8 +9,6 @@ import copy
 import dataclasses
 import math
 import pickle
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -27,6 +25,7 @@ from fuzzypos.config import Config
 from fuzzypos.features import extract_features, rule_bases
 from fuzzypos.geometry import Pose2D
 from fuzzypos.scan import LaserScan
+from helpers import both
 
 CFG = Config()
 TOL = 1e-9
@@ -35,26 +34,6 @@ BUDGET = settings(
 )
 WORLD = sim.office()
 poses = st.tuples(st.floats(-9.0, 9.0), st.floats(-1.0, 1.0), st.floats(-math.pi, math.pi))
-
-
-@contextmanager
-def numpy_kernels() -> Iterator[None]:
-    """The numpy references in place of the compiled kernels, for the duration."""
-    saved = kernels._ENABLED
-    kernels._ENABLED = False
-    try:
-        yield
-    finally:
-        kernels._ENABLED = saved
-
-
-def both(call: Callable[[], Any]) -> tuple[Any, Any]:
-    """``call()`` with the compiled kernels, then with the numpy references."""
-    kernels._ENABLED = True
-    compiled = call()
-    with numpy_kernels():
-        reference = call()
-    return compiled, reference
 
 
 def scan_at(pose: tuple[float, float, float], seed: int, beams: int = 180) -> Any:
