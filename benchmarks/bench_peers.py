@@ -102,7 +102,8 @@ LOGS = {"intel": "intel/intel.clf.gz", "aces": "aces/aces.clf.gz"}
 #: simulated logs, by name: their beam count (180° field of view; see simulated_log)
 SIMULATED = {"sim180": 180, "sim360": 360}
 #: the simulated logs' relations: every RELATION_STEP-th scan to the one RELATION_LOCAL
-#: scans on (local), and RELATION_LONG pairs drawn at random (a fixed seed) over the run
+#: scans on (local), and RELATION_LONG pairs drawn at random (a fixed seed) over the run, the
+#: earlier scan first (the metric counts a relation with t2 < t1 as local)
 RELATION_STEP, RELATION_LOCAL, RELATION_LONG = 5, 10, 300
 
 
@@ -373,7 +374,7 @@ def simulated_log(folder: Path, name: str) -> tuple[Path, Path]:
     n = len(stamps)
     pairs = [(k, k + RELATION_LOCAL) for k in range(0, n - RELATION_LOCAL, RELATION_STEP)]
     drawn = np.random.default_rng(0).integers(0, n, size=(RELATION_LONG, 2))
-    pairs += [(int(a), int(b)) for a, b in drawn if a != b]
+    pairs += [(int(min(a, b)), int(max(a, b))) for a, b in drawn if a != b]  # t1 < t2
     lines = []
     for a, b in pairs:
         x, y, yaw = (float(v) for v in relative_pose(truth[a], truth[b]))

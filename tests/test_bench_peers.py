@@ -46,6 +46,7 @@ def test_the_simulated_log_reads_back_and_its_relations_are_the_truth(bench, tmp
     assert all(len(r.scan.ranges) == 360 for r in records[:50])
     stamps = np.array([r.scan.stamp for r in records])
     relations = read_relations(relations_path)
+    assert np.all(relations.t2 > relations.t1)  # (t2 < t1 would count as local)
     local = relations.t2 - relations.t1 <= 10.0
     assert 0 < local.sum() < len(local)  # local relations and long ones
     truth = relations_errors(stamps, run.true_poses, relations)
