@@ -2,9 +2,9 @@
 ``prepend`` import mode puts ``tests/`` on ``sys.path``): where the shared logs are
 (:data:`DATA`), a small simulated CARMEN log (:func:`write_sim_log`), a relations file
 (:func:`write_relations`), the compiled kernels against their numpy references
-(:func:`numpy_kernels`, :func:`both`), ROS1/ROS2 bags written with rosbags' writers
-(:func:`make_bag` with :func:`standard`'s scans and odometry), and pipes a thread fills
-(:func:`fifo_with`, :func:`pipe_with`)."""
+(:func:`numpy_kernels`, :func:`both`, :func:`compiled_and_staged`), ROS1/ROS2 bags written
+with rosbags' writers (:func:`make_bag` with :func:`standard`'s scans and odometry), and
+pipes a thread fills (:func:`fifo_with`, :func:`pipe_with`)."""
 
 from __future__ import annotations
 
@@ -306,3 +306,19 @@ def both(call: Callable[[], Any]) -> tuple[Any, Any]:
     with numpy_kernels():
         reference = call()
     return compiled, reference
+
+
+def compiled_and_staged(scan: Any, cfg: Any) -> tuple[Any, Any]:
+    """A scan's features from the one compiled call and from the staged chain (the compiled
+    call switched off for it)."""
+    import pytest
+
+    from fuzzypos import features as features_module
+
+    kernels._ENABLED = True
+    compiled = features_module._extract_compiled(scan, features_module.rule_bases(cfg.fuzzy), cfg)
+    assert compiled is not None
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(features_module, "_extract_compiled", lambda *args: None)
+        staged = features_module.extract_features(scan, cfg)
+    return compiled, staged

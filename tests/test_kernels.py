@@ -30,7 +30,7 @@ from fuzzypos.matching import search as search_module
 from fuzzypos.matching import surface as surface_module
 from fuzzypos.matching import surface_points
 from fuzzypos.pipeline import Positioner
-from helpers import both, numpy_kernels
+from helpers import both, compiled_and_staged, numpy_kernels
 
 CFG = Config()
 R = CFG.refinement
@@ -750,12 +750,7 @@ def test_the_whole_compiled_chain_is_its_calls_one_by_one(
         cfg = CFG.with_overrides(
             {"scanner": {"no_return_bands": ((max(mid - 0.2, 0.0), mid + 0.2),)}}
         )
-    kernels._ENABLED = True
-    fused = features_module._extract_compiled(scan, rule_bases(cfg.fuzzy), cfg)
-    assert fused is not None
-    with pytest.MonkeyPatch.context() as m:
-        m.setattr(features_module, "_extract_compiled", lambda *args: None)
-        one_by_one = extract_features(scan, cfg)
+    fused, one_by_one = compiled_and_staged(scan, cfg)
     _same_features(fused, one_by_one)
 
 

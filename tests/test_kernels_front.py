@@ -22,10 +22,10 @@ from fuzzypos import segmentation as seg
 from fuzzypos import sim
 from fuzzypos._kernels import packing
 from fuzzypos.config import Config
-from fuzzypos.features import extract_features, rule_bases
+from fuzzypos.features import rule_bases
 from fuzzypos.geometry import Pose2D
 from fuzzypos.scan import LaserScan
-from helpers import both
+from helpers import both, compiled_and_staged
 
 CFG = Config()
 TOL = 1e-9
@@ -245,12 +245,7 @@ def test_the_packed_features_are_the_staged_ones(pose, seed, beams) -> None:
     first use) against the staged chain's, field by field to the bit, the lines' lengths
     (the call's own, for line matching) and normals' angles, and their point features too."""
     scan = scan_at(pose, seed, beams)
-    kernels._ENABLED = True
-    packed = features_module._extract_compiled(scan, rule_bases(CFG.fuzzy), CFG)
-    assert packed is not None
-    with pytest.MonkeyPatch.context() as m:
-        m.setattr(features_module, "_extract_compiled", lambda *args: None)
-        staged = extract_features(scan, CFG)
+    packed, staged = compiled_and_staged(scan, CFG)
     assert "_packed" in vars(packed) and "kept_index" not in vars(packed)  # (not yet taken)
     for f, g in ((packed, staged), (packed.lines, staged.lines)):
         for name in _fields(f):
