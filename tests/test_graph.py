@@ -483,3 +483,110 @@ def test_closing_the_corridor_of_doors_leaves_the_trajectory_no_worse(doors) -> 
         return float(np.mean(np.hypot(*(poses[:, :2] - truth[:, :2]).T)))
 
     assert mean_error(result.poses) <= mean_error(frontend) + 0.01
+
+
+def _local_rotation_error(poses: np.ndarray, truth: np.ndarray, lag: int = 10) -> float:
+    """The mean |error| (rad) of the turn between scans ``lag`` apart."""
+    d = (poses[lag:, 2] - poses[:-lag, 2]) - (truth[lag:, 2] - truth[:-lag, 2])
+    return float(np.mean(np.abs(np.arctan2(np.sin(d), np.cos(d)))))
+
+
+@pytest.mark.parametrize("kind", ["gym", "wide dense scanner, slippery"])
+def test_realigned_scans_turn_no_worse_than_the_front_end(kind: str) -> None:
+    """After the last optimisation every scan is refitted to the keyframes around its own at
+    their optimised poses (``realign``): the turn between nearby scans is no worse than the
+    front end's (the blended trajectory carries the front end's increments and bends at each
+    keyframe), and the closed loop stays closed. On two kinds of log: the demo's scanner in
+    the gym, and 541 beams over 270° on odometry three times as slippery."""
+    import dataclasses
+
+    from fuzzypos.graph import ScanStore, close_loops
+
+    scanner, slip = DemoSettings().scanner, sim.SlipModel()
+    if kind != "gym":
+        scanner = dataclasses.replace(
+            scanner, n_beams=541, field_of_view_deg=270.0, angle_min_deg=-135.0, range_max=30.0
+        )
+        slip = sim.SlipModel(
+            radial_gain=0.15, longitudinal=0.06, angular=0.08, translation_noise=0.006,
+            rotation_noise=0.006,
+        )  # fmt: skip
+    run = sim.simulate_run(sim.gym(), sim.CommandedPath.circle(4.0, 1.0, 0.5), scanner, slip, 1)
+    cfg = Config()
+    pos = Positioner(cfg)
+    ests = [pos.update(s, run.odometry_pose(k)) for k, s in enumerate(run.scans)]
+    graph, store = PoseGraph.from_estimates(ests), ScanStore(cfg)
+    for est, scan in zip(ests, run.scans):
+        store.add(est.features, scan.angle_increment, est.keyframe_covariance)
+    result = close_loops(graph, cfg, store)
+    truth = run.true_poses
+    blended = graph.trajectory(blend=True)
+    assert result.closures and result.summary["realigned_scans"] > 0.9 * len(run.scans)
+    front = _local_rotation_error(graph.frontend_trajectory(), truth)
+    closed = _local_rotation_error(blended, truth)
+    realigned = _local_rotation_error(result.poses, truth)
+    assert realigned <= front and realigned <= closed, (front, closed, realigned)
+    assert _end_error(result.poses, truth) < _end_error(graph.frontend_trajectory(), truth)
+    off = close_loops(
+        PoseGraph.from_estimates(ests),
+        cfg.with_overrides({"loop_closure": {"realign": False}}),
+        store,
+    )
+    assert off.summary["realigned_scans"] is None
+    np.testing.assert_allclose(off.poses, blended, atol=1e-9)  # realign off: the blend
+
+
+def test_realign_pulls_displaced_scans_back_onto_the_map(loop) -> None:
+    """Scans displaced from their optimised poses (5 cm, 0.5° each way) come back toward them
+    when refitted to the map around their keyframes: nearly all the way where the kept
+    covariance says the pose is barely known (0.5 m, 10°), part of the way under the
+    refinement's fixed prior (no covariance kept), which holds the fit to its start. A store
+    or poses of the wrong length are refused."""
+    from fuzzypos.graph import ScanStore, realign
+
+    run, ests = loop
+    cfg = Config()
+    graph = PoseGraph.from_estimates(ests)
+    fixed, broad = ScanStore(cfg), ScanStore(cfg)
+    for est, scan in zip(ests, run.scans):
+        fixed.add(est.features, scan.angle_increment)
+        broad.add(est.features, scan.angle_increment, np.diag([0.25, 0.25, np.radians(10) ** 2]))
+    assert all(info is None for info in fixed.information)
+    start = graph.trajectory()
+    rng = np.random.default_rng(3)
+    shift = rng.choice([-1.0, 1.0], size=(len(start), 3)) * np.array([0.05, 0.05, 0.0087])
+    before = np.median(np.hypot(*shift[:, :2].T))
+    after = {}
+    for name, store in (("fixed", fixed), ("broad", broad)):
+        result = realign(graph, LoopCloser(cfg), store, start + shift)
+        assert result.refitted > 0.9 * len(start)
+        d = result.poses - start
+        after[name] = np.median(np.hypot(d[:, 0], d[:, 1]))
+        turn = np.median(np.abs(np.arctan2(np.sin(d[:, 2]), np.cos(d[:, 2]))))
+        assert turn < (0.2 if name == "broad" else 0.8) * 0.0087, (name, turn)
+    assert after["broad"] < 0.2 * before and after["fixed"] < 0.8 * before, (after, before)
+    with pytest.raises(ValueError, match="one kept scan and one pose per scan"):
+        realign(graph, LoopCloser(cfg), fixed, start[:-1])
+
+
+def test_the_store_keeps_points_and_the_information_of_each_scan(loop) -> None:
+    from fuzzypos.graph import ScanStore
+
+    run, ests = loop
+    store = ScanStore(Config())
+    est, scan = ests[5], run.scans[5]
+    store.add(est.features, scan.angle_increment, est.keyframe_covariance)
+    store.add(None)
+    store.add(est.features, None, -np.eye(3))  # the spacing estimated; not a covariance
+    assert len(store) == 3 and store.points(1) is None
+    a, c = store.points(0), store.points(2)
+    assert a is not None and c is not None
+    exact = store.refiner.points(est.features, scan.angle_increment)
+    assert exact is not None and a.spacing is not None and exact.spacing is not None
+    np.testing.assert_allclose(a.xy, exact.xy, atol=1e-5)  # float32 kept
+    np.testing.assert_allclose(a.weights, exact.weights, rtol=1e-6)
+    np.testing.assert_allclose(c.xy, a.xy)
+    info = store.information[0]
+    assert info is not None and est.keyframe_covariance is not None
+    np.testing.assert_allclose(info @ est.keyframe_covariance, np.eye(3), atol=1e-8)
+    assert store.information[1] is None and store.information[2] is None

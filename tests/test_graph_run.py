@@ -52,6 +52,12 @@ def test_run_with_loop_closure_writes_its_files(loop_log, tmp_path) -> None:
     assert len(stamps) == len(run.scans) == len(frontend)
     moved = np.hypot(*(optimised[:, :2] - frontend[:, :2]).T)
     assert 0.0 < moved.max() <= lc["max_correction_m"] + 1e-6
+    # trajectory.clf carries the optimised poses, every scan refitted to the closed map
+    flaser = [ln.split() for ln in (out / "trajectory.clf").read_text().splitlines()
+              if ln.startswith("FLASER")]  # fmt: skip
+    in_clf = np.array([[float(v) for v in t[2 + int(t[1]) : 5 + int(t[1])]] for t in flaser])
+    np.testing.assert_allclose(in_clf, optimised, atol=1e-6)  # (the TUM file's precision)
+    assert lc["realigned_scans"] > 0.9 * len(run.scans)
     truth = run.true_poses
     end = [float(np.hypot(*(p[-1, :2] - truth[-1, :2]))) for p in (frontend, optimised)]
     assert end[1] < end[0] + 0.01, end

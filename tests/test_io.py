@@ -310,6 +310,44 @@ def test_carmen_writer_estimate_mode_follows_the_first_scan(tmp_path):
     assert not empty.close() and not (tmp_path / "none.clf").exists()
 
 
+@pytest.mark.parametrize("compress", [False, True])
+def test_estimate_log_takes_other_poses_at_close(tmp_path, compress):
+    """close(poses): each scan's estimate replaced (FLASER's x y θ; ROBOTLASER1's robot pose
+    and its laser pose, the mount kept), the odometry, ranges and truth as written."""
+    a0, inc = -math.pi / 2, math.pi / 179
+    mount = Pose2D(0.1, 0.0, 0.0)
+    forward = LaserScan(np.linspace(1.0, 3.0, 180), a0, inc, range_max=8.0, stamp=1.0,
+                        sensor_pose=mount)  # fmt: skip
+    other = make_scan(stamp=2.0, sensor_pose=mount)  # another geometry: ROBOTLASER1
+    odom = [Pose2D(5.0, 6.0, 0.5), Pose2D(5.5, 6.0, 0.6)]
+    path = tmp_path / "trajectory.clf"
+    w = CarmenWriter(path, estimate_of="some.log", compress=compress)
+    w.write(forward, odom[0], Pose2D(9.0, 9.0, 0.0), pose=Pose2D(1.0, 0.0, 0.0))
+    w.write(other, odom[1], pose=Pose2D(2.0, 0.0, 0.0))
+    new = np.array([[1.5, -0.25, 0.3], [2.5, 0.75, -3.0]])
+    bad = CarmenWriter(tmp_path / "x.clf", estimate_of="y")
+    bad.write(forward, odom[0])
+    with pytest.raises(ValueError, match="expected 1 finite poses"):
+        bad.close(new, "")  # one row per scan written
+    assert not (tmp_path / "x.clf").exists()
+    assert w.close(new, "the optimised poses") and w.robotlaser1 == 1
+    text = (gzip.decompress(path.read_bytes()) if compress else path.read_bytes()).decode()
+    assert "# the optimised poses\n" in text
+    flaser = next(ln.split() for ln in text.splitlines() if ln.startswith("FLASER"))
+    n = int(flaser[1])
+    assert [float(v) for v in flaser[2 + n : 8 + n]] == [*new[0], *odom[0].as_array()]
+    np.testing.assert_allclose([float(v) for v in flaser[2 : 2 + n]], forward.ranges, atol=1e-4)
+    assert "TRUEPOS 9.0 9.0 0.0" in text  # the truth as written
+    robot = next(ln.split() for ln in text.splitlines() if ln.startswith("ROBOTLASER1"))
+    i = 10 + int(robot[8])
+    laser, at = np.array(robot[i : i + 3], float), np.array(robot[i + 3 : i + 6], float)
+    np.testing.assert_allclose(at, new[1], atol=1e-12)
+    np.testing.assert_allclose(laser, Pose2D.from_array(new[1]).compose(mount).as_array(),
+                               atol=1e-12)  # fmt: skip
+    odom_line = next(ln.split() for ln in text.splitlines() if ln.startswith("ODOM"))
+    assert [float(v) for v in odom_line[1:4]] == list(odom[1].as_array())  # as written
+
+
 # -- reader: formats and skipping ----------------------------------------------------------
 def test_gzip_detected_by_magic_not_name(tmp_path):
     recs = _records(count=3)

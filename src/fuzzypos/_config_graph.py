@@ -257,3 +257,22 @@ class LoopClosureConfig:
         "batch with the robust kernel instead)",
         ge=0,
     )
+    realign: bool = _field(
+        True,
+        "after the last optimisation every scan is fitted once more (the front end's "
+        "refinement, from its optimised pose) to the surfaces of its keyframe and "
+        "realign_keyframes either side at their optimised poses: between two keyframes the "
+        "optimised trajectory only carries the front end's increments and a blended "
+        "correction, so it keeps the front end's error from scan to scan, heading included, "
+        "and bends a little at every keyframe to spread a loop's correction; fitted to the map "
+        "the loops closed, each scan lands on the walls as that map has them, for a fit per "
+        "scan at the end and the scans' points kept until then (about 3 KB a scan of 180 "
+        "beams)",
+    )
+    realign_keyframes: int = _field(
+        2,
+        "the scan's keyframe and 2 either side, as submap_keyframes around a candidate: some "
+        "metres of wall on each side of the scan; more reach into the keyframes' own drift, "
+        "fewer leave a scan between two keyframes half outside its map",
+        ge=0,
+    )

@@ -355,7 +355,7 @@ def _position_along(
             pose = est.pose
             outputs.write(k, est)
             if track.mapper is not None:
-                track.mapper.add(est)
+                track.mapper.add(est, scan.angle_increment)
             clf.write(scan, odom, rec.truth, pose=pose)
             track.stamps.append(scan.stamp)
             track.poses.append((pose.x, pose.y, pose.theta))
@@ -464,9 +464,11 @@ def _write_results(
     plot: bool,
     map_every: int,
     notes: list[str],
+    optimised: bool = False,
 ) -> dict[str, Path]:
     """Write the results folder's files but ``summary.json``; name → path, in writing order.
-    A partial run (``track.partial_reason``) gets no ``path.png`` and no ``out_tum``."""
+    A partial run (``track.partial_reason``) gets no ``path.png`` and no ``out_tum``.
+    ``optimised``: ``a.poses`` are loop closure's, which ``trajectory.clf`` then carries."""
     partial = track.partial_reason is not None
     files: dict[str, Path] = {"trajectory.tum": out / "trajectory.tum"}
     what = "part of the" if partial else "the"
@@ -484,7 +486,8 @@ def _write_results(
         write_tum(out_tum, a.stamps, a.poses, header_comment=comment)
         files["out_tum"] = Path(out_tum)
     try:
-        if clf.close():
+        why = "x y theta after loop closure: the optimised poses" if optimised else ""
+        if clf.close(a.poses if optimised else None, why):
             files["trajectory.clf"] = out / "trajectory.clf"
     except Exception as exc:  # the run stopped inside it
         if not partial:
@@ -578,8 +581,8 @@ def _finish(
         a = replace(a, poses=loop.poses)
         notes.append(
             "loop closure: trajectory.tum holds the optimised poses (trajectory_frontend.tum "
-            "the front end's, trajectory_online.tum each scan's as first output online); "
-            "trajectory.clf, covariance.csv and the bag the front end's"
+            "the front end's, trajectory_online.tum each scan's as first output online) and "
+            "so does trajectory.clf; covariance.csv and the bag are the front end's"
         )
     files = _write_results(
         out,
@@ -593,6 +596,7 @@ def _finish(
         plot=plot,
         map_every=map_every,
         notes=notes,
+        optimised=loop is not None,
     )
     if loop is not None:
         files.update(loop.write(out, a.stamps, log.name, cfg.loop_closure.map_resolution))

@@ -9,6 +9,8 @@ extra: ``pip install 'fuzzypos[graph]'``).
 - :mod:`.occupancy`: the occupancy map (ROS map_server's ``map.pgm`` + ``map.yaml``, ``map.png``).
 - :mod:`.online`: :class:`OnlineMapper`, loop closure online: the front end, the graph grown
   keyframe by keyframe and kept optimised by ISAM2, the latest optimised pose after each scan.
+- :mod:`.realign`: after the last optimisation, every scan fitted once more to the surfaces of
+  the keyframes around its own at their optimised poses (:func:`realign`, :class:`ScanStore`).
 - :mod:`.outputs`: :func:`close_loops` after a run, and the files it adds to a results folder.
 - :mod:`._gtsam`: gtsam imported on first use, :class:`GraphDependencyError` where it is absent.
 """
@@ -21,6 +23,7 @@ from .closure import Closure, LoopCloser
 from .online import OnlineMapper, OnlineUpdate
 from .outputs import LOOP_CLOSURE_FILES, LoopClosureResult, close_loops
 from .pose_graph import ROBUST_KINDS, Edge, Keyframe, PoseGraph, PoseGraphError, read_g2o
+from .realign import Realigned, ScanStore, realign
 
 __all__ = [
     "GraphDependencyError",
@@ -38,4 +41,7 @@ __all__ = [
     "LOOP_CLOSURE_FILES",
     "OnlineMapper",
     "OnlineUpdate",
+    "Realigned",
+    "ScanStore",
+    "realign",
 ]

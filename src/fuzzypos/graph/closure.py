@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from statistics import NormalDist
 
@@ -72,7 +73,7 @@ class Closure:
     agreed: tuple[int, int] | None = None
 
 
-def _angle_increment(features: Features) -> float:
+def angle_increment_of(features: Features) -> float:
     """The beam spacing (rad) of a scan, from its points' bearings and beam indices."""
     b = np.unwrap(np.arctan2(features.points[:, 1], features.points[:, 0]))
     di = np.diff(features.beam_index.astype(float))
@@ -186,8 +187,15 @@ class LoopCloser:
         last ``recent_keyframes`` before ``j``), in ``i``'s frame at the graph's poses."""
         h = self.settings.submap_keyframes
         top = min(i + h, j - self.settings.recent_keyframes, len(graph) - 1)
+        return self.surfaces_in_frame_of(graph, i, range(max(0, i - h), max(i, top) + 1))
+
+    def surfaces_in_frame_of(
+        self, graph: PoseGraph, i: int, keyframes: Iterable[int]
+    ) -> SurfacePoints:
+        """The surfaces of ``keyframes`` (those with features) in keyframe ``i``'s frame at
+        the graph's poses, in one :class:`~fuzzypos.matching.SurfacePoints`."""
         xy, normal, weight = [], [], []
-        for k in range(max(0, i - h), max(i, top) + 1):
+        for k in keyframes:
             surf = self._surface(graph, k)
             if surf is None:
                 continue
@@ -231,7 +239,7 @@ class LoopCloser:
         features = graph.keyframes[j].features
         if features is None:
             return None
-        points = self.refiner.points(features, _angle_increment(features))
+        points = self.refiner.points(features, angle_increment_of(features))
         surface = self.submap(graph, i, j)
         if points is None or len(surface) < 3:
             return None

@@ -19,7 +19,9 @@ as the offline path does at the end: the final trajectory is the offline path's
 small corrections, accepted 282 closures on intel instead of 278 and scored 0.033 m on its
 relations instead of 0.030 m, and took longer.) The front end never hears of the
 corrections: its local map and its poses stay its own; :meth:`OnlineMapper.online_poses` are
-each scan's corrected pose as it was first output."""
+each scan's corrected pose as it was first output. The mapper keeps every scan's points
+(:class:`~.realign.ScanStore`, where ``realign`` is on) so that :meth:`OnlineMapper.finish`
+fits each scan once more to the map the loops closed (:mod:`.realign`)."""
 
 from __future__ import annotations
 
@@ -39,6 +41,7 @@ from ._gtsam import gtsam
 from .closure import Closure, LoopCloser
 from .outputs import LoopClosureResult, loop_closure_result
 from .pose_graph import Edge, PoseGraph
+from .realign import ScanStore
 
 __all__ = ["OnlineMapper", "OnlineUpdate"]
 
@@ -83,6 +86,8 @@ class OnlineMapper:
         self._online: list[FloatArray] = []
         self._map_scans: list[tuple[int, FloatArray]] = []
         self._last_drawn: FloatArray | None = None
+        #: every scan's points, for the realignment after the last optimisation
+        self._scans = ScanStore(self.config) if self.settings.realign else None
         self.batch_optimisations = 0
         #: seconds spent in the graph (ISAM2, candidates, verification, batch optimisations)
         self.seconds = 0.0
@@ -93,12 +98,16 @@ class OnlineMapper:
 
     def update(self, scan: LaserScan, odometry: Pose2D | None = None) -> OnlineUpdate:
         """The next scan through the front end, then :meth:`add`."""
-        return self.add(self.positioner.update(scan, odometry))
+        return self.add(self.positioner.update(scan, odometry), scan.angle_increment)
 
-    def add(self, est: Estimate) -> OnlineUpdate:
+    def add(self, est: Estimate, angle_increment: float | None = None) -> OnlineUpdate:
         """The front end's estimate of the next scan: into the graph (a new keyframe: its
-        edge into ISAM2 and a loop closure tried), and the scan's latest optimised pose."""
+        edge into ISAM2 and a loop closure tried), and the scan's latest optimised pose.
+        ``angle_increment``: the scan's beam spacing (rad), for the realignment at the end
+        (None: estimated from the features' points)."""
         t0 = time.perf_counter()
+        if self._scans is not None:
+            self._scans.add(est.features, angle_increment, est.keyframe_covariance)
         k = self.graph.scans
         keyframe = self.graph.add(est)
         found = None
@@ -234,7 +243,7 @@ class OnlineMapper:
         self.seconds += time.perf_counter() - t0
         result = loop_closure_result(
             self.graph, self.closer, self.config, self.seconds,
-            online=self.online_poses(), map_scans=self._map_scans,
+            online=self.online_poses(), map_scans=self._map_scans, scans=self._scans,
         )  # fmt: skip
         result.summary.update(mode="online", batch_optimisations=self.batch_optimisations)
         return result

@@ -20,6 +20,7 @@ from ..io import write_tum
 from .closure import Closure, LoopCloser
 from .occupancy import occupancy_grid
 from .pose_graph import PoseGraph
+from .realign import ScanStore, realign
 
 __all__ = ["LOOP_CLOSURE_FILES", "LoopClosureResult", "close_loops", "loop_closure_result"]
 
@@ -85,14 +86,17 @@ class LoopClosureResult:
         return files
 
 
-def close_loops(graph: PoseGraph, config: Config) -> LoopClosureResult:
+def close_loops(
+    graph: PoseGraph, config: Config, scans: ScanStore | None = None
+) -> LoopClosureResult:
     """Find, verify and add the closures of ``graph`` (its keyframes with their features) and
-    optimise it, offline (after the front end's whole run); the summary for
+    optimise it, offline (after the front end's whole run); every scan realigned to the
+    closed map where ``scans`` holds them (and ``realign`` is on); the summary for
     ``summary.json``."""
     t0 = time.perf_counter()
     closer = LoopCloser(config)
     closer.run(graph)
-    result = loop_closure_result(graph, closer, config, time.perf_counter() - t0)
+    result = loop_closure_result(graph, closer, config, time.perf_counter() - t0, scans=scans)
     result.summary["mode"] = "offline"
     return result
 
@@ -105,12 +109,21 @@ def loop_closure_result(
     *,
     online: FloatArray | None = None,
     map_scans: list[tuple[int, FloatArray]] | None = None,
+    scans: ScanStore | None = None,
 ) -> LoopClosureResult:
     """The result of loop closure on ``graph`` by ``closer`` (its closures with their final
-    weights), the optimised trajectory (blended between keyframes) and the summary."""
+    weights), the optimised trajectory (blended between keyframes; each scan then realigned
+    to the closed map where ``scans`` holds every scan's points and ``realign`` is on,
+    :mod:`.realign`) and the summary."""
     frontend = graph.frontend_trajectory()
     closures = closer.closures
     poses = graph.trajectory(blend=True)
+    refitted = None
+    if config.loop_closure.realign and scans is not None:
+        t0 = time.perf_counter()
+        realigned = realign(graph, closer, scans, poses)
+        poses, refitted = realigned.poses, realigned.refitted
+        seconds += time.perf_counter() - t0
     moved = np.hypot(*(poses[:, :2] - frontend[:, :2]).T) if len(poses) else np.zeros(1)
     summary = {
         "keyframes": len(graph),
@@ -135,6 +148,7 @@ def loop_closure_result(
         "seconds": seconds,
         "robust": config.loop_closure.robust,
         "map_scans": len(graph) if map_scans is None else len(map_scans),
+        "realigned_scans": refitted,
     }
     return LoopClosureResult(
         poses, frontend, graph, closures, closer.verified, seconds, summary, online, map_scans

@@ -106,6 +106,11 @@ class PoseGraph:
         return np.array(self._stamps, dtype=float)
 
     @property
+    def owners(self) -> NDArray[np.intp]:
+        """Per scan: the index of its keyframe."""
+        return np.array(self._owner, dtype=np.intp)
+
+    @property
     def closures(self) -> list[Edge]:
         return [e for e in self.edges if e.closure]
 

@@ -214,6 +214,22 @@ def _pose_text(p: Pose2D) -> str:
     return f"{p.x!r} {p.y!r} {p.theta!r}"
 
 
+def _with_pose(line: str, pose: Pose2D) -> str:
+    """A FLASER or ROBOTLASER1 line as :class:`CarmenWriter` wrote it, at ``pose`` instead."""
+    t = line.split(" ")
+    if t[0] == "FLASER":
+        i = 2 + int(t[1])  # FLASER n r_1 … r_n x y θ …
+        t[i : i + 3] = _pose_text(pose).split(" ")
+        return " ".join(t)
+    # ROBOTLASER1 type start fov res max acc mode n r_1 … r_n 0 laser(3) robot(3) …
+    i = 9 + int(t[8]) + 1
+    laser = Pose2D(float(t[i]), float(t[i + 1]), float(t[i + 2]))
+    robot = Pose2D(float(t[i + 3]), float(t[i + 4]), float(t[i + 5]))
+    mount = robot.inverse().compose(laser)
+    t[i : i + 6] = f"{_pose_text(pose.compose(mount))} {_pose_text(pose)}".split(" ")
+    return " ".join(t)
+
+
 # -- the writer ------------------------------------------------------------------------------
 _FORMATS = "# message formats defined: PARAM FLASER TRUEPOS\n"
 _FLASER_FORMAT = "# FLASER num_readings [range_readings] x y theta odom_x odom_y odom_theta\n"
@@ -288,6 +304,7 @@ class CarmenWriter:
         self._fill = "0"
         self._raw: IO[bytes] | None = None
         gz = self.path.name.endswith(".gz") if compress is None else compress
+        self._gz = gz
         self._fh: IO[str] | None = self._open(gz)
         if estimate_of is None:
             for line in self._log_header(header_comment):
@@ -485,13 +502,18 @@ class CarmenWriter:
             if raw is not None:
                 raw.close()
 
-    def close(self) -> bool:
+    def close(self, poses: NDArray[np.float64] | None = None, why: str = "") -> bool:
         """Finish the log and rename it over ``path``; return whether it was. In estimate mode
-        a log without a scan is not kept (False; no file) and the scans left out are noted."""
+        a log without a scan is not kept (False; no file) and the scans left out are noted.
+        ``poses`` (estimate mode, one row (x, y, θ) per scan written): the scans' poses
+        replaced by these (the optimised poses after loop closure), with ``why`` in the
+        header; the odometry, the truth and the ranges stay as written."""
         if self._fh is None:
             return False
         try:
             self._close_files()
+            if poses is not None:
+                self._replace_poses(np.asarray(poses, dtype=float), why)
             if self.estimate_of is not None:
                 if 0 < self.robotlaser1 < self.written:
                     self.notes.append(
@@ -507,6 +529,34 @@ class CarmenWriter:
             self.abort()
             raise
         return True
+
+    def _replace_poses(self, poses: NDArray[np.float64], why: str) -> None:
+        """Rewrite the closed temporary file with ``poses`` as the scans' estimates: FLASER's
+        ``x y θ``, ROBOTLASER1's robot pose and its laser pose (the new robot pose composed
+        with the mount, as :meth:`write` wrote it)."""
+        if self.estimate_of is None:
+            raise ValueError(f"{self.name}: poses can only be replaced in an estimate log")
+        if poses.shape != (self.written, 3) or not np.isfinite(poses).all():
+            raise ValueError(
+                f"{self.name}: expected {self.written} finite poses (x, y, θ), got an array "
+                f"of shape {poses.shape}"
+            )
+        new = self.tmp.with_name(self.tmp.name + ".poses")
+        opener: Any = gzip.open if self._gz else open
+        k = 0
+        with (
+            opener(self.tmp, "rt", encoding="utf-8") as src,
+            opener(new, "wt", encoding="utf-8", newline="\n") as dst,
+        ):
+            for line in src:
+                kind = line[: line.find(" ")]
+                if kind == "FLASER" or kind == "ROBOTLASER1":
+                    line = _with_pose(line, Pose2D.from_array(poses[k]))
+                    k += 1
+                elif line.startswith("# written by") and why:
+                    line += f"# {why}\n"
+                dst.write(line)
+        os.replace(new, self.tmp)
 
     def abort(self) -> None:
         """Give up: close and remove the temporary file (``path`` is left as it was)."""
