@@ -84,15 +84,17 @@ class ScanStore:
 
 
 def _information(cov: FloatArray | None) -> FloatArray | None:
-    """The inverse of a 3×3 covariance, None where it is absent or not positive definite."""
+    """The inverse of a 3×3 covariance, None where it is absent or not positive definite
+    (Sylvester's test on the leading minors, in floats: a Cholesky per scan costs more)."""
     if cov is None:
         return None
     c = np.asarray(cov, dtype=float)
     if c.shape != (3, 3) or not np.isfinite(c).all():
         return None
-    try:
-        np.linalg.cholesky(c)
-    except np.linalg.LinAlgError:
+    (a, b, d), (_, e, f), (_, _, g) = c.tolist()
+    minor = a * e - b * b
+    det = a * (e * g - f * f) - b * (b * g - f * d) + d * (b * f - e * d)
+    if not (a > 0.0 and minor > 0.0 and det > 0.0):
         return None
     return np.asarray(np.linalg.inv(c), dtype=np.float64)
 
