@@ -29,6 +29,7 @@ from fuzzypos.matching import lines as line_matching
 from fuzzypos.matching import search as search_module
 from fuzzypos.matching import surface as surface_module
 from fuzzypos.matching import surface_points
+from fuzzypos.matching.surface import SurfacePoints
 from fuzzypos.pipeline import Positioner
 from helpers import both, compiled_and_staged, numpy_kernels
 
@@ -414,6 +415,41 @@ def test_the_compiled_search_is_the_numpy_one(pose, motion, penalty, seed) -> No
     )
     np.testing.assert_allclose(compiled.start, reference.start, rtol=0, atol=TOL)
     assert compiled.score == reference.score
+
+
+@BUDGET
+@given(seed=st.integers(0, 10_000), penalty=st.sampled_from([0.0, 0.05]))
+def test_the_search_finds_the_same_best_in_any_order(seed, penalty) -> None:
+    """The kernel scores the candidates in the order it is given (the likeliest first) and
+    leaves those that cannot win: the best is the same as in rotation-major order, equal
+    scores included (a symmetric room, a penalty symmetric about the start: ties abound)."""
+    from fuzzypos._kernels.search import best_candidate
+
+    rng = np.random.default_rng(seed)
+    side = np.linspace(-2.0, 2.0, 41)
+    rows = [np.column_stack((side, np.full(41, y))) for y in (-2.0, 2.0)]
+    cols = [np.column_stack((np.full(41, x), side)) for x in (-2.0, 2.0)]
+    wall = np.concatenate(rows + cols)
+    surface = SurfacePoints(wall, np.zeros_like(wall), np.ones(len(wall)))
+    pts = wall[rng.choice(len(wall), 40, replace=False)] + rng.normal(0.0, 0.02, (40, 2))
+    thetas = np.radians(np.arange(-6.0, 6.5, 3.0))
+    offs = 0.1 * np.arange(-3, 4)
+    tx, ty = (a.ravel() for a in np.meshgrid(offs, offs, indexing="ij"))
+    pen = penalty * np.hypot(tx, ty)
+    args = (surface.grid, pts, thetas, tx, ty, pen, 0.05)
+    natural = best_candidate(*args, np.arange(len(thetas)), np.arange(len(tx)))
+    shuffled = best_candidate(*args, rng.permutation(len(thetas)), rng.permutation(len(tx)))
+    likeliest = best_candidate(*args, np.argsort(np.abs(thetas), kind="stable"),
+                               np.argsort(pen, kind="stable"))  # fmt: skip
+    assert natural == shuffled == likeliest
+    # the natural order's best, by brute force: the highest score, the first of equal ones
+    hits = np.array([[np.mean(surface.tree.query(
+        np.column_stack((np.cos(a) * pts[:, 0] - np.sin(a) * pts[:, 1] + x,
+                         np.sin(a) * pts[:, 0] + np.cos(a) * pts[:, 1] + y)))[0] <= 0.05)
+        for x, y in zip(tx, ty)] for a in thetas])  # fmt: skip
+    score = hits - pen[None, :]
+    r, t = divmod(int(np.argmax(score)), len(tx))
+    assert natural[:2] == (r, t)
 
 
 # -- line matching -----------------------------------------------------------------------------

@@ -53,9 +53,12 @@ def search_start(
     if compiled():
         from .._kernels.search import best_candidate
 
+        # the likeliest first, for the kernel's bound: rotations and translations nearest
+        # the start's (the same best in any order)
+        rotations = np.argsort(np.abs(thetas - start[2]), kind="stable")
         r, t, fraction = best_candidate(
             reference.grid, np.ascontiguousarray(pts, dtype=np.float64), thetas, tx, ty,
-            penalty, float(settings.gate),
+            penalty, float(settings.gate), rotations, np.argsort(penalty, kind="stable"),
         )  # fmt: skip
         return SearchHit(np.array([tx[t], ty[t], thetas[r]]), float(fraction))
     return _search_numpy(reference, pts, start, thetas, tx, ty, penalty, settings)
