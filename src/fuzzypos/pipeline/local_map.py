@@ -78,7 +78,11 @@ class LocalMap:
 
     def pose_of(self, from_keyframe: FloatArray) -> FloatArray:
         """The pose at ``from_keyframe`` seen from the keyframe."""
-        return np.array(compose3(self._pose.tolist(), from_keyframe.tolist()))
+        return np.array(self.pose3_of(from_keyframe))
+
+    def pose3_of(self, from_keyframe: FloatArray) -> Pose3:
+        """:meth:`pose_of` as three floats."""
+        return compose3(self._pose.tolist(), from_keyframe.tolist())
 
     def add(self, features: Features, pose: FloatArray, from_keyframe: FloatArray | None) -> bool:
         """The scan just estimated: it becomes the keyframe where matching it failed

@@ -99,6 +99,24 @@ class Assessment:
     rejected: bool = False
     scan_only: tuple[FloatArray, FloatArray] | None = None
 
+    @classmethod
+    def _of(
+        cls,
+        covariance: FloatArray,
+        keyframe_covariance: FloatArray,
+        gate: float | None,
+        rejected: bool,
+        scan_only: tuple[FloatArray, FloatArray] | None,
+    ) -> Assessment:
+        """What the constructor builds, straight into the instance's dict (the frozen
+        ``__init__``'s ``object.__setattr__`` per field costs more; once a scan)."""
+        out = object.__new__(cls)
+        out.__dict__.update(
+            covariance=covariance, keyframe_covariance=keyframe_covariance, gate=gate,
+            rejected=rejected, scan_only=scan_only,
+        )  # fmt: skip
+        return out
+
 
 class Uncertainty:
     """Covariances (``[covariance]``) and the gate (``[gate]``); owns the covariance of the
@@ -230,7 +248,7 @@ class Uncertainty:
             return self._with_scan_only(judged, fit, t_prev) if wanted else judged
         self._previous = previous
         scan = (inc, cov) if wanted and ok else None
-        return Assessment(inc_cov, kf, None if not gate_open else float(gate), False, scan)
+        return Assessment._of(inc_cov, kf, None if not gate_open else float(gate), False, scan)
 
     def _assess_numpy(
         self,
