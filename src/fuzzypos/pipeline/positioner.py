@@ -37,8 +37,6 @@ FloatArray = NDArray[np.float64]
 
 _END = object()
 _IDENTITY = Pose2D()
-_NO_MOTION = np.zeros(3)
-_NO_MOTION.flags.writeable = False
 
 
 def _pose(a: FloatArray) -> Pose2D:
@@ -104,7 +102,7 @@ class Positioner:
         if self._pose is None:
             return self._first(scan, odom)
         prior = self._prior(scan.stamp, odom)
-        t_prev = self.local_map.from_keyframe(self._pose, _NO_MOTION)  # the previous scan's pose
+        t_prev = self.local_map.at(self._pose)  # the previous scan's pose from the keyframe
         if prior.standing_still:  # the odometry says the robot stands still: so does the estimate
             self.odometry_prior.accept(np.zeros(3), prior.dt)
             still = self.uncertainty.standing_still(t_prev)
@@ -123,7 +121,10 @@ class Positioner:
             features, match, key_prior, prior, scan.angle_increment, information
         )
         from_key = match.increment if fit is None else fit.increment
-        judged = self._assess(t_prev, prior, prior_cov, from_key, fit, on_previous)
+        # (the prior from the keyframe is compose(t_prev, prior) to the bit where t_prev is the
+        # keyframe's relative pose itself, no coordinate of it zero: LocalMap.at)
+        key_prior_of_t = key_prior if 0.0 not in t_prev.tolist() else None
+        judged = self._assess(t_prev, prior, prior_cov, from_key, fit, on_previous, key_prior_of_t)
         if judged.rejected:  # too unlikely under both covariances: the odometry stands
             from_key = None
         # (the poses as floats once: the arrays' tolist() gives these very floats back)
@@ -208,14 +209,16 @@ class Positioner:
         from_key: FloatArray | None,
         fit: Refinement | None,
         on_previous: bool,
+        key_prior: FloatArray | None,
     ) -> Assessment:
         """The uncertainty stage's assessment of the match (with the scan's own motion where
         it teaches the odometry's noise); a fit against the previous scan too carries that
-        scan's error relative to the keyframe."""
+        scan's error relative to the keyframe; ``key_prior``: ``compose(t_prev, prior)``, where
+        known to the bit."""
         previous_cov = self.uncertainty.previous_covariance() if on_previous else None
         judged = self.uncertainty.assess(
             t_prev, prior.increment, prior_cov, from_key, fit, gate_open=self._gate_open(prior),
-            with_scan_only=self._learns_from(prior, fit),
+            with_scan_only=self._learns_from(prior, fit), key_prior=key_prior,
         )  # fmt: skip
         if previous_cov is not None and from_key is not None and not judged.rejected:
             # the fit placed the previous scan's points by its estimate: their error too

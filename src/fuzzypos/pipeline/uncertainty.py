@@ -184,6 +184,7 @@ class Uncertainty:
         fit: Refinement | None,
         gate_open: bool,
         with_scan_only: bool = False,
+        key_prior: FloatArray | None = None,
     ) -> Assessment:
         """The covariances of a scan whose previous scan lies at ``t_prev`` from the keyframe,
         whose motion since then was predicted as ``prior`` with ``prior_covariance`` (the
@@ -191,11 +192,13 @@ class Uncertainty:
         (None: the features alone; ``from_key`` None: nothing, the prior stands). With
         ``gate_open`` the match is compared with the prior and rejected past the gate. With
         ``with_scan_only`` also :meth:`scan_only` of the fit where it stands (the compiled path
-        computes both in one kernel call)."""
+        computes both in one kernel call). ``key_prior``: ``compose(t_prev, prior)`` where the
+        caller has it to the bit (else computed where needed)."""
         if from_key is not None and compiled():
             return self._assess_compiled(
-                t_prev, prior, prior_covariance, from_key, fit, gate_open, with_scan_only
-            )
+                t_prev, prior, prior_covariance, from_key, fit, gate_open, with_scan_only,
+                key_prior,
+            )  # fmt: skip
         judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
         return self._with_scan_only(judged, fit, t_prev) if with_scan_only else judged
 
@@ -222,6 +225,7 @@ class Uncertainty:
         fit: Refinement | None,
         gate_open: bool,
         with_scan_only: bool,
+        key_prior: FloatArray | None,
     ) -> Assessment:
         """:meth:`assess` of a match through the compiled kernels, with :meth:`scan_only` in the
         same call where asked (the fallback, rare, in numpy)."""
@@ -232,7 +236,10 @@ class Uncertainty:
         else:  # (the fit's own arrays, float64 already)
             matrices = (fit.information, fit.prior_information, fit.hold_information,
                         fit.gradient_covariance)  # fmt: skip
-            key_prior = fit.start if fit.hold_on_start else _compose(t_prev, prior)
+            if fit.hold_on_start:
+                key_prior = fit.start
+            elif key_prior is None:
+                key_prior = _compose(t_prev, prior)
             poses = (fit.prior, key_prior)
             increment = f64(fit.increment)
             # (scan_only's own test: a held fit gives no motion of the scan's own)
