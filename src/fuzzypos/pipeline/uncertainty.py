@@ -244,7 +244,7 @@ class Uncertainty:
             increment = f64(fit.increment)
             # (scan_only's own test: a held fit gives no motion of the scan's own)
             wanted = with_scan_only and not np.count_nonzero(fit.hold_information)
-        inc_cov, kf, previous, gate, ok, inc, cov = _pipeline_kernels().assess_and_scan_only(
+        gate, ok, out = _pipeline_kernels().assess_and_scan_only(
             f64(t_prev), f64(prior), f64(prior_covariance), self._previous, f64(from_key),
             self._feature, self.floor, fit is not None, *matrices, *poses,
             self._point_correlation, bool(gate_open), self.threshold, wanted, increment,
@@ -253,9 +253,10 @@ class Uncertainty:
         if gate_open and gate > self.threshold:
             judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
             return self._with_scan_only(judged, fit, t_prev) if wanted else judged
-        self._previous = previous
-        scan = (inc, cov) if wanted and ok else None
-        return Assessment._of(inc_cov, kf, None if not gate_open else float(gate), False, scan)
+        # (views of the kernel's one array)
+        self._previous = out[2]
+        scan = (out[4, 0], out[3]) if wanted and ok else None
+        return Assessment._of(out[0], out[1], None if not gate_open else float(gate), False, scan)
 
     def _assess_numpy(
         self,
