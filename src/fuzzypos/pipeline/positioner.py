@@ -121,10 +121,7 @@ class Positioner:
             features, match, key_prior, prior, scan.angle_increment, information
         )
         from_key = match.increment if fit is None else fit.increment
-        # (the prior from the keyframe is compose(t_prev, prior) to the bit where t_prev is the
-        # keyframe's relative pose itself, no coordinate of it zero: LocalMap.at)
-        key_prior_of_t = key_prior if 0.0 not in t_prev.tolist() else None
-        judged = self._assess(t_prev, prior, prior_cov, from_key, fit, on_previous, key_prior_of_t)
+        judged = self._assess(t_prev, prior, prior_cov, from_key, fit, on_previous, key_prior)
         if judged.rejected:  # too unlikely under both covariances: the odometry stands
             from_key = None
         # (the poses as floats once: the arrays' tolist() gives these very floats back)
@@ -209,16 +206,18 @@ class Positioner:
         from_key: FloatArray | None,
         fit: Refinement | None,
         on_previous: bool,
-        key_prior: FloatArray | None,
+        key_prior: FloatArray,
     ) -> Assessment:
         """The uncertainty stage's assessment of the match (with the scan's own motion where
         it teaches the odometry's noise); a fit against the previous scan too carries that
-        scan's error relative to the keyframe; ``key_prior``: ``compose(t_prev, prior)``, where
-        known to the bit."""
+        scan's error relative to the keyframe; ``key_prior``: the prior from the keyframe."""
         previous_cov = self.uncertainty.previous_covariance() if on_previous else None
+        # (the prior from the keyframe is compose(t_prev, prior) to the bit where t_prev is the
+        # keyframe's relative pose itself, no coordinate of it zero: LocalMap.at)
+        known = key_prior if 0.0 not in t_prev.tolist() else None
         judged = self.uncertainty.assess(
             t_prev, prior.increment, prior_cov, from_key, fit, gate_open=self._gate_open(prior),
-            with_scan_only=self._learns_from(prior, fit), key_prior=key_prior,
+            with_scan_only=self._learns_from(prior, fit), key_prior=known,
         )  # fmt: skip
         if previous_cov is not None and from_key is not None and not judged.rejected:
             # the fit placed the previous scan's points by its estimate: their error too
