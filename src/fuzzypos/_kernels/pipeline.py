@@ -62,22 +62,28 @@ def assess_and_scan_only(
     wanted: bool,
     increment: FloatArray,
     max_condition: float,
-) -> tuple[FloatArray, FloatArray, FloatArray, float, bool, FloatArray, FloatArray]:
+) -> tuple[float, bool, FloatArray]:
     """``uncertainty.assess_fit`` and, where ``wanted`` and the gate (at ``threshold``) let the
     match stand, ``uncertainty.scan_only`` of the fit (its ``increment``) from the previous
     covariance the assessment leaves: the two kernels the positioner calls one after the
-    other for a refined match, in one call. Returns the assessment's four values, then
-    whether the scan alone fixes the motion, that motion and its covariance (zeros where not
-    computed)."""
+    other for a refined match, in one call. Returns the assessment's gate, whether the scan
+    alone fixes the motion, and one (5, 3, 3) array (one array to box, not five): the
+    assessment's three matrices (the increment's covariance, the keyframe's, the new
+    previous one), the scan's own motion's covariance, and that motion in the last one's
+    first row (zeros where not computed)."""
     inc_cov, kf, new_previous, gate = assess_fit(
         t_prev, prior, prior_covariance, previous, from_key, feature, floor, has_fit,
         information, prior_information, hold_information, gradient_covariance, fit_prior,
         hold_target, point_correlation, gate_open,
     )  # fmt: skip
+    out = np.zeros((5, 3, 3))
+    out[0], out[1], out[2] = inc_cov, kf, new_previous
+    ok = False
     if wanted and not (gate_open and gate > threshold):
         ok, inc, cov = scan_only(
             information, prior_information, gradient_covariance, increment, fit_prior, t_prev,
             new_previous, floor, point_correlation, max_condition,
         )  # fmt: skip
-        return inc_cov, kf, new_previous, gate, ok, inc, cov
-    return inc_cov, kf, new_previous, gate, False, np.zeros(3), np.zeros((3, 3))
+        out[3] = cov
+        out[4, 0] = inc
+    return gate, ok, out

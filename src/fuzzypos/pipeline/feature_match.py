@@ -41,6 +41,14 @@ class FeatureMatch:
     n_pairs: int
     reason: Reason
 
+    @classmethod
+    def _of(cls, increment: FloatArray | None, n_pairs: int, reason: Reason) -> FeatureMatch:
+        """What the constructor builds, straight into the instance's dict (the frozen
+        ``__init__``'s ``object.__setattr__`` per field costs more; once a scan)."""
+        out = object.__new__(cls)
+        out.__dict__.update(increment=increment, n_pairs=n_pairs, reason=reason)
+        return out
+
 
 class FeatureMatcher:
     """Matches a scan's features against the keyframe's (``[matching]``, ``[fusion]``)."""
@@ -89,12 +97,12 @@ class FeatureMatcher:
         if lines_tried:
             increment, n_lines = self.match_lines(prev.lines, curr.lines, None, prior)
             if increment is not None:
-                return FeatureMatch(increment, n_lines, Reason.MATCHED)
+                return FeatureMatch._of(increment, n_lines, Reason.MATCHED)
         points = self.match_points(prev.points_of_interest, curr.points_of_interest, prior)
         if m.match_lines and (points.increment is not None or not lines_tried):
             refined, n_lines = self.match_lines(prev.lines, curr.lines, points.increment, prior)
             if refined is not None:
-                return FeatureMatch(refined, n_lines, Reason.MATCHED)
+                return FeatureMatch._of(refined, n_lines, Reason.MATCHED)
         return points
 
     def match_points(
@@ -167,10 +175,10 @@ class FeatureMatcher:
         if len(prev) == 0 or len(curr) == 0:
             return None, 0
         settings = self._line_settings[from_prior]
+        # (f64, not a copy: the kernel copies the start and writes to neither)
         found, est, n_pairs = _kernels().match_lines(
-            *self._arrays_of(prev), *self._arrays_of(curr), np.array(pose, dtype=np.float64),
-            np.array(prior, dtype=np.float64), settings, self._line_params, int(m.line_passes),
-            int(m.line_min_pairs),
+            *self._arrays_of(prev), *self._arrays_of(curr), f64(pose), f64(prior), settings,
+            self._line_params, int(m.line_passes), int(m.line_min_pairs),
         )  # fmt: skip
         return (est if found else None), int(n_pairs)
 

@@ -68,17 +68,33 @@ class LocalMap:
         estimated up to ``pose``, then ``increment``."""
         # in floats (compose3/relative3: the arithmetic of compose/relative without an array
         # per step), one array for the result
+        return np.array(compose3(self._relative_of(pose), increment.tolist()))
+
+    def at(self, pose: FloatArray) -> FloatArray:
+        """``from_keyframe(pose, zeros)``: ``pose`` seen from the keyframe. Where no coordinate
+        of it is zero, composing the zero motion adds and subtracts zeros to nonzero numbers
+        (and the angle needs no wrapping): the very floats, without the arithmetic."""
+        rel = self._relative_of(pose)
+        if rel[0] != 0.0 and rel[1] != 0.0 and rel[2] != 0.0:
+            return np.array(rel)
+        return np.array(compose3(rel, (0.0, 0.0, 0.0)))
+
+    def _relative_of(self, pose: FloatArray) -> Pose3:
+        """``pose`` relative to the keyframe's, kept for the next call with the same two."""
         seen = self._relative
         if seen is not None and seen[0] is pose and seen[1] is self._pose:
-            rel = seen[2]
-        else:
-            rel = relative3(self._pose.tolist(), pose.tolist())
-            self._relative = (pose, self._pose, rel)
-        return np.array(compose3(rel, increment.tolist()))
+            return seen[2]
+        rel = relative3(self._pose.tolist(), pose.tolist())
+        self._relative = (pose, self._pose, rel)
+        return rel
 
     def pose_of(self, from_keyframe: FloatArray) -> FloatArray:
         """The pose at ``from_keyframe`` seen from the keyframe."""
-        return np.array(compose3(self._pose.tolist(), from_keyframe.tolist()))
+        return np.array(self.pose3_of(from_keyframe))
+
+    def pose3_of(self, from_keyframe: FloatArray) -> Pose3:
+        """:meth:`pose_of` as three floats."""
+        return compose3(self._pose.tolist(), from_keyframe.tolist())
 
     def add(self, features: Features, pose: FloatArray, from_keyframe: FloatArray | None) -> bool:
         """The scan just estimated: it becomes the keyframe where matching it failed

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from ..config import Config
 from ..features import Features, extract_features
-from ..geometry import Pose2D, compose3, relative3
+from ..geometry import Pose2D, Pose3, compose3, relative3
 from ..matching import Refinement
 from ..scan import LaserScan
 from .estimate import Estimate, Reason
@@ -37,13 +37,16 @@ FloatArray = NDArray[np.float64]
 
 _END = object()
 _IDENTITY = Pose2D()
-_NO_MOTION = np.zeros(3)
-_NO_MOTION.flags.writeable = False
 
 
 def _pose(a: FloatArray) -> Pose2D:
     """A Pose2D from a pose array the pipeline computed (finite, angle wrapped by compose)."""
-    x, y, th = a.tolist()
+    return _pose3(a.tolist())
+
+
+def _pose3(p: Pose3) -> Pose2D:
+    """:func:`_pose` of a pose as three floats."""
+    x, y, th = p
     if not (math.isfinite(x) and math.isfinite(y) and -math.pi <= th < math.pi):
         return Pose2D(x, y, th)  # validates and wraps
     return Pose2D._trusted(x, y, th)
@@ -99,7 +102,7 @@ class Positioner:
         if self._pose is None:
             return self._first(scan, odom)
         prior = self._prior(scan.stamp, odom)
-        t_prev = self.local_map.from_keyframe(self._pose, _NO_MOTION)  # the previous scan's pose
+        t_prev = self.local_map.at(self._pose)  # the previous scan's pose from the keyframe
         if prior.standing_still:  # the odometry says the robot stands still: so does the estimate
             self.odometry_prior.accept(np.zeros(3), prior.dt)
             still = self.uncertainty.standing_still(t_prev)
@@ -118,15 +121,20 @@ class Positioner:
             features, match, key_prior, prior, scan.angle_increment, information
         )
         from_key = match.increment if fit is None else fit.increment
-        judged = self._assess(t_prev, prior, prior_cov, from_key, fit, on_previous)
+        judged = self._assess(t_prev, prior, prior_cov, from_key, fit, on_previous, key_prior)
         if judged.rejected:  # too unlikely under both covariances: the odometry stands
             from_key = None
+        # (the poses as floats once: the arrays' tolist() gives these very floats back)
+        previous = self._pose.tolist()
         if from_key is None:  # fall back to the prior, and start afresh from this scan
             increment = np.asarray(prior.increment, dtype=float)
-            pose = np.array(compose3(self._pose.tolist(), increment.tolist()))
+            increment3 = increment.tolist()
+            pose3 = compose3(previous, increment3)
         else:
-            pose = self.local_map.pose_of(from_key)
-            increment = np.array(relative3(self._pose.tolist(), pose.tolist()))
+            pose3 = self.local_map.pose3_of(from_key)
+            increment3 = relative3(previous, pose3)
+            increment = np.array(increment3)
+        pose = np.array(pose3)
         self._learn(prior, t_prev, fit, judged)
         renewed = self.local_map.add(features, pose, from_key)
         if renewed:
@@ -136,7 +144,7 @@ class Positioner:
         reason = Reason.GATED if judged.rejected else match.reason
         refined = fit is not None and from_key is not None
         return Estimate._trusted(
-            stamp=scan.stamp, pose=_pose(pose), increment=_pose(increment),
+            stamp=scan.stamp, pose=_pose3(pose3), increment=_pose3(increment3),
             prior=_pose(prior.increment), n_pairs=match.n_pairs, degraded=from_key is None,
             features=features, reason=Reason.MATCHED if from_key is not None else reason,
             odometry_rejected=prior.odometry_rejected, refined=refined,
@@ -152,8 +160,8 @@ class Positioner:
         increment = self.odometry_noise.calibrated(prior.increment)
         if increment is prior.increment:  # no calibration to apply
             return prior
-        # (the constructor, not dataclasses.replace: a few µs less per scan)
-        return Prior(
+        # (not dataclasses.replace: a few µs less per scan)
+        return Prior._of(
             increment, prior.odometry, prior.dt, prior.odometry_rejected, prior.standing_still,
             prior.stale,
         )  # fmt: skip
@@ -198,14 +206,18 @@ class Positioner:
         from_key: FloatArray | None,
         fit: Refinement | None,
         on_previous: bool,
+        key_prior: FloatArray,
     ) -> Assessment:
         """The uncertainty stage's assessment of the match (with the scan's own motion where
         it teaches the odometry's noise); a fit against the previous scan too carries that
-        scan's error relative to the keyframe."""
+        scan's error relative to the keyframe; ``key_prior``: the prior from the keyframe."""
         previous_cov = self.uncertainty.previous_covariance() if on_previous else None
+        # (the prior from the keyframe is compose(t_prev, prior) to the bit where t_prev is the
+        # keyframe's relative pose itself, no coordinate of it zero: LocalMap.at)
+        known = key_prior if 0.0 not in t_prev.tolist() else None
         judged = self.uncertainty.assess(
             t_prev, prior.increment, prior_cov, from_key, fit, gate_open=self._gate_open(prior),
-            with_scan_only=self._learns_from(prior, fit),
+            with_scan_only=self._learns_from(prior, fit), key_prior=known,
         )  # fmt: skip
         if previous_cov is not None and from_key is not None and not judged.rejected:
             # the fit placed the previous scan's points by its estimate: their error too
@@ -277,9 +289,9 @@ class Positioner:
         start = key_prior if match.increment is None else match.increment
         from_features = match.increment is not None and r.prior_from_features
         if information is None:
-            starts = Starts(start, start if from_features else key_prior, key_prior)
+            starts = Starts._of(start, start if from_features else key_prior, key_prior, None, None)
         else:  # the learned odometry is the prior, the features the start
-            starts = Starts(start, key_prior, key_prior, information[1], information[1])
+            starts = Starts._of(start, key_prior, key_prior, information[1], information[1])
         wide = prior.odometry_rejected
         best = self.refiner.refine(surface, points, starts, wide)
         if wide or best is None:

@@ -44,6 +44,25 @@ class Prior:
     standing_still: bool
     stale: float = 0.0
 
+    @classmethod
+    def _of(
+        cls,
+        increment: FloatArray,
+        odometry: FloatArray | None,
+        dt: float,
+        odometry_rejected: bool,
+        standing_still: bool,
+        stale: float,
+    ) -> Prior:
+        """What the constructor builds, straight into the instance's dict (the frozen
+        ``__init__``'s ``object.__setattr__`` per field costs more; once or twice a scan)."""
+        out = object.__new__(cls)
+        out.__dict__.update(
+            increment=increment, odometry=odometry, dt=dt, odometry_rejected=odometry_rejected,
+            standing_still=standing_still, stale=stale,
+        )  # fmt: skip
+        return out
+
     @property
     def from_odometry(self) -> bool:
         """Whether the increment is the odometry's (not a jump, not the last increment)."""
@@ -110,7 +129,7 @@ class OdometryPrior:
             stale = max(0.0, dt - self.stale_periods * usual)
         if dt > 0.0:
             self._steps.append(dt)
-        return Prior(prior, odo_inc, dt, rejected, standing, stale)
+        return Prior._of(prior, odo_inc, dt, rejected, standing, stale)
 
     def accept(self, increment: FloatArray, dt: float) -> None:
         """The increment estimated for the scan ``dt`` after the previous one: the prior of a

@@ -39,6 +39,14 @@ class ScanPoints:
     weights: FloatArray
     spacing: FloatArray | None = None
 
+    @classmethod
+    def _of(cls, xy: FloatArray, weights: FloatArray, spacing: FloatArray | None) -> ScanPoints:
+        """What the constructor builds, straight into the instance's dict (the frozen
+        ``__init__``'s ``object.__setattr__`` per field costs more; once a scan)."""
+        out = object.__new__(cls)
+        out.__dict__.update(xy=xy, weights=weights, spacing=spacing)
+        return out
+
 
 @dataclass(frozen=True, eq=False)
 class Starts:
@@ -53,6 +61,24 @@ class Starts:
     hold: FloatArray
     prior_information: FloatArray | None = None
     odometry_information: FloatArray | None = None
+
+    @classmethod
+    def _of(
+        cls,
+        start: FloatArray,
+        prior: FloatArray,
+        hold: FloatArray,
+        prior_information: FloatArray | None,
+        odometry_information: FloatArray | None,
+    ) -> Starts:
+        """What the constructor builds, straight into the instance's dict (as
+        :meth:`ScanPoints._of`; once a scan)."""
+        out = object.__new__(cls)
+        out.__dict__.update(
+            start=start, prior=prior, hold=hold, prior_information=prior_information,
+            odometry_information=odometry_information,
+        )  # fmt: skip
+        return out
 
 
 class Refiner:
@@ -78,14 +104,18 @@ class Refiner:
         pts = features.points
         if pts.shape[0] < r.min_points:
             return None
-        spacing = features.ranges * abs(float(angle_increment))
+        ranges = features.ranges
+        spacing = ranges * abs(float(angle_increment))
         if compiled():
+            uncertainty = features.uncertainty
+            if "_packed" not in features.__dict__:  # (the compiled chain's: float64 views)
+                pts, ranges, uncertainty = f64(pts), f64(ranges), f64(uncertainty)
+            floor, most, cap = self._weight_settings
             weights = _kernels().scan_weights(
-                f64(pts), f64(features.ranges), f64(features.uncertainty),
-                float(angle_increment), *self._weight_settings,
-            )  # fmt: skip
-            return ScanPoints(pts, weights, spacing)
-        return ScanPoints(pts, self._weights_numpy(features, angle_increment), spacing)
+                pts, ranges, uncertainty, float(angle_increment), floor, most, cap
+            )
+            return ScanPoints._of(features.points, weights, spacing)
+        return ScanPoints._of(pts, self._weights_numpy(features, angle_increment), spacing)
 
     def _weights_numpy(self, features: Features, angle_increment: float) -> FloatArray:
         """The points' weights in numpy (the compiled kernel's reference)."""

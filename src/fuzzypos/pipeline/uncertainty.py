@@ -99,6 +99,24 @@ class Assessment:
     rejected: bool = False
     scan_only: tuple[FloatArray, FloatArray] | None = None
 
+    @classmethod
+    def _of(
+        cls,
+        covariance: FloatArray,
+        keyframe_covariance: FloatArray,
+        gate: float | None,
+        rejected: bool,
+        scan_only: tuple[FloatArray, FloatArray] | None,
+    ) -> Assessment:
+        """What the constructor builds, straight into the instance's dict (the frozen
+        ``__init__``'s ``object.__setattr__`` per field costs more; once a scan)."""
+        out = object.__new__(cls)
+        out.__dict__.update(
+            covariance=covariance, keyframe_covariance=keyframe_covariance, gate=gate,
+            rejected=rejected, scan_only=scan_only,
+        )  # fmt: skip
+        return out
+
 
 class Uncertainty:
     """Covariances (``[covariance]``) and the gate (``[gate]``); owns the covariance of the
@@ -166,6 +184,7 @@ class Uncertainty:
         fit: Refinement | None,
         gate_open: bool,
         with_scan_only: bool = False,
+        key_prior: FloatArray | None = None,
     ) -> Assessment:
         """The covariances of a scan whose previous scan lies at ``t_prev`` from the keyframe,
         whose motion since then was predicted as ``prior`` with ``prior_covariance`` (the
@@ -173,11 +192,13 @@ class Uncertainty:
         (None: the features alone; ``from_key`` None: nothing, the prior stands). With
         ``gate_open`` the match is compared with the prior and rejected past the gate. With
         ``with_scan_only`` also :meth:`scan_only` of the fit where it stands (the compiled path
-        computes both in one kernel call)."""
+        computes both in one kernel call). ``key_prior``: ``compose(t_prev, prior)`` where the
+        caller has it to the bit (else computed where needed)."""
         if from_key is not None and compiled():
             return self._assess_compiled(
-                t_prev, prior, prior_covariance, from_key, fit, gate_open, with_scan_only
-            )
+                t_prev, prior, prior_covariance, from_key, fit, gate_open, with_scan_only,
+                key_prior,
+            )  # fmt: skip
         judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
         return self._with_scan_only(judged, fit, t_prev) if with_scan_only else judged
 
@@ -204,6 +225,7 @@ class Uncertainty:
         fit: Refinement | None,
         gate_open: bool,
         with_scan_only: bool,
+        key_prior: FloatArray | None,
     ) -> Assessment:
         """:meth:`assess` of a match through the compiled kernels, with :meth:`scan_only` in the
         same call where asked (the fallback, rare, in numpy)."""
@@ -214,12 +236,15 @@ class Uncertainty:
         else:  # (the fit's own arrays, float64 already)
             matrices = (fit.information, fit.prior_information, fit.hold_information,
                         fit.gradient_covariance)  # fmt: skip
-            key_prior = fit.start if fit.hold_on_start else _compose(t_prev, prior)
+            if fit.hold_on_start:
+                key_prior = fit.start
+            elif key_prior is None:
+                key_prior = _compose(t_prev, prior)
             poses = (fit.prior, key_prior)
             increment = f64(fit.increment)
             # (scan_only's own test: a held fit gives no motion of the scan's own)
             wanted = with_scan_only and not np.count_nonzero(fit.hold_information)
-        inc_cov, kf, previous, gate, ok, inc, cov = _pipeline_kernels().assess_and_scan_only(
+        gate, ok, out = _pipeline_kernels().assess_and_scan_only(
             f64(t_prev), f64(prior), f64(prior_covariance), self._previous, f64(from_key),
             self._feature, self.floor, fit is not None, *matrices, *poses,
             self._point_correlation, bool(gate_open), self.threshold, wanted, increment,
@@ -228,9 +253,10 @@ class Uncertainty:
         if gate_open and gate > self.threshold:
             judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
             return self._with_scan_only(judged, fit, t_prev) if wanted else judged
-        self._previous = previous
-        scan = (inc, cov) if wanted and ok else None
-        return Assessment(inc_cov, kf, None if not gate_open else float(gate), False, scan)
+        # (views of the kernel's one array)
+        self._previous = out[2]
+        scan = (out[4, 0], out[3]) if wanted and ok else None
+        return Assessment._of(out[0], out[1], None if not gate_open else float(gate), False, scan)
 
     def _assess_numpy(
         self,
