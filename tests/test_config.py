@@ -60,7 +60,6 @@ ANGLES_DEG = {
     ("odometry_noise", "min_rotation_per_sqrt_m"): 0.05,
     ("odometry_noise", "max_rotation_per_sqrt_m"): 20.0,
     ("loop_closure", "search_angle"): 20.0,
-    ("loop_closure", "reoptimize_angle"): 1.0,
     ("loop_closure", "heading_floor"): 4.0,
     ("loop_closure", "closure_floor_rotation"): 2.0,
     ("loop_closure", "map_scan_angle"): 10.0,

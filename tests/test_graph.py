@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from fuzzypos import Config, Positioner, sim
 from fuzzypos.demo import DemoSettings
@@ -15,7 +16,7 @@ from fuzzypos.pipeline import Estimate
 
 gtsam = pytest.importorskip("gtsam")
 
-from fuzzypos.graph import LoopCloser, PoseGraph, PoseGraphError, read_g2o  # noqa: E402
+from fuzzypos.graph import Closure, LoopCloser, PoseGraph, PoseGraphError, read_g2o  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -357,6 +358,28 @@ def test_a_fit_whose_heading_the_graph_rules_out_is_refused(loop) -> None:
     loose = Config().with_overrides({"loop_closure": {"heading_floor": np.radians(90.0)}})
     found = LoopCloser(loose).verify(graph, i, j, predicted=turned)
     assert found is not None and abs(found.measured[2] - predicted[2]) < np.radians(1.0)
+
+
+@pytest.mark.parametrize("probability", [0.5, 0.95, 0.999])
+def test_a_closure_disagrees_beyond_its_own_covariance_s_gate(loop, probability: float) -> None:
+    """A closure displaced from the graph's prediction by a multiple of its own standard
+    deviations disagrees exactly where the χ²(3) distance passes the quantile; the same
+    displacement with a covariance twice as wide agrees."""
+    _, ests = loop
+    graph = PoseGraph.from_estimates(ests)
+    cfg = Config().with_overrides({"loop_closure": {"reoptimize_probability": probability}})
+    closer = LoopCloser(cfg)
+    i, j = 2, len(graph) - 1
+    predicted = relative(graph.poses[i], graph.poses[j])
+    cov = np.diag([0.03**2, 0.05**2, np.radians(2.0) ** 2])
+    quantile = chi2.ppf(probability, 3)
+    for scale in (0.9, 1.1):
+        d = np.sqrt(scale * quantile / 3.0) * np.sqrt(np.diag(cov))  # d² = scale · quantile
+        closure = Closure(i, j, compose(predicted, d), cov, 0.9, 0.0)
+        assert closer.disagrees(graph, closure) == (scale > 1.0)
+        wider = Closure(i, j, compose(predicted, d), 2.0 * cov, 0.9, 0.0)
+        assert not closer.disagrees(graph, wider)
+    assert not closer.disagrees(graph, Closure(i, j, predicted, cov, 0.9, 0.0))
 
 
 def _wall_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:

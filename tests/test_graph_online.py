@@ -155,7 +155,8 @@ def test_every_closure_the_closer_adds_goes_into_isam2() -> None:
         for i in (j - 3, j - 2):
             graph.add_closure(i, j, relative(graph.poses[i], graph.poses[j]), np.eye(3) * 1e-4)
             added.append((i, j))
-        return SimpleNamespace(i=j - 2, j=j, measured=relative(graph.poses[j - 2], graph.poses[j]))
+        measured = relative(graph.poses[j - 2], graph.poses[j])
+        return SimpleNamespace(i=j - 2, j=j, measured=measured, covariance=np.eye(3) * 1e-4)
 
     mapper.closer.close = close_twice  # type: ignore[method-assign]
     for k, s in enumerate(run.scans[:150]):

@@ -143,20 +143,17 @@ class LoopClosureConfig:
         ge=0.0,
         le=1.0,
     )
-    reoptimize_distance: float = _field(
-        0.1,
-        "the graph is optimised again after a closure whose measurement lies 0.1 m or more "
-        "from the graph's prediction (or reoptimize_angle): the next candidates' predictions "
-        "start from the corrected poses, while a closure that agrees moves nothing and an "
-        "optimisation after every closure costs more than the matching on a long log",
-        unit=M,
+    reoptimize_probability: float = _field(
+        0.95,
+        "the graph is optimised again after a closure whose measurement lies beyond the χ²(3) "
+        "quantile of 95 % from the graph's prediction, under the closure's own covariance: the "
+        "next candidates' predictions start from the corrected poses, while a closure that "
+        "agrees within its own uncertainty moves little and goes to ISAM2 alone; fixed "
+        "thresholds tighter than the closures' covariance floors re-optimised after most "
+        "closures along a loop, each batch turning the stiffer chain by a fraction of the "
+        "closure's heading offset, so the next closure disagreed again",
         gt=0.0,
-    )
-    reoptimize_angle: float = _field(
-        math.radians(1.0),
-        "or 1° from it: a heading error of 1° moves a keyframe 10 m away by 17 cm",
-        unit=RAD,
-        gt=0.0,
+        lt=1.0,
     )
     robust: str = _field(
         "gnc",

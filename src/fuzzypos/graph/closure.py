@@ -36,6 +36,7 @@ from statistics import NormalDist
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.stats import chi2
 
 from ..config import Config
 from ..features import Features
@@ -98,6 +99,7 @@ class LoopCloser:
         self._chi2 = -2.0 * math.log(1.0 - self.settings.gate_probability)  # χ²(2) quantile
         p = self.settings.gate_probability  # χ²(1) quantile: the normal's, squared
         self._chi2_1 = NormalDist().inv_cdf(0.5 + 0.5 * p) ** 2
+        self._chi2_3 = float(chi2.ppf(self.settings.reoptimize_probability, 3))
         self._prefix_of: tuple[FloatArray, tuple[FloatArray, ...]] | None = None
         self._places: tuple[PoseGraph, PlaceIndex] | None = None
         #: candidates verified and refused, by the check that refused them
@@ -485,6 +487,16 @@ class LoopCloser:
         d2 = float(d @ np.linalg.solve(pos, d))
         return d2 <= self._chi2 and float(e[2]) ** 2 <= self._chi2_1 * head
 
+    def disagrees(self, graph: PoseGraph, found: Closure) -> bool:
+        """Whether ``found``'s measurement lies beyond the χ²(3) quantile of
+        ``reoptimize_probability`` from the graph's prediction of it, under the closure's own
+        covariance (both in keyframe ``j``'s frame): where the graph must be optimised again
+        before the next keyframes are predicted from it."""
+        prediction = relative(graph.poses[found.i], graph.poses[found.j])
+        off = relative(prediction, found.measured)
+        off[2] = math.remainder(float(off[2]), math.tau)
+        return float(off @ np.linalg.solve(found.covariance, off)) > self._chi2_3
+
     def _add(self, graph: PoseGraph, found: Closure) -> Closure:
         graph.add_closure(found.i, found.j, found.measured, found.covariance)
         self.closures.append(found)
@@ -492,18 +504,15 @@ class LoopCloser:
 
     def run(self, graph: PoseGraph) -> list[Closure]:
         """Every keyframe in turn: close its loop where it can, the graph optimised after a
-        closure that disagrees with it (``reoptimize_distance``, ``reoptimize_angle``: the next
-        keyframes' predictions start from the corrected poses) and at the end. The closures
+        closure that disagrees with it (:meth:`disagrees`: the next keyframes' predictions start
+        from the corrected poses) and at the end. The closures
         with their final weights."""
         s = self.settings
         for j in range(len(graph)):
             found = self.close(graph, j)
             if found is None:
                 continue
-            off = relative(relative(graph.poses[found.i], graph.poses[j]), found.measured)
-            if math.hypot(off[0], off[1]) >= s.reoptimize_distance or abs(off[2]) >= (
-                s.reoptimize_angle
-            ):
+            if self.disagrees(graph, found):
                 graph.optimize(s.robust, gnc_mu_step=s.gnc_mu_step)
         if self.closures:
             graph.optimize(s.robust, gnc_mu_step=s.gnc_mu_step)

@@ -5,9 +5,10 @@ optimised pose of that scan.
 
 The output is kept optimised by gtsam's ISAM2: each new keyframe adds its front-end edge
 (its pose first guessed as the previous keyframe's optimised pose composed with the edge), and
-a closure that agrees with the graph (within ``reoptimize_distance`` and ``reoptimize_angle``
-of its prediction) enters ISAM2 as one more factor, followed by ``isam_extra_updates``
-relinearising updates. A closure that disagrees is where a false one would bend the graph:
+a closure that agrees with the graph (within the ``reoptimize_probability`` gate of its
+prediction under its own covariance, :meth:`~.closure.LoopCloser.disagrees`) enters ISAM2 as
+one more factor, followed by ``isam_extra_updates`` relinearising updates. A closure that
+disagrees is where a false one would bend the graph:
 there the whole graph is optimised in batch with the offline path's robust kernel
 (``robust``: GNC by default, :meth:`~.pose_graph.PoseGraph.optimize`; ISAM2 holds no robust
 factors, as GNC needs the whole graph) and ISAM2 restarts from that solution with the
@@ -146,10 +147,7 @@ class OnlineMapper:
         if found is None:
             return None
         s = self.settings
-        off = relative(relative(self.graph.poses[found.i], self.graph.poses[j]), found.measured)
-        if math.hypot(off[0], off[1]) >= s.reoptimize_distance or abs(off[2]) >= (
-            s.reoptimize_angle
-        ):
+        if self.closer.disagrees(self.graph, found):
             self.graph.optimize(s.robust, gnc_mu_step=s.gnc_mu_step)
             self.batch_optimisations += 1
             self._restart()
