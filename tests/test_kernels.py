@@ -418,11 +418,16 @@ def test_the_compiled_search_is_the_numpy_one(pose, motion, penalty, seed) -> No
 
 
 @BUDGET
-@given(seed=st.integers(0, 10_000), penalty=st.sampled_from([0.0, 0.05]))
-def test_the_search_finds_the_same_best_in_any_order(seed, penalty) -> None:
-    """The kernel scores the candidates in the order it is given (the likeliest first) and
-    leaves those that cannot win: the best is the same as in rotation-major order, equal
-    scores included (a symmetric room, a penalty symmetric about the start: ties abound)."""
+@given(
+    seed=st.integers(0, 10_000),
+    penalty=st.sampled_from([0.0, 0.05]),
+    sides=st.sampled_from([(4, 2), (2, 1), (6, 3), (1, 1)]),
+)
+def test_the_search_finds_the_same_best_in_any_order(seed, penalty, sides) -> None:
+    """The kernel scores the candidates in the order it is given (the likeliest first),
+    blocks of translations before their members, and leaves those that cannot win: the best
+    is the brute force's, equal scores included (a symmetric room, a penalty symmetric about
+    the start: ties abound), whatever the order and the blocks' sizes."""
     from fuzzypos._kernels.search import best_candidate
 
     rng = np.random.default_rng(seed)
@@ -433,23 +438,86 @@ def test_the_search_finds_the_same_best_in_any_order(seed, penalty) -> None:
     surface = SurfacePoints(wall, np.zeros_like(wall), np.ones(len(wall)))
     pts = wall[rng.choice(len(wall), 40, replace=False)] + rng.normal(0.0, 0.02, (40, 2))
     thetas = np.radians(np.arange(-6.0, 6.5, 3.0))
-    offs = 0.1 * np.arange(-3, 4)
-    tx, ty = (a.ravel() for a in np.meshgrid(offs, offs, indexing="ij"))
+    k = np.arange(-3, 4)
+    lattice = np.column_stack([a.ravel() for a in np.meshgrid(k, k, indexing="ij")])
+    tx, ty = 0.1 * lattice[:, 0], 0.1 * lattice[:, 1]
     pen = penalty * np.hypot(tx, ty)
     args = (surface.grid, pts, thetas, tx, ty, pen, 0.05)
-    natural = best_candidate(*args, np.arange(len(thetas)), np.arange(len(tx)))
-    shuffled = best_candidate(*args, rng.permutation(len(thetas)), rng.permutation(len(tx)))
-    likeliest = best_candidate(*args, np.argsort(np.abs(thetas), kind="stable"),
-                               np.argsort(pen, kind="stable"))  # fmt: skip
+
+    def best(rotations, priority):
+        blocks = search_module.translation_blocks(lattice, tx, ty, pen, priority, sides)
+        return best_candidate(*args, rotations, blocks)
+
+    natural = best(np.arange(len(thetas)), np.arange(len(tx), dtype=float))
+    shuffled = best(rng.permutation(len(thetas)), rng.permutation(len(tx)).astype(float))
+    likeliest = best(np.argsort(np.abs(thetas), kind="stable"), pen)
     assert natural == shuffled == likeliest
-    # the natural order's best, by brute force: the highest score, the first of equal ones
+    # the best by brute force: the highest score, the first of equal ones
     hits = np.array([[np.mean(surface.tree.query(
         np.column_stack((np.cos(a) * pts[:, 0] - np.sin(a) * pts[:, 1] + x,
-                         np.sin(a) * pts[:, 0] + np.cos(a) * pts[:, 1] + y)))[0] <= 0.05)
+                         np.sin(a) * pts[:, 0] + np.cos(a) * pts[:, 1] + y)))[0] < 0.05)
         for x, y in zip(tx, ty)] for a in thetas])  # fmt: skip
     score = hits - pen[None, :]
     r, t = divmod(int(np.argmax(score)), len(tx))
     assert natural[:2] == (r, t)
+    assert natural[2] == hits[r, t]
+
+
+@given(
+    m=st.integers(0, 8),
+    sides=st.sampled_from([(4, 2), (2, 1), (6, 3), (8, 4)]),
+    seed=st.integers(0, 1000),
+)
+def test_the_translation_blocks_cover_the_lattice_once_and_bound_their_members(
+    m, sides, seed
+) -> None:
+    """Every translation in exactly one inner block inside one outer block; each block's
+    radius reaches its every member from its centre; its penalty and first index are its
+    members' least; members and blocks come in the order of their least priority."""
+    rng = np.random.default_rng(seed)
+    k = np.arange(-m, m + 1)
+    lattice = np.column_stack([a.ravel() for a in np.meshgrid(k, k, indexing="ij")])
+    tx, ty = 0.2 * lattice[:, 0] + 1.3, 0.2 * lattice[:, 1] - 4.1
+    pen = 0.1 * np.hypot(tx - 1.3, ty + 4.1)
+    priority = rng.permutation(len(tx)).astype(float)
+    b = search_module.translation_blocks(lattice, tx, ty, pen, priority, sides)
+    assert sorted(b.members.tolist()) == list(range(len(tx)))
+    assert b.outer_start[0] == 0 and b.outer_start[-1] == len(b.inner_penalty)
+    assert b.inner_start[0] == 0 and b.inner_start[-1] == len(tx)
+    outer_rank, inner_rank = [], []
+    for o in range(len(b.outer_penalty)):
+        inner_blocks = range(b.outer_start[o], b.outer_start[o + 1])
+        mine = b.members[b.inner_start[inner_blocks[0]] : b.inner_start[inner_blocks[-1] + 1]]
+        cells = {tuple(c) for c in (lattice[mine] + m) // sides[0]}
+        assert len(cells) == 1 and len(mine) <= sides[0] ** 2
+        for members, centre, radius, least, first in [
+            (mine, b.outer_centre[o], b.outer_radius[o], b.outer_penalty[o], b.outer_first[o])
+        ] + [
+            (
+                b.members[b.inner_start[q] : b.inner_start[q + 1]], b.inner_centre[q],
+                b.inner_radius[q], b.inner_penalty[q], b.inner_first[q],
+            )
+            for q in inner_blocks
+        ]:  # fmt: skip
+            assert np.all(np.hypot(tx[members] - centre[0], ty[members] - centre[1]) <= radius)
+            assert radius <= np.hypot(*(sides[0] * 0.2 / 2,) * 2) + 1e-6
+            assert least == pen[members].min() and first == members.min()
+        outer_rank.append(priority[mine].min())
+        for q in inner_blocks:
+            members = b.members[b.inner_start[q] : b.inner_start[q + 1]]
+            assert len({tuple(c) for c in (lattice[members] + m) // sides[1]}) == 1
+            assert list(priority[members]) == sorted(priority[members])
+            inner_rank.append(priority[members].min())
+        ranks = inner_rank[-len(inner_blocks) :]
+        assert ranks == sorted(ranks)
+    assert outer_rank == sorted(outer_rank)
+
+
+def test_the_translation_blocks_refuse_sides_that_do_not_nest() -> None:
+    lattice = np.zeros((1, 2), dtype=np.int64)
+    with pytest.raises(ValueError, match="no multiple"):
+        search_module.translation_blocks(lattice, np.zeros(1), np.zeros(1), np.zeros(1),
+                                         np.zeros(1), (4, 3))  # fmt: skip
 
 
 # -- line matching -----------------------------------------------------------------------------
