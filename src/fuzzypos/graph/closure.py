@@ -36,7 +36,7 @@ from statistics import NormalDist
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
+from scipy.special import gammaincinv
 
 from ..config import Config
 from ..features import Features
@@ -99,7 +99,8 @@ class LoopCloser:
         self._chi2 = -2.0 * math.log(1.0 - self.settings.gate_probability)  # χ²(2) quantile
         p = self.settings.gate_probability  # χ²(1) quantile: the normal's, squared
         self._chi2_1 = NormalDist().inv_cdf(0.5 + 0.5 * p) ** 2
-        self._chi2_3 = float(chi2.ppf(self.settings.reoptimize_probability, 3))
+        # χ²(3) quantile: twice the regularised lower incomplete gamma's inverse at 3/2
+        self._chi2_3 = 2.0 * float(gammaincinv(1.5, self.settings.reoptimize_probability))
         self._prefix_of: tuple[FloatArray, tuple[FloatArray, ...]] | None = None
         self._places: tuple[PoseGraph, PlaceIndex] | None = None
         #: candidates verified and refused, by the check that refused them
