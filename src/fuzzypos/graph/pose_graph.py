@@ -183,7 +183,9 @@ class PoseGraph:
                 graph, values, g.LevenbergMarquardtParams()
             ).optimize()
             params = g.GncLMParams(g.LevenbergMarquardtParams())
-            params.setLambdaStep(gnc_mu_step)  # GncParams::muStep in the Python wrapper
+            # GncParams::muStep: setLambdaStep in gtsam 4.3's wrapper, setMuStep in 4.2's
+            set_mu_step = getattr(params, "setLambdaStep", None) or params.setMuStep
+            set_mu_step(gnc_mu_step)
             params.setKnownInliers([k for k in range(graph.size()) if k not in set(factors)])
             optimizer = g.GncLMOptimizer(graph, values, params)
             optimizer.setInlierCostThresholdsAtProbability(0.99)
