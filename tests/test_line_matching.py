@@ -224,18 +224,35 @@ def test_the_matcher_reads_a_keyframes_lines_once() -> None:
         np.testing.assert_array_equal(got[0], fresh[0])
         first = matcher._arrays_of(keyframe)
         assert matcher._arrays_of(keyframe) is first
-        for x, y in zip(first, _line_arrays(keyframe)):
+        for x, y in zip(first, _line_arrays(keyframe), strict=True):
             np.testing.assert_array_equal(x, y)
     kept = [arrays for lines, arrays in matcher._recent if lines is scans[-1]]
     assert kept and matcher._arrays_of(scans[-1]) is kept[0]  # were it the next keyframe
 
 
 def test_the_matchers_line_arrays_are_the_lines_own() -> None:
-    """The matcher computes the normals' angles and the lengths itself (not through the
-    cached properties): the very values of ``Lines.normal_angle`` and ``Lines.length``."""
+    """The line-matching kernel reads the lines' own values from its one flat array (the
+    normals' angles it computes itself: the very values of ``Lines.normal_angle``), for lines
+    of the numpy chain and for the compiled chain's packed floats (read where they lie)."""
+    from fuzzypos import sim
+    from fuzzypos._kernels.lines import line_views
+    from fuzzypos.config import Config
+    from fuzzypos.features import extract_features
     from fuzzypos.pipeline.feature_match import _line_arrays
 
-    for lines in (ROOM, seen_from(ROOM, np.array([0.3, -0.2, 2.5]))):
-        arrays = _line_arrays(lines)
-        assert arrays[0].tobytes() == lines.normal_angle.tobytes()
-        assert arrays[4].tobytes() == lines.length.tobytes()
+    scan = sim.simulate_scan(sim.world_by_name("office"), np.array([1.0, 0.5, 0.3]))
+    packed = extract_features(scan, Config()).lines
+    assert "_packed" in packed.__dict__ and len(packed) >= 2
+    flat, first, nl = _line_arrays(packed)
+    assert flat is packed.__dict__["_packed"].buffers[0] and first > 0  # no copy
+    for lines in (ROOM, seen_from(ROOM, np.array([0.3, -0.2, 2.5])), packed):
+        flat, first, nl = _line_arrays(lines)
+        assert nl == len(lines)
+        views = line_views(flat, first, nl)
+        expected = (
+            lines.normal_angle, lines.distance, lines.normal, lines.centre, lines.length,
+            lines.angle_variance, lines.distance_variance,
+        )  # fmt: skip
+        for got, want in zip(views, expected, strict=True):
+            assert want is not None
+            assert got.tobytes() == np.ascontiguousarray(want, dtype=np.float64).tobytes()

@@ -11,12 +11,22 @@ from numpy.typing import NDArray
 
 from ._jit import kernel
 from ._select import median
+from .grid import inlined
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
 _HALF_PI = 0.5 * math.pi
+
+#: where :func:`match_lines` reads a scan's ``nl`` lines in one flat array of floats: from its
+#: element ``first``, each array's first element at ``first + k · nl`` for these ``k`` (the
+#: compiled feature chain's packed floats, ``fuzzypos._kernels.packing.LAYOUT``'s ``Lines``
+#: less the points' ``5n + 4m`` before them; the lengths after its 14 · nl floats), 15 · nl
+#: floats in all
+LINE_NORMAL, LINE_DISTANCE, LINE_CENTRE = 0, 2, 7
+LINE_ANGLE_VARIANCE, LINE_DISTANCE_VARIANCE, LINE_LENGTH = 12, 13, 14
+LINE_FLOATS = 15
 
 
 @kernel
@@ -190,22 +200,43 @@ def increment_from_lines(
     return out
 
 
+@inlined
+def _line_views(
+    flat: FloatArray, first: int, nl: int
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """A scan's lines in ``flat`` (:data:`LINE_FLOATS`): their normals' angles (atan2, the
+    values of ``Lines.normal_angle``: numpy's and numba's are libm's), distances, normals,
+    centres, lengths, angle and distance variances; views of ``flat`` but the angles."""
+    normal = flat[first + LINE_NORMAL * nl : first + (LINE_NORMAL + 2) * nl].reshape((nl, 2))
+    distance = flat[first + LINE_DISTANCE * nl : first + (LINE_DISTANCE + 1) * nl]
+    centre = flat[first + LINE_CENTRE * nl : first + (LINE_CENTRE + 2) * nl].reshape((nl, 2))
+    angle_variance = flat[first + LINE_ANGLE_VARIANCE * nl : first + (LINE_ANGLE_VARIANCE + 1) * nl]
+    distance_variance = flat[
+        first + LINE_DISTANCE_VARIANCE * nl : first + (LINE_DISTANCE_VARIANCE + 1) * nl
+    ]
+    length = flat[first + LINE_LENGTH * nl : first + (LINE_LENGTH + 1) * nl]
+    angle = np.empty(nl)
+    for k in range(nl):
+        angle[k] = math.atan2(normal[k, 1], normal[k, 0])
+    return angle, distance, normal, centre, length, angle_variance, distance_variance
+
+
+@kernel
+def line_views(
+    flat: FloatArray, first: int, nl: int
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`match_lines`' reading of a scan's lines (for the tests)."""
+    return _line_views(flat, first, nl)
+
+
 @kernel
 def match_lines(
-    pa: FloatArray,
-    pd: FloatArray,
-    pn: FloatArray,
-    pc: FloatArray,
-    pl: FloatArray,
-    pav: FloatArray,
-    pdv: FloatArray,
-    ca: FloatArray,
-    cd: FloatArray,
-    _cn: FloatArray,
-    cc: FloatArray,
-    cl: FloatArray,
-    cav: FloatArray,
-    cdv: FloatArray,
+    prev: FloatArray,
+    prev_first: int,
+    prev_n: int,
+    curr: FloatArray,
+    curr_first: int,
+    curr_n: int,
     start: FloatArray,
     prior: FloatArray,
     gates: FloatArray,
@@ -215,13 +246,14 @@ def match_lines(
 ) -> tuple[bool, FloatArray, int]:
     """``fuzzypos.pipeline.feature_match.FeatureMatcher.match_lines`` in one loop: pair the
     lines from ``start``, the increment from the pairs, and again from it while it moves
-    enough to change the pairs. ``pa``…``pdv`` and ``ca``…``cdv``: each scan's lines'
-    (normal angle, distance, normal, centre, length, angle variance, distance variance), one
-    array each (a tuple of arrays costs more to hand over; the current normals are not
-    read); ``gates`` = (the
-    first pass's angle and distance gates, the later passes', the overlap margin, the repair
-    fraction); ``params`` as :func:`increment_from_lines`. Returns whether the lines gave an
-    increment, the increment and how many pairs it rests on."""
+    enough to change the pairs. ``prev`` and ``curr``: each scan's ``*_n`` lines from element
+    ``*_first`` of one flat array (:data:`LINE_FLOATS`; the compiled feature chain's packed
+    floats themselves: one array to hand over, not seven); ``gates`` = (the first pass's
+    angle and distance gates, the later passes', the overlap margin, the repair fraction);
+    ``params`` as :func:`increment_from_lines`. Returns whether the lines gave an increment,
+    the increment and how many pairs it rests on."""
+    pa, pd, pn, pc, pl, pav, pdv = _line_views(prev, prev_first, prev_n)
+    ca, cd, _cn, cc, cl, cav, cdv = _line_views(curr, curr_first, curr_n)
     pose = start.copy()
     pair_gates = np.empty(3)
     pair_gates[0], pair_gates[1], pair_gates[2] = gates[0], gates[1], gates[4]

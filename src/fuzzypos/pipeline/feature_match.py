@@ -77,7 +77,12 @@ class FeatureMatcher:
         self._recent: list[tuple[Lines, _LineArrays]] = []
 
     def _arrays_of(self, lines: Lines) -> _LineArrays:
-        """:func:`_line_arrays` of ``lines``, built once while they are among the last two."""
+        """:func:`_line_arrays` of ``lines``, built once while they are among the last two
+        (the compiled chain's lines: their packed floats, nothing to build)."""
+        packed = lines.__dict__.get("_packed")
+        if packed is not None:
+            n, m = packed.sizes[0], packed.sizes[1]
+            return packed.buffers[0], 5 * n + 4 * m, packed.sizes[2]
         recent = self._recent
         for k, (seen, arrays) in enumerate(recent):
             if seen is lines:
@@ -187,26 +192,28 @@ def _has_variances(lines: Lines) -> bool:
     return lines.angle_variance is not None and lines.distance_variance is not None
 
 
-_LineArrays = tuple[
-    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray
-]
+#: a scan's lines as the line-matching kernel reads them: a flat array of floats, the first
+#: element and the number of lines (``fuzzypos._kernels.lines.LINE_FLOATS``)
+_LineArrays = tuple[FloatArray, int, int]
 
 
 def _line_arrays(lines: Lines) -> _LineArrays:
-    """What the line-matching kernel reads of a scan's lines. The normals' angles are
-    :class:`~fuzzypos.features.Lines`' ``normal_angle``, the same numpy expression (so the same
-    values) but not through the cached property: its lookup (a lock) costs more than the
-    arithmetic, and the matcher reads it once. The lengths are ``Lines.length``: the compiled
-    chain's (the same values) where it made the lines, whose arrays are then contiguous float64
-    views of its packed arrays already (no conversion)."""
-    normal = lines.normal
-    angle = np.arctan2(normal[:, 1], normal[:, 0])
-    if "_packed" in lines.__dict__:  # the compiled chain's views
-        return (
-            angle, lines.distance, normal, lines.centre, lines.length, lines.angle_variance,
-            lines.distance_variance,
-        )  # type: ignore[return-value]  # fmt: skip
-    return (
-        f64(angle), f64(lines.distance), f64(normal), f64(lines.centre), f64(lines.length),
-        f64(lines.angle_variance), f64(lines.distance_variance),
-    )  # fmt: skip
+    """What the line-matching kernel reads of a scan's lines: the compiled chain's packed
+    floats themselves where it made the lines (nothing copied: the lines' arrays sit in them
+    as the kernel reads them), else one flat array of them in that layout. The kernel
+    computes the normals' angles (``Lines.normal_angle``'s values)."""
+    packed = lines.__dict__.get("_packed")
+    if packed is not None:  # the compiled chain's: its floats, the lines after the points
+        n, m, nl = packed.sizes[0], packed.sizes[1], packed.sizes[2]
+        return packed.buffers[0], 5 * n + 4 * m, nl
+    k = _kernels()
+    nl = len(lines)
+    flat = np.zeros(k.LINE_FLOATS * nl)
+    for first, values in (
+        (k.LINE_NORMAL, lines.normal), (k.LINE_DISTANCE, lines.distance),
+        (k.LINE_CENTRE, lines.centre), (k.LINE_ANGLE_VARIANCE, lines.angle_variance),
+        (k.LINE_DISTANCE_VARIANCE, lines.distance_variance), (k.LINE_LENGTH, lines.length),
+    ):  # fmt: skip
+        part = np.asarray(values, dtype=np.float64).ravel()
+        flat[first * nl : first * nl + part.size] = part
+    return flat, 0, nl
