@@ -993,6 +993,83 @@ def test_fixed_text_kernel_is_its_reference(values):
         assert reference == " ".join(f"{x:.4f}".rstrip("0").removesuffix(".") for x in values)
 
 
+# -- the CARMEN reader's numbers from text ---------------------------------------------------
+_DECIMAL_TOKENS = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False).map(repr),  # shortest round-trip
+    st.floats(-1e6, 1e6).map(lambda v: f"{v:.4f}"),  # a logger's fixed decimals
+    st.floats(0.0, 100.0).map(lambda v: f"{v:.2f}".rstrip("0")),  # "3." too
+    st.floats(-1e3, 1e3).map(lambda v: f"{v:g}"),  # exponents
+    st.floats(-1e3, 1e3).map(lambda v: f"{v:.17e}"),  # too many digits for the fast path
+    st.integers(-(10**18), 10**18).map(str),
+    st.decimals(allow_nan=False, allow_infinity=False, places=6).map(str),
+    st.from_regex(r"\A[+-]?[0-9]{0,20}\.?[0-9]{0,20}([eE][+-]?[0-9]{1,3})?\Z"),
+    st.sampled_from(
+        [
+            "-0",
+            "+0.0",
+            ".5",
+            "5.",
+            "1e22",
+            "1e23",
+            "9007199254740993",
+            "nan",
+            "-inf",
+            "1_000",
+            "0x10",
+            "1e",
+            "--1",
+            "1.2.3",
+            "",
+            "١",
+        ]
+    ),
+)
+
+
+@given(st.lists(_DECIMAL_TOKENS, min_size=1, max_size=40))
+def test_the_compiled_parser_gives_floats_own_doubles(tokens):
+    """Where the kernel parses a list of numbers, each is the double ``float()`` makes of its
+    text, bit for bit (-0.0 too); what it does not take (not a plain decimal, beyond the exact
+    fast path) it leaves to the reference: ``_numbers`` gives numpy's values or its error,
+    with the kernels as without."""
+    from fuzzypos._kernels.text import parse_decimals
+    from fuzzypos.io import carmen
+
+    tokens = [t for t in tokens if t and not any(c.isspace() for c in t)]
+    assume(tokens)
+    text = np.frombuffer(" ".join(tokens).encode("ascii", "replace"), dtype=np.uint8)
+    ok, values = parse_decimals(text, len(tokens))
+    if ok:
+        assert [v.hex() for v in values.tolist()] == [float(t).hex() for t in tokens]
+    many = tokens * (carmen._PARSED_FROM // len(tokens) + 1)  # long enough for the kernel
+    try:
+        reference = np.array(many, dtype=np.float64)
+    except ValueError:
+        for use in (True, False):
+            kernels._ENABLED = use
+            with pytest.raises(carmen._Bad):
+                carmen._numbers(many, "range")
+        kernels._ENABLED = True
+        return
+    fast, ref = both(lambda: carmen._numbers(many, "range"))
+    assert fast.tobytes() == ref.tobytes() == reference.tobytes()
+
+
+def test_the_compiled_parser_takes_a_loggers_numbers():
+    """The numbers of a CARMEN log's lines (fixed decimals, integers, exponents, signs) are
+    all the kernel's to parse, not left to the reference; a malformed separator is not."""
+    from fuzzypos._kernels.text import parse_decimals
+
+    tokens = ["81.83", "0.02", "-3.1415", "12", "1e-3", "+7.", "-0", "1203.5523", "1.5E+2"]
+    text = np.frombuffer(" ".join(tokens).encode(), dtype=np.uint8)
+    ok, values = parse_decimals(text, len(tokens))
+    assert ok and [v.hex() for v in values.tolist()] == [float(t).hex() for t in tokens]
+    for bad, count in (("1.5  2.5", 2), (" 1.5 2.5", 2), ("1.5 2.5 ", 2), ("1.5 2.5", 3),
+                       ("1.5 2.5", 1), ("1.5,2.5", 2)):  # fmt: skip
+        ok, values = parse_decimals(np.frombuffer(bad.encode(), dtype=np.uint8), count)
+        assert not ok and values.size == 0
+
+
 # -- the fuzzy rule bases' bilinear interpolation ---------------------------------------------
 @BUDGET
 @given(

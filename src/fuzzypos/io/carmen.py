@@ -116,11 +116,13 @@ import math
 import warnings
 import zlib
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import ClassVar
 
 import numpy as np
+from numpy.typing import NDArray
 
+from .._kernels import compiled
 from ..geometry import Pose2D
 from ..scan import LaserScan, ScanError
 from ._common import (
@@ -207,8 +209,30 @@ def _count(s: str, what: str, minimum: int) -> int:
     return n
 
 
+#: a list of at least this many numbers (a scan's ranges) is parsed by the compiled kernel
+_PARSED_FROM = 16
+_PARSER: list[Callable[[NDArray[np.uint8], int], tuple[bool, FloatArray]]] = []
+
+
+def _load_parser() -> Callable[[NDArray[np.uint8], int], tuple[bool, FloatArray]]:
+    """``fuzzypos._kernels.text.parse_decimals``, imported (with numba) on first use and kept:
+    an import statement per scan costs about a microsecond."""
+    from .._kernels.text import parse_decimals
+
+    _PARSER.append(parse_decimals)
+    return parse_decimals
+
+
 def _numbers(tok: list[str], what: str) -> FloatArray:
-    """``tok`` as a float array (numpy parses; the loop only runs to name a bad field)."""
+    """``tok`` as a float array (numpy parses; the loop only runs to name a bad field). A
+    scan's ranges go through the compiled parser first (``fuzzypos._kernels.text``: the same
+    doubles, several times faster), which leaves what it is not sure of to numpy."""
+    if len(tok) >= _PARSED_FROM and compiled():
+        parse = _PARSER[0] if _PARSER else _load_parser()
+        text = " ".join(tok).encode("ascii", "replace")
+        ok, values = parse(np.frombuffer(text, dtype=np.uint8), len(tok))
+        if ok:
+            return values
     try:
         return np.array(tok, dtype=np.float64)
     except ValueError:

@@ -76,11 +76,12 @@ def warm_up(config: Config | None = None) -> float:
     )
     from .._kernels import compiled, f64
 
-    if compiled():  # the CARMEN writer's ranges (fuzzypos.io.carmen_write)
+    if compiled():  # the CARMEN writer's and reader's ranges (fuzzypos.io.carmen*)
         from .._kernels.pipeline import move_surfaces
-        from .._kernels.text import fixed_text
+        from .._kernels.text import fixed_text, parse_decimals
 
-        fixed_text(scans[0].ranges, 10_000, 4, 5)
+        _ok, text = fixed_text(scans[0].ranges, 10_000, 4, 5)
+        parse_decimals(text, scans[0].ranges.shape[0])
         # a local map of several keyframes (the short drive renews the keyframe only once)
         moves, ends = np.array([(0.0, 0.0, 1.0, 0.0)]), np.array([len(surface)], dtype=np.int64)
         move_surfaces(f64(surface.xy), f64(surface.normal), moves, ends)
