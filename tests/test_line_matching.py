@@ -245,6 +245,13 @@ def test_the_matchers_line_arrays_are_the_lines_own() -> None:
     assert "_packed" in packed.__dict__ and len(packed) >= 2
     flat, first, nl = _line_arrays(packed)
     assert flat is packed.__dict__["_packed"].buffers[0] and first > 0  # no copy
+    from fuzzypos._kernels import lines as kernel
+    from fuzzypos._kernels.packing import LAYOUT
+
+    for name, k in (("normal", kernel.LINE_NORMAL), ("distance", kernel.LINE_DISTANCE),
+                    ("centre", kernel.LINE_CENTRE), ("angle_variance", kernel.LINE_ANGLE_VARIANCE),
+                    ("distance_variance", kernel.LINE_DISTANCE_VARIANCE)):  # fmt: skip
+        assert LAYOUT["Lines"][name][1][2] == k  # the kernel's layout is the packing's
     for lines in (ROOM, seen_from(ROOM, np.array([0.3, -0.2, 2.5])), packed):
         flat, first, nl = _line_arrays(lines)
         assert nl == len(lines)

@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     from .front import ChainSizes
 
 __all__ = [
-    "LAYOUT", "Packed", "Unpacks", "chain_settings", "front", "new", "scanner", "unpacked",
+    "LAYOUT", "Packed", "Unpacks", "chain_settings", "front", "lines_first", "new", "scanner",
+    "unpacked",
 ]  # fmt: skip
 
 FloatArray = NDArray[np.float64]
@@ -217,6 +218,12 @@ def new(cls: type[_T], values: dict[str, Any]) -> _T:
     return obj
 
 
+def lines_first(sizes: ChainSizes) -> int:
+    """Where the lines' floats begin in :func:`~fuzzypos._kernels.front.scan_features`' packed
+    floats (:data:`LAYOUT`'s ``Lines``, after the points' ``5n + 4m``)."""
+    return _dot(LAYOUT["Lines"]["normal"][1], sizes)
+
+
 def unpacked(
     classes: tuple[type, type, type], empty_lines: Callable[[], Any], stamp: float,
     context: dict[str, Any], scale: float, line_scale: float, sizes: ChainSizes,
@@ -230,12 +237,12 @@ def unpacked(
     not their ends, since their lengths come with them) is taken out here, the rest on first
     use (:class:`Unpacks`)."""
     features_cls, lines_cls, context_cls = classes
-    n, m, nl = sizes[0], sizes[1], sizes[2]
+    n, nl = sizes[0], sizes[2]
     packed = Packed(sizes, fl, it, bl)
     if nl == 0:
         lines = empty_lines()
     else:
-        o = 5 * n + 4 * m
+        o = lines_first(sizes)
         lines = new(lines_cls, {
             "normal": fl[o : o + 2 * nl].reshape(nl, 2),
             "distance": fl[o + 2 * nl : o + 3 * nl],

@@ -12,7 +12,7 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled, f64
+from .._kernels import compiled, f64, packing
 from ..config import FusionConfig, MatchingConfig
 from ..features import FeaturePoints, Features, Lines
 from ..matching import estimate_increment, increment_from_lines, pair_features, pair_lines
@@ -79,10 +79,8 @@ class FeatureMatcher:
     def _arrays_of(self, lines: Lines) -> _LineArrays:
         """:func:`_line_arrays` of ``lines``, built once while they are among the last two
         (the compiled chain's lines: their packed floats, nothing to build)."""
-        packed = lines.__dict__.get("_packed")
-        if packed is not None:
-            n, m = packed.sizes[0], packed.sizes[1]
-            return packed.buffers[0], 5 * n + 4 * m, packed.sizes[2]
+        if "_packed" in lines.__dict__:
+            return _line_arrays(lines)
         recent = self._recent
         for k, (seen, arrays) in enumerate(recent):
             if seen is lines:
@@ -204,8 +202,7 @@ def _line_arrays(lines: Lines) -> _LineArrays:
     computes the normals' angles (``Lines.normal_angle``'s values)."""
     packed = lines.__dict__.get("_packed")
     if packed is not None:  # the compiled chain's: its floats, the lines after the points
-        n, m, nl = packed.sizes[0], packed.sizes[1], packed.sizes[2]
-        return packed.buffers[0], 5 * n + 4 * m, nl
+        return packed.buffers[0], packing.lines_first(packed.sizes), packed.sizes[2]
     k = _kernels()
     nl = len(lines)
     flat = np.zeros(k.LINE_FLOATS * nl)
