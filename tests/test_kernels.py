@@ -167,11 +167,15 @@ def test_an_empty_grid_finds_nothing() -> None:
 
 @BUDGET
 @given(
-    values=st.lists(st.floats(-1e6, 1e6, allow_nan=False), min_size=1, max_size=300),
+    values=st.one_of(
+        st.lists(st.floats(-1e6, 1e6, allow_nan=False), min_size=1, max_size=300),
+        st.lists(st.sampled_from([-1.0, 0.0, 0.5, 2.0]), min_size=1, max_size=300),
+    ),
     k=st.integers(0, 299),
 )
 def test_the_order_statistics_are_numpys(values, k) -> None:
-    """The k-th smallest value and the median without a sort, as numpy's sort gives them."""
+    """The k-th smallest value and the median without a sort, as numpy's sort gives them
+    (many equal values too)."""
     from fuzzypos._kernels._select import kth_smallest, median
 
     v = np.array(values)
@@ -359,6 +363,105 @@ def test_the_compiled_refinement_is_the_numpy_one(
         compiled, reference = both(run)
     assume(margins.value > MARGIN)
     assert_refinements_agree(compiled, reference)
+
+
+@BUDGET
+@given(
+    pose=poses,
+    motion=st.tuples(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3), st.floats(-0.2, 0.2)),
+    error=st.tuples(st.floats(-0.5, 0.5), st.floats(-0.5, 0.5), st.floats(-0.3, 0.3)),
+    odometry_error=st.tuples(
+        st.floats(-0.05, 0.05), st.floats(-0.05, 0.05), st.floats(-0.03, 0.03)
+    ),
+    seed=st.integers(0, 1000),
+    learned=st.booleans(),
+    wide=st.booleans(),
+)
+def test_the_fused_refinement_stage_is_the_staged_one(
+    pose, motion, error, odometry_error, seed, learned, wide
+) -> None:
+    """``Refiner.refine`` in one compiled call (both fits, their checks and the choice)
+    against the staged fits: the very same result as fit by fit with the compiled kernel, and
+    the numpy references' to 1e-9; the fit from the odometry's motion where it differs from
+    the features' (the start), none after an odometry jump (``wide``)."""
+    from fuzzypos.pipeline.refine import Refiner, Starts
+
+    a = scan_at(pose, seed)
+    moved = Pose2D(*pose).compose(Pose2D(*motion))
+    b = scan_at((moved.x, moved.y, moved.theta), seed + 1)
+    fa, fb = extract_features(a, CFG), extract_features(b, CFG)
+    surface = surface_points(fa.points, fa.ranges, fa.uncertainty, R)
+    refiner = Refiner(R, CFG.search)
+    points = refiner.points(fb, b.angle_increment)
+    assume(points is not None)
+    start = np.array(motion) + np.array(error)
+    hold = np.array(motion) + np.array(odometry_error)
+    information = np.array([[400.0, 30.0, 5.0], [30.0, 900.0, -8.0], [5.0, -8.0, 2000.0]])
+    info = information if learned else None
+    starts = Starts(start, hold, hold, info, info)
+    max_distance = CFG.search.jump_distance if wide else R.max_distance
+
+    def fused():
+        return refiner.refine(surface, points, starts, wide)
+
+    def staged():
+        return refiner._refine_staged(surface, points, starts, max_distance, wide)
+
+    kernels._ENABLED = True
+    one, each = fused(), staged()
+    assert (one is None) == (each is None)
+    if one is not None:
+        for name in ("increment", "information", "prior_information", "hold_information",
+                     "gradient_covariance", "start", "prior"):  # fmt: skip
+            np.testing.assert_array_equal(getattr(one, name), getattr(each, name))
+        assert (one.n_paired, one.hold_on_start) == (each.n_paired, each.hold_on_start)
+        assert (one.inlier_fraction, one.close_fraction) == (
+            each.inlier_fraction,
+            each.close_fraction,
+        )
+    with pytest.MonkeyPatch.context() as patch:
+        margins = Margins(patch)
+        compiled, reference = both(fused)
+    assume(margins.value > MARGIN)
+    if reference is not None and one is not None:  # (the checks' own thresholds: far off)
+        gain = abs(reference.close_fraction - one.close_fraction)
+        assume(gain == 0.0 or gain > MARGIN)
+    assert_refinements_agree(compiled, reference)
+
+
+@pytest.mark.parametrize(
+    ("pose", "seed", "error"),
+    [
+        ((4.5066, -0.4392, -0.0889), 134, (0.3846, 0.3693, 0.0899)),
+        ((8.1747, 0.5931, 1.0295), 650, (0.3510, -0.3819, -0.1528)),
+        ((-8.0608, -0.5772, -2.1731), 947, (0.3870, -0.3978, -0.0537)),
+    ],
+)
+def test_the_fused_refinement_keeps_the_odometrys_fit_where_the_start_was_far_off(
+    pose, seed, error
+) -> None:
+    """A start 0.4 m off and the odometry's motion right: the fit from the odometry's motion
+    is the one kept, in one compiled call as fit by fit."""
+    from fuzzypos.pipeline.refine import Refiner, Starts
+
+    motion = np.array([0.2, 0.0, 0.05])
+    a = scan_at(pose, seed)
+    moved = Pose2D(*pose).compose(Pose2D(*motion))
+    b = scan_at((moved.x, moved.y, moved.theta), seed + 1)
+    fa, fb = extract_features(a, CFG), extract_features(b, CFG)
+    surface = surface_points(fa.points, fa.ranges, fa.uncertainty, R)
+    refiner = Refiner(R, CFG.search)
+    points = refiner.points(fb, b.angle_increment)
+    assert points is not None
+    starts = Starts(motion + np.array(error), motion, motion)
+    kernels._ENABLED = True
+    one = refiner.refine(surface, points, starts, False)
+    each = refiner._refine_staged(surface, points, starts, R.max_distance, False)
+    assert one is not None and each is not None
+    np.testing.assert_array_equal(one.start, motion)  # the odometry's fit
+    np.testing.assert_array_equal(one.increment, each.increment)
+    np.testing.assert_array_equal(one.gradient_covariance, each.gradient_covariance)
+    assert np.abs(one.increment - motion).max() < 0.02
 
 
 def test_a_refinement_with_too_few_pairs_or_a_singular_system_is_none() -> None:

@@ -123,3 +123,37 @@ def test_the_assessment_with_the_scans_own_motion_is_the_two_calls(
     assert not hold or scan_a is None  # a held fit has no motion of the scan's own
     for x, y in zip(values(a, scan_a), values(b, scan_b)):
         assert x.tobytes() == y.tobytes()
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10**6), st.floats(1e-8, 1e-1), st.floats(1e-8, 1e-1))
+def test_the_refinements_priors_from_the_learned_noise_are_the_numpy_ones(
+    seed, odometry_scale, previous_scale
+) -> None:
+    """``Uncertainty.prior_information``: the information of the features' and of the
+    odometry's motion from the keyframe, in one compiled call as numpy's inverses give them
+    (to 1e-9 of their size); the odometry's is the inverse of ``key_prior_covariance``."""
+    from fuzzypos import _kernels as kernels
+    from fuzzypos.config import Config
+    from fuzzypos.pipeline import uncertainty as stage
+
+    cfg = Config()
+    rng = np.random.default_rng(seed)
+    t_prev = rng.normal(scale=[1.0, 1.0, 1.5])
+    prior = rng.normal(scale=[0.1, 0.1, 0.2])
+    prior_cov, previous = _spd(rng, odometry_scale), _spd(rng, previous_scale)
+    u = stage.Uncertainty(cfg.covariance, cfg.gate)
+    u._previous = previous
+    saved = kernels._ENABLED
+    try:
+        kernels._ENABLED = True
+        got = u.prior_information(t_prev, prior, prior_cov)
+        kernels._ENABLED = False
+        want = u.prior_information(t_prev, prior, prior_cov)
+    finally:
+        kernels._ENABLED = saved
+    for x, y in zip(got, want):
+        np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-9 * np.abs(y).max())
+    odometry = u.key_prior_covariance(t_prev, prior, prior_cov)
+    np.testing.assert_allclose(got[1] @ odometry, np.eye(3), atol=1e-8)
+    np.testing.assert_allclose(got[0] @ (odometry + u.feature_covariance()), np.eye(3), atol=1e-8)

@@ -3,6 +3,8 @@ smallest value (quickselect) and the median."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -14,7 +16,13 @@ FloatArray = NDArray[np.float64]
 @kernel
 def kth_smallest(values: FloatArray, k: int) -> float:
     """The ``k``-th smallest (0-based) of ``values`` (``np.sort(values)[k]``; no NaN)."""
-    a = values.copy()
+    return _select(values.copy(), k)
+
+
+@kernel
+def _select(a: FloatArray, k: int) -> float:
+    """:func:`kth_smallest` on ``a`` itself (Hoare's quickselect, left partitioned: every
+    value before ``a[k]`` is at most it)."""
     lo, hi = 0, a.shape[0] - 1
     while lo < hi:
         pivot = a[(lo + hi) // 2]
@@ -39,12 +47,21 @@ def kth_smallest(values: FloatArray, k: int) -> float:
 
 @kernel
 def median(values: FloatArray) -> float:
-    """The median (the mean of the middle two of an even count), as ``_robust.median``."""
+    """The median (the mean of the middle two of an even count), as ``_robust.median``: one
+    selection, the lower middle value the largest of those it left before the upper."""
     n = values.shape[0]
+    if n == 0:
+        return math.nan  # (np.median's)
     mid = n // 2
+    a = values.copy()
+    upper = _select(a, mid)
     if n % 2:
-        return kth_smallest(values, mid)
-    return 0.5 * (kth_smallest(values, mid - 1) + kth_smallest(values, mid))
+        return upper
+    lower = float(a[0])
+    for i in range(1, mid):
+        if a[i] > lower:
+            lower = a[i]
+    return 0.5 * (lower + upper)
 
 
 @kernel

@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._jit import kernel
-from .uncertainty import assess_fit, scan_only
+from .uncertainty import _add, _inv, _jacobians, _sandwich, assess_fit, scan_only
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -63,9 +63,10 @@ def assess_and_scan_only(
     increment: FloatArray,
     max_condition: float,
 ) -> tuple[float, bool, FloatArray]:
-    """``uncertainty.assess_fit`` and, where ``wanted`` and the gate (at ``threshold``) let the
-    match stand, ``uncertainty.scan_only`` of the fit (its ``increment``) from the previous
-    covariance the assessment leaves: the two kernels the positioner calls one after the
+    """``uncertainty.assess_fit`` and, where ``wanted``, the fit holds nothing (its
+    ``hold_information`` zero) and the gate (at ``threshold``) lets the match stand,
+    ``uncertainty.scan_only`` of the fit (its ``increment``) from the previous covariance the
+    assessment leaves: the two kernels the positioner calls one after the
     other for a refined match, in one call. Returns the assessment's gate, whether the scan
     alone fixes the motion, and one (5, 3, 3) array (one array to box, not five): the
     assessment's three matrices (the increment's covariance, the keyframe's, the new
@@ -79,6 +80,10 @@ def assess_and_scan_only(
     out = np.zeros((5, 3, 3))
     out[0], out[1], out[2] = inc_cov, kf, new_previous
     ok = False
+    for i in range(3):  # (a held fit gives no motion of the scan's own)
+        for j in range(3):
+            if hold_information[i, j] != 0.0:
+                wanted = False
     if wanted and not (gate_open and gate > threshold):
         ok, inc, cov = scan_only(
             information, prior_information, gradient_covariance, increment, fit_prior, t_prev,
@@ -87,3 +92,26 @@ def assess_and_scan_only(
         out[3] = cov
         out[4, 0] = inc
     return gate, ok, out
+
+
+@kernel
+def prior_information(
+    t_prev: FloatArray,
+    prior: FloatArray,
+    previous: FloatArray,
+    prior_covariance: FloatArray,
+    floor: FloatArray,
+    feature: FloatArray,
+) -> FloatArray:
+    """The information of the features' and of the odometry's motion from the keyframe, the
+    refinement's priors where the learned noise is trusted (``Positioner._prior_information``):
+    the odometry's covariance from the keyframe, ``ja P_prev jaᵀ + jb Σ_odo jbᵀ + floor``
+    (``Uncertainty.key_prior_covariance``, the Jacobians of ``t_prev ⊕ prior``), then the
+    inverse of it plus the features' own ``feature`` and its own inverse, in one (2, 3, 3)
+    array."""
+    ja, jb = _jacobians(t_prev, prior)
+    odometry = _add(_add(_sandwich(ja, previous), _sandwich(jb, prior_covariance)), floor)
+    out = np.empty((2, 3, 3))
+    out[0] = _inv(_add(odometry, feature))
+    out[1] = _inv(odometry)
+    return out

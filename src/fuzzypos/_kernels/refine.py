@@ -430,6 +430,84 @@ def refine(
     return OK, m, close, on_start, result
 
 
+#: ``checks`` of :func:`refine_both`, in order
+CHECKS = (
+    "also_from_odometry",
+    "both_distance",
+    "both_angle",
+    "both_min_gain",
+    "min_points",
+    "min_inlier_fraction",
+    "max_correction",
+)
+#: which fit :func:`refine_both` returns
+NEITHER, FROM_START, FROM_HOLD = 0, 1, 2
+
+
+@inlined
+def _trusted(
+    status: int, paired: int, n: int, result: FloatArray, start: FloatArray, checks: FloatArray
+) -> bool:
+    """Whether a fit counts (``Refiner.fit``): it converged, at least ``min_points`` and the
+    ``min_inlier_fraction`` of the scan's points paired, and it moved at most
+    ``max_correction`` from its ``start``."""
+    if status != OK or paired < checks[4] or paired / n < checks[5]:
+        return False
+    return not math.hypot(result[0, 0, 0] - start[0], result[0, 0, 1] - start[1]) > checks[6]
+
+
+@kernel
+def refine_both(
+    geometry: FloatArray,
+    shape: IntArray,
+    cells: IntArray,
+    table: FloatArray,
+    points: FloatArray,
+    weights: FloatArray,
+    start: FloatArray,
+    prior: FloatArray,
+    hold: FloatArray,
+    gates: FloatArray,
+    spacing: FloatArray,
+    params: FloatArray,
+    iterations: int,
+    prior_diag: FloatArray,
+    start_info: FloatArray,
+    full_start: bool,
+    hold_info: FloatArray,
+    full_hold: bool,
+    checks: FloatArray,
+) -> tuple[int, int, int, bool, FloatArray]:
+    """``Refiner.refine`` off a search in one call: the fit from ``start`` held to ``prior``
+    (its information ``start_info``, the full 3×3 where ``full_start``, else the diagonal
+    ``prior_diag``) and, where the start and the odometry's ``hold`` differ by more than
+    ``both_distance`` or ``both_angle`` (``checks`` as :data:`CHECKS`), the fit from ``hold``
+    held to it (``hold_info``, ``full_hold``); each counts as ``Refiner.fit`` says
+    (:func:`_trusted`), and the one from the hold is kept where it puts ``both_min_gain`` more
+    of the scan close to its surfaces. Returns which (:data:`NEITHER`, :data:`FROM_START`,
+    :data:`FROM_HOLD`) and that fit's :func:`refine` values."""
+    n = points.shape[0]
+    status, paired, close, on_start, result = refine(
+        geometry, shape, cells, table, points, weights, start, prior, hold, gates, spacing,
+        params, iterations, prior_diag, start_info, full_start,
+    )  # fmt: skip
+    which = FROM_START if _trusted(status, paired, n, result, start, checks) else NEITHER
+    differ = (
+        math.hypot(start[0] - hold[0], start[1] - hold[1]) > checks[1]
+        or abs(start[2] - hold[2]) > checks[2]
+    )
+    if checks[0] != 0.0 and differ:
+        status2, paired2, close2, on_start2, result2 = refine(
+            geometry, shape, cells, table, points, weights, hold, hold, hold, gates, spacing,
+            params, iterations, prior_diag, hold_info, full_hold,
+        )  # fmt: skip
+        if _trusted(status2, paired2, n, result2, hold, checks) and (
+            which == NEITHER or close2 / n > close / n + checks[3]
+        ):
+            return FROM_HOLD, paired2, close2, on_start2, result2
+    return which, paired, close, on_start, result
+
+
 @kernel
 def surface_table(
     xy: FloatArray, normal: FloatArray, weight: FloatArray, order: IntArray
@@ -455,21 +533,24 @@ def scan_weights(
     weight_floor: float,
     length_weight_max: float,
     length_cap: float,
-) -> FloatArray:
+) -> tuple[FloatArray, FloatArray]:
     """Each scan point's weight in the refinement (``fuzzypos.pipeline.refine.Refiner.points``):
     its certainty 1 − u (at least ``weight_floor``) times the stretch of surface it stands for
-    over the scan's median (within [1/max, max]; ``length_weight_max`` 1: not at all)."""
+    over the scan's median (within [1/max, max]; ``length_weight_max`` 1: not at all); and
+    the beam spacing at each point's range (``ranges · |angle_increment|``)."""
     n = points.shape[0]
     w = np.empty(n)
+    spacing = abs(angle_increment)
+    at_range = np.empty(n)
     for i in range(n):
         w[i] = min(max(1.0 - uncertainty[i], weight_floor), 1.0)
+        at_range[i] = ranges[i] * spacing
     if not length_weight_max > 1.0:
-        return w
-    spacing = abs(angle_increment)
+        return w, at_range
     length = np.empty(n)
     if n < 2:
         for i in range(n):
-            length[i] = ranges[i] * spacing
+            length[i] = at_range[i]
     else:
         d_prev = 0.0
         for i in range(n):  # the distance to the nearer neighbour along the scan, capped
@@ -484,14 +565,14 @@ def scan_weights(
                 near = d_prev
             else:
                 near = min(d_prev, d_next)
-            length[i] = min(near, length_cap * (ranges[i] * spacing))
+            length[i] = min(near, length_cap * at_range[i])
             d_prev = d_next
     mid = median(length)
     if mid > 0.0:
         lo = 1.0 / length_weight_max
         for i in range(n):
             w[i] = w[i] * min(max(length[i] / mid, lo), length_weight_max)
-    return w
+    return w, at_range
 
 
 @kernel

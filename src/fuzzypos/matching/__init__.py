@@ -18,6 +18,7 @@ from .search import SearchHit, search_start
 from .surface import (
     Refinement,
     SurfacePoints,
+    refine_both,
     refine_point_to_line,
     surface_lengths,
     surface_points,
@@ -40,6 +41,7 @@ __all__ = [
     "surface_points",
     "Refinement",
     "refine_point_to_line",
+    "refine_both",
     "SearchHit",
     "search_start",
     "surface_lengths",

@@ -27,6 +27,7 @@ __all__ = [
     "surface_points",
     "Refinement",
     "refine_point_to_line",
+    "refine_both",
 ]
 
 
@@ -309,6 +310,57 @@ def _refine_compiled(
     return Refinement._trusted(
         result[0, 0], paired, paired / n, close / n, result[1],
         prior_info if full else prior_info.copy(), result[2], on_start, start, prior, result[3],
+    )  # fmt: skip
+
+
+def refine_both(
+    reference: SurfacePoints,
+    points: FloatArray,
+    weights: FloatArray,
+    start: FloatArray,
+    prior: FloatArray,
+    hold: FloatArray,
+    cfg: RefinementConfig,
+    checks: FloatArray,
+    *,
+    max_distance: float,
+    prior_information: FloatArray | None,
+    hold_information: FloatArray | None,
+    spacing: FloatArray | None,
+) -> Refinement | None:
+    """The fit from ``start`` held to ``prior`` and, where ``start`` and ``hold`` differ enough,
+    the fit from ``hold`` held to it, each kept only where it counts, the better of the two
+    (``checks`` as ``_kernels.refine.CHECKS``), in one compiled call
+    (``_kernels.refine.refine_both``: ``Refiner.refine``'s steps with the refinement's compiled
+    kernel, ``prior_scale`` 1). None where neither counts."""
+    if len(reference) < 3 or points.shape[0] == 0:
+        return None
+    kernel = _KERNEL[0] if _KERNEL else _load_kernel()
+    start = np.array(start, dtype=np.float64)
+    prior = np.array(prior, dtype=np.float64)
+    hold = np.array(hold, dtype=np.float64)
+    gates, params, info_prior, diagonal = _kernel_settings(cfg, max_distance, 1.0)
+    full_start, full_hold = prior_information is not None, hold_information is not None
+    start_info = np.array(prior_information, dtype=np.float64) if full_start else diagonal
+    hold_info = np.array(hold_information, dtype=np.float64) if full_hold else diagonal
+    geometry, shape, cells, _order, _xy = reference.grid
+    contiguous = np.ascontiguousarray
+    which, paired, close, on_start, result = kernel.refine_both(
+        geometry, shape, cells, reference.table, contiguous(points, dtype=np.float64),
+        contiguous(weights, dtype=np.float64), start, prior, hold, gates,
+        _NO_SPACING if spacing is None else contiguous(spacing, dtype=np.float64), params,
+        int(cfg.iterations), info_prior, start_info, full_start, hold_info, full_hold, checks,
+    )  # fmt: skip
+    if which == kernel.NEITHER:
+        return None
+    n = points.shape[0]
+    if which == kernel.FROM_START:
+        info, begin, held, full = start_info, start, prior, full_start
+    else:
+        info, begin, held, full = hold_info, hold, hold.copy(), full_hold
+    return Refinement._trusted(
+        result[0, 0], paired, paired / n, close / n, result[1], info if full else info.copy(),
+        result[2], on_start, begin, held, result[3],
     )  # fmt: skip
 
 

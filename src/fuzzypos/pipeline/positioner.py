@@ -184,11 +184,7 @@ class Positioner:
             return None
         if not prior.from_odometry:
             return None
-        odometry = self.uncertainty.key_prior_covariance(t_prev, prior.increment, prior_cov)
-        features = odometry + self.uncertainty.feature_covariance()
-        inv_features = np.asarray(np.linalg.inv(features), dtype=np.float64)
-        inv_odometry = np.asarray(np.linalg.inv(odometry), dtype=np.float64)
-        return inv_features, inv_odometry
+        return self.uncertainty.prior_information(t_prev, prior.increment, prior_cov)
 
     def _gate_open(self, prior: Prior) -> bool:
         """Whether a match is compared with the odometry: where the prior is the odometry's

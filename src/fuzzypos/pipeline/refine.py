@@ -16,7 +16,13 @@ from numpy.typing import NDArray
 from .._kernels import compiled, f64
 from ..config import RefinementConfig, SearchConfig
 from ..features import Features
-from ..matching import Refinement, SurfacePoints, refine_point_to_line, surface_lengths
+from ..matching import (
+    Refinement,
+    SurfacePoints,
+    refine_both,
+    refine_point_to_line,
+    surface_lengths,
+)
 from ..matching._robust import median as _median
 
 __all__ = ["Refiner", "ScanPoints", "Starts"]
@@ -95,6 +101,15 @@ class Refiner:
             float(r.length_weight_max),
             float(r.length_cap),
         )
+        # the checks of the fused refinement (``_kernels.refine.CHECKS``), after an odometry
+        # jump (True: no fit from the odometry's motion) or not
+        self._checks = {
+            wide: np.array([
+                float(r.also_from_odometry and not wide), r.both_distance, r.both_angle,
+                r.both_min_gain, r.min_points, r.min_inlier_fraction, r.max_correction,
+            ])
+            for wide in (True, False)
+        }  # fmt: skip
 
     def points(self, features: Features, angle_increment: float) -> ScanPoints | None:
         """Every valid point of the scan (the paper's filter, §3.1, drops grazing points that
@@ -105,16 +120,16 @@ class Refiner:
         if pts.shape[0] < r.min_points:
             return None
         ranges = features.ranges
-        spacing = ranges * abs(float(angle_increment))
         if compiled():
             uncertainty = features.uncertainty
             if "_packed" not in features.__dict__:  # (the compiled chain's: float64 views)
                 pts, ranges, uncertainty = f64(pts), f64(ranges), f64(uncertainty)
             floor, most, cap = self._weight_settings
-            weights = _kernels().scan_weights(
+            weights, spacing = _kernels().scan_weights(
                 pts, ranges, uncertainty, float(angle_increment), floor, most, cap
             )
             return ScanPoints._of(features.points, weights, spacing)
+        spacing = ranges * abs(float(angle_increment))
         return ScanPoints._of(pts, self._weights_numpy(features, angle_increment), spacing)
 
     def _weights_numpy(self, features: Features, angle_increment: float) -> FloatArray:
@@ -145,6 +160,26 @@ class Refiner:
         r = self.refinement
         start, hold = starts.start, starts.hold
         max_distance = self.search.jump_distance if wide else r.max_distance
+        if compiled():  # both fits and the choice in one compiled call
+            return refine_both(
+                surface, points.xy, points.weights, start, starts.prior, hold, r,
+                self._checks[wide], max_distance=max_distance,
+                prior_information=starts.prior_information,
+                hold_information=starts.odometry_information, spacing=points.spacing,
+            )  # fmt: skip
+        return self._refine_staged(surface, points, starts, max_distance, wide)
+
+    def _refine_staged(
+        self,
+        surface: SurfacePoints,
+        points: ScanPoints,
+        starts: Starts,
+        max_distance: float,
+        wide: bool,
+    ) -> Refinement | None:
+        """:meth:`refine` fit by fit (the numpy references'; the fused call's reference)."""
+        r = self.refinement
+        start, hold = starts.start, starts.hold
         best = self.fit(
             surface, points, start, starts.prior, hold, max_distance=max_distance,
             prior_information=starts.prior_information,

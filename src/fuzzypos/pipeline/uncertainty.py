@@ -167,6 +167,25 @@ class Uncertainty:
         out: FloatArray = ja @ self._previous @ ja.T + jb @ prior_covariance @ jb.T + self.floor
         return out
 
+    def prior_information(
+        self, t_prev: FloatArray, prior: FloatArray, prior_covariance: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The information of the features' motion from the keyframe (the inverse of
+        :meth:`key_prior_covariance` plus :meth:`feature_covariance`) and of the odometry's
+        (the inverse of :meth:`key_prior_covariance`): the refinement's priors from the learned
+        noise. One compiled call (``_kernels.pipeline.prior_information``), else numpy."""
+        if compiled():
+            out = _pipeline_kernels().prior_information(
+                f64(t_prev), f64(prior), self._previous, f64(prior_covariance), self.floor,
+                self._feature,
+            )  # fmt: skip
+            return out[0], out[1]
+        odometry = self.key_prior_covariance(t_prev, prior, prior_covariance)
+        features = odometry + self.feature_covariance()
+        inv_features = np.asarray(np.linalg.inv(features), dtype=np.float64)
+        inv_odometry = np.asarray(np.linalg.inv(odometry), dtype=np.float64)
+        return inv_features, inv_odometry
+
     def feature_covariance(self) -> FloatArray:
         """The features' own error, isotropic in translation (read-only)."""
         return self._feature
@@ -242,8 +261,9 @@ class Uncertainty:
                 key_prior = _compose(t_prev, prior)
             poses = (fit.prior, key_prior)
             increment = f64(fit.increment)
-            # (scan_only's own test: a held fit gives no motion of the scan's own)
-            wanted = with_scan_only and not np.count_nonzero(fit.hold_information)
+            # (scan_only's own test, the kernel's too: a held fit gives no motion of the
+            # scan's own)
+            wanted = with_scan_only
         gate, ok, out = _pipeline_kernels().assess_and_scan_only(
             f64(t_prev), f64(prior), f64(prior_covariance), self._previous, f64(from_key),
             self._feature, self.floor, fit is not None, *matrices, *poses,
@@ -252,10 +272,11 @@ class Uncertainty:
         )  # fmt: skip
         if gate_open and gate > self.threshold:
             judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
-            return self._with_scan_only(judged, fit, t_prev) if wanted else judged
+            held = fit is not None and np.count_nonzero(fit.hold_information)
+            return self._with_scan_only(judged, fit, t_prev) if wanted and not held else judged
         # (views of the kernel's one array)
         self._previous = out[2]
-        scan = (out[4, 0], out[3]) if wanted and ok else None
+        scan = (out[4, 0], out[3]) if ok else None
         return Assessment._of(out[0], out[1], None if not gate_open else float(gate), False, scan)
 
     def _assess_numpy(

@@ -68,6 +68,8 @@ def warm_up(config: Config | None = None) -> float:
         scans.append(scan)
         positioner.update(scan, Pose2D.from_array(pose))
         pose = compose(pose, step)
+    # a scan without odometry: the prior the last increment, its covariance the broad one
+    positioner.update(_scan(pose, 180, 0.8), None)
     f = extract_features(scans[0], cfg)
     _ = f.points_of_interest
     surface = surface_points(f.points, f.ranges, f.uncertainty, cfg.refinement)
@@ -81,8 +83,14 @@ def warm_up(config: Config | None = None) -> float:
         from .._kernels.text import fixed_text, parse_decimals
 
         _ok, text = fixed_text(scans[0].ranges, 10_000, 4, 5)
-        parse_decimals(text, scans[0].ranges.shape[0])
+        # (as the reader hands it a line: a read-only view of its bytes)
+        parse_decimals(np.frombuffer(text.tobytes(), dtype=np.uint8), scans[0].ranges.shape[0])
         # a local map of several keyframes (the short drive renews the keyframe only once)
         moves, ends = np.array([(0.0, 0.0, 1.0, 0.0)]), np.array([len(surface)], dtype=np.int64)
         move_surfaces(f64(surface.xy), f64(surface.normal), moves, ends)
+        # the refinement's priors from the learned noise (once it is trusted)
+        noise = positioner.odometry_noise
+        positioner.uncertainty.prior_information(
+            np.array([0.1, 0.0, 0.02]), step, noise.covariance(step)
+        )
     return time.perf_counter() - t0
