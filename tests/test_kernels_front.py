@@ -101,6 +101,26 @@ def test_the_beams_directions_follow_the_scanner() -> None:
     assert math.copysign(1.0, zero[1, 0]) == -1.0
 
 
+def test_an_interlaced_scanners_two_geometries_are_each_computed_once() -> None:
+    """An interlaced scanner alternates between two ``angle_min`` (a quarter of a degree
+    apart): each one's table is computed once and handed back on its every scan, as long as
+    no more than ``SCANNER_GEOMETRIES`` scanners come between."""
+    kernels._ENABLED = True
+    inc = math.radians(1.0)
+    a = LaserScan(np.full(181, 2.0), -math.pi / 2, inc)
+    b = LaserScan(np.full(181, 2.0), -math.pi / 2 + inc / 4, inc)
+    ta, tb = packing.scanner(a)[0], packing.scanner(b)[0]
+    assert ta is not tb
+    for _ in range(3):
+        assert packing.scanner(a)[0] is ta and packing.scanner(b)[0] is tb
+    np.testing.assert_array_equal(tb, _front().beam_directions(b.angles))
+    for k in range(packing.SCANNER_GEOMETRIES):  # others in between: the oldest is dropped
+        packing.scanner(LaserScan(np.full(10 + k, 2.0), 0.0, inc))
+    again = packing.scanner(a)[0]
+    assert again is not ta
+    assert again.tobytes() == ta.tobytes()
+
+
 @BUDGET
 @given(pose=poses, seed=st.integers(0, 1000), offset=st.booleans(), clockwise=st.booleans())
 def test_the_usable_points_are_the_numpy_ones(pose, seed, offset, clockwise) -> None:

@@ -187,22 +187,25 @@ def front() -> ModuleType:
 def scanner(scan: Bearings) -> tuple[FloatArray, bool]:
     """The (2, n) cosines and sines of the scan's bearings (``_kernels.front.beam_directions``
     of ``scan.angles``) and whether they close a turn (``scan.is_full_circle``), once per
-    scanner: the last ones again where the bearings are the last call's (the same
-    ``angle_min``, to the sign of a zero, increment and count)."""
-    global _last
+    scanner geometry: the ones of an earlier call again where the bearings are that call's
+    (the same ``angle_min``, to the sign of a zero, increment and count), of the last
+    :data:`SCANNER_GEOMETRIES` (an interlaced scanner alternates between two)."""
     a0, inc, n = scan.angle_min, scan.angle_increment, scan.ranges.shape[0]
     sign = math.copysign(1.0, a0)
-    last = _last
-    if last is not None and last[0] == a0 and last[1] == inc and last[2] == n and last[3] == sign:
-        return last[4], last[5]
+    for last in _last:
+        if last[0] == a0 and last[1] == inc and last[2] == n and last[3] == sign:
+            return last[4], last[5]
     table: FloatArray = front().beam_directions(scan.angles)
     table.setflags(write=False)
     closed = bool(scan.is_full_circle)
-    _last = (a0, inc, n, sign, table, closed)
+    _last.insert(0, (a0, inc, n, sign, table, closed))
+    del _last[SCANNER_GEOMETRIES:]
     return table, closed
 
 
-_last: tuple[float, float, int, float, FloatArray, bool] | None = None
+#: how many scanner geometries :func:`scanner` keeps (the latest first)
+SCANNER_GEOMETRIES = 4
+_last: list[tuple[float, float, int, float, FloatArray, bool]] = []
 
 
 _T = TypeVar("_T")
