@@ -204,9 +204,10 @@ def increment_from_lines(
 def _line_views(
     flat: FloatArray, first: int, nl: int
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-    """A scan's lines in ``flat`` (:data:`LINE_FLOATS`): their normals' angles (atan2, the
-    values of ``Lines.normal_angle``: numpy's and numba's are libm's), distances, normals,
-    centres, lengths, angle and distance variances; views of ``flat`` but the angles."""
+    """A scan's lines in ``flat`` (:data:`LINE_FLOATS`): their normals' angles (libm's atan2:
+    ``Lines.normal_angle``'s within a last bit, numpy's own where it has a SIMD one),
+    distances, normals, centres, lengths, angle and distance variances; views of ``flat`` but
+    the angles."""
     normal = flat[first + LINE_NORMAL * nl : first + (LINE_NORMAL + 2) * nl].reshape((nl, 2))
     distance = flat[first + LINE_DISTANCE * nl : first + (LINE_DISTANCE + 1) * nl]
     centre = flat[first + LINE_CENTRE * nl : first + (LINE_CENTRE + 2) * nl].reshape((nl, 2))
