@@ -76,6 +76,14 @@ def warm_up(config: Config | None = None) -> float:
     search_start(
         surface, f.points, np.zeros(3), cfg.search, half_width=0.1, translation_half_width=0.2
     )
+    # the single fit from a search's start (``Relocaliser``), which the drive does not reach
+    points = positioner.refiner.points(f, scans[0].angle_increment)
+    if points is not None:
+        zero = np.zeros(3)
+        positioner.refiner.fit(
+            surface, points, zero, zero, zero, max_distance=cfg.search.jump_distance,
+            weak_prior=True,
+        )  # fmt: skip
     from .._kernels import compiled, f64
 
     if compiled():  # the CARMEN writer's and reader's ranges (fuzzypos.io.carmen*)

@@ -1,0 +1,79 @@
+"""``warm_up`` pays the compile cost before the first scan: after it, a drive through every
+path of ``Positioner.update`` (an odometry jump and its wide search, a gap in time, a scan
+without odometry, standing still) compiles (or loads from the cache) no kernel."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from fuzzypos._kernels import compiled
+
+#: run in a fresh process: in the test session's own, earlier tests have compiled every kernel
+_SCRIPT = textwrap.dedent(
+    """
+    import importlib, json, math, pkgutil
+    import numpy as np
+    import fuzzypos._kernels
+    from fuzzypos import sim
+    from fuzzypos.geometry import Pose2D, compose
+    from fuzzypos.pipeline import Positioner
+    from fuzzypos.pipeline.warm import warm_up
+
+    def signatures():
+        out = {}
+        for info in pkgutil.iter_modules(fuzzypos._kernels.__path__):
+            module = importlib.import_module("fuzzypos._kernels." + info.name)
+            for name, value in vars(module).items():
+                if hasattr(value, "py_func") and hasattr(value, "signatures"):
+                    key = info.name + "." + name
+                    out[key] = sorted(str(s) for s in value.signatures)
+        return out
+
+    warm_up()
+    before = signatures()
+    truth = sim.arc_path(Pose2D(-1.0, -0.5, 0.2), 16, 0.05, 1.0)
+    jump = np.array([0.38, 0.0, math.radians(-60.6)])
+    odom = truth[:6] + [Pose2D.from_array(compose(p.as_array(), jump)) for p in truth[6:]]
+    odom[12] = None  # a scan without odometry
+    odom[14] = odom[13]  # the wheels did not turn
+    stamps = [0.1 * k + (2.0 if k >= 10 else 0.0) for k in range(16)]  # a gap before scan 10
+    world = sim.furnished_room(seed=2)
+    scanner = sim.ScannerModel(
+        n_beams=180, field_of_view_deg=180.0, angle_min_deg=-90.0, range_max=20.0,
+        range_noise_std=0.005,
+    )
+    rng = np.random.default_rng(0)
+    positioner = Positioner()
+    reasons = []
+    for k, (p, o) in enumerate(zip(truth, odom)):
+        scan = sim.simulate_scan(world, p, scanner, rng, stamp=stamps[k])
+        est = positioner.update(scan, o)
+        reasons.append(str(est.reason))
+    after = signatures()
+    new = {k: sorted(set(after[k]) - set(before.get(k, []))) for k in after}
+    print(json.dumps({
+        "new": {k: v for k, v in new.items() if v},
+        "jumps": positioner.odometry_jumps,
+        "reasons": reasons,
+    }))
+    """
+)
+
+
+@pytest.mark.skipif(not compiled(), reason="the compiled kernels are off (FUZZYPOS_KERNELS)")
+def test_after_warm_up_no_path_of_update_compiles_a_kernel() -> None:
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(
+        [sys.executable, "-c", _SCRIPT], capture_output=True, text=True, env=env, timeout=600
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out["jumps"] == 1  # the drive took the wide search's path
+    assert "standing still" in out["reasons"], out["reasons"]
+    assert out["new"] == {}, f"compiled after warm_up: {out['new']}"
