@@ -1055,13 +1055,15 @@ def test_a_simulated_run_is_the_same_either_way() -> None:
 
 # -- laziness ----------------------------------------------------------------------------------
 def test_importing_fuzzypos_loads_no_compiler() -> None:
-    """``import fuzzypos`` neither imports numba nor compiles anything (first use does)."""
+    """``import fuzzypos`` neither imports numba nor compiles anything (first use does), nor
+    scipy's KD-tree (the numpy references' index, imported where one is built)."""
     code = (
         "import sys, fuzzypos\n"
-        "print('numba' in sys.modules, 'fuzzypos._kernels.grid' in sys.modules)"
+        "print('numba' in sys.modules, 'fuzzypos._kernels.grid' in sys.modules,"
+        " 'scipy.spatial' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["False", "False"]
+    assert out.stdout.split() == ["False", "False", "False"]
 
 
 def test_the_environment_selects_the_numpy_references(monkeypatch) -> None:

@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from .._kernels import compiled, f64
 from ..config import RefinementConfig, same_as_last_call
@@ -19,6 +18,8 @@ from ..geometry import stack_columns
 from ._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS, FloatArray, IntArray
 
 if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
+
     from .._kernels.grid import Grid
 
 __all__ = [
@@ -47,7 +48,10 @@ class SurfacePoints:
 
     @cached_property
     def tree(self) -> cKDTree:
-        """A KD-tree over the points, built on first use (by the numpy references)."""
+        """A KD-tree over the points, built on first use (by the numpy references; scipy's
+        spatial module, a quarter of a second to import, only then)."""
+        from scipy.spatial import cKDTree
+
         return cKDTree(self.xy)
 
     @cached_property
