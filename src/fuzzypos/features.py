@@ -766,11 +766,25 @@ class _CornerContext(Unpacks):
     break_mask: BoolArray
 
 
-def _point_features(
-    c: _CornerContext,
-) -> tuple[FeaturePoints, FeaturePoints, IntArray, FeaturePoints, FeaturePoints]:
+_PointFeatures = tuple[FeaturePoints, FeaturePoints, IntArray, FeaturePoints, FeaturePoints]
+
+
+def _point_features(c: _CornerContext) -> _PointFeatures:
     """Angular points, virtual angular points (with their line pairs), break points and the
-    merged points of interest of one scan (§3.2, §3.4, §3.6)."""
+    merged points of interest of one scan (§3.2, §3.4, §3.6): in one compiled call where the
+    kernels are on (``_features_points.point_features_compiled``), else (or where that
+    declines) in numpy (:func:`_point_features_numpy`, its reference)."""
+    if compiled():
+        from ._features_points import point_features_compiled
+
+        done = point_features_compiled(c)
+        if done is not None:
+            return done
+    return _point_features_numpy(c)
+
+
+def _point_features_numpy(c: _CornerContext) -> _PointFeatures:
+    """:func:`_point_features` in numpy (the compiled kernel's reference)."""
     cfg, lines = c.cfg, c.lines
     # 7. virtual angular points (§3.6), without the ones that are real angular points; one
     # fuzzy evaluation (eq. 10–12) grades them and the joined real corners together

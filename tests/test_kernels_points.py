@@ -1,0 +1,201 @@
+"""The point features' compiled call (``fuzzypos._kernels.points``) against its numpy
+reference (``features._point_features_numpy``): the same angular, virtual angular and break
+points, the same virtual points' line pairs and the same merged points of interest, to 1e-9
+(kinds and pairs exactly), on simulated scans from anywhere in several worlds and with every
+switch of the angular points and the matching; its fuzzy grading against ``RuleBase``'s own
+(eq. 4) and its merge against ``merge_duplicates``; and the numpy chain where the kernel
+declines (a NaN on the way, a rule base it does not evaluate)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import fuzzypos._kernels as kernels
+from fuzzypos import _features_points as P
+from fuzzypos import features as F
+from fuzzypos import sim
+from fuzzypos.config import Config
+from fuzzypos.features import FeaturePoints, merge_duplicates, rule_bases
+from fuzzypos.geometry import Pose2D
+
+TOL = 1e-9
+BUDGET = settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.filter_too_much]
+)
+WORLDS = {name: sim.world_by_name(name) for name in ("office", "gym")}
+poses = st.tuples(st.floats(-6.0, 6.0), st.floats(-1.0, 1.0), st.floats(-math.pi, math.pi))
+
+
+def _context(world: str, pose: tuple[float, float, float], seed: int, cfg: Config) -> Any:
+    """The corner context of a simulated 180-beam scan (the compiled chain's packed one)."""
+    model = sim.ScannerModel(
+        n_beams=180, field_of_view_deg=180.0, angle_min_deg=-90.0, range_max=8.0,
+        range_noise_std=0.01,
+    )  # fmt: skip
+    scan = sim.simulate_scan(WORLDS[world], Pose2D(*pose), model, rng=np.random.default_rng(seed))
+    kernels._ENABLED = True
+    return F.extract_features(scan, cfg)._corners
+
+
+def _assert_same(got: Any, want: Any) -> None:
+    angular, virtual, virtual_lines, breaks, poi = got
+    for a, b in zip((angular, virtual, breaks, poi), want[:2] + want[3:], strict=True):
+        assert isinstance(a, FeaturePoints)
+        assert a.xy.shape == b.xy.shape and a.uncertainty.shape == b.uncertainty.shape
+        assert a.kind.dtype == np.int8 and np.array_equal(a.kind, b.kind)
+        np.testing.assert_allclose(a.xy, b.xy, rtol=0, atol=TOL)
+        np.testing.assert_allclose(a.uncertainty, b.uncertainty, rtol=0, atol=TOL)
+    assert virtual_lines.dtype == np.int64
+    np.testing.assert_array_equal(virtual_lines, want[2])
+
+
+SWITCHES = [
+    {},
+    {"angular_points": {"refine": False}},
+    {"angular_points": {"pair_unrefined": True}},
+    {"matching": {"use_break_points": True}},
+    {"matching": {"use_break_points": True, "use_angular_points": False}},
+    {"matching": {"use_virtual_points": False}},
+    {"virtual_points": {"merge_distance": 0.0}},
+    {"virtual_points": {"merge_distance": 0.5, "max_uncertainty": 1.0}},
+]
+
+
+@BUDGET
+@given(
+    world=st.sampled_from(sorted(WORLDS)), pose=poses, seed=st.integers(0, 1000),
+    switch=st.sampled_from(range(len(SWITCHES))),
+)  # fmt: skip
+def test_the_compiled_point_features_are_the_numpy_ones(world, pose, seed, switch) -> None:
+    cfg = Config().with_overrides(SWITCHES[switch])
+    c = _context(world, pose, seed, cfg)
+    got = P.point_features_compiled(c)
+    assert got is not None  # nothing on a simulated scan makes it decline
+    _assert_same(got, F._point_features_numpy(c))
+
+
+def test_a_scan_with_corners_and_crossings_has_every_kind() -> None:
+    """The drive through the office meets angular points, virtual ones and break points (the
+    property test above covers more than empty sets), each the numpy chain's."""
+    cfg = Config()
+    seen = np.zeros(3, dtype=int)
+    for k, x in enumerate(np.linspace(-6.0, 6.0, 13)):
+        c = _context("office", (float(x), 0.2, 0.3 * k), k, cfg)
+        got = P.point_features_compiled(c)
+        assert got is not None
+        _assert_same(got, F._point_features_numpy(c))
+        seen += [len(got[0]), len(got[1]), len(got[3])]
+    assert (seen > 0).all(), seen
+
+
+def test_features_take_the_compiled_path_and_fall_back_where_it_declines(monkeypatch) -> None:
+    """``Features.points_of_interest`` is the compiled call's where the kernels are on; a NaN
+    in a line's uncertainty makes the kernel decline (None) and the numpy chain answer."""
+    cfg = Config()
+    views = (_context("office", (float(x), 0.2, 0.3 * k), k, cfg)
+             for k, x in enumerate(np.linspace(-6.0, 6.0, 13)))  # fmt: skip
+    c = next(v for v in views if len(F._point_features_numpy(v)[1]))  # with virtual points
+    calls: list[str] = []
+    original = F._point_features_numpy
+    monkeypatch.setattr(
+        F, "_point_features_numpy", lambda ctx: calls.append("numpy") or original(ctx)
+    )
+    assert F._point_features(c) is not None and calls == []
+    lines = dataclasses.replace(c.lines, uncertainty=np.full(len(c.lines), np.nan))
+    bad = dataclasses.replace(c, lines=lines) if dataclasses.is_dataclass(c) else None
+    assert bad is not None
+    assert len(c.lines) >= 2 and P.point_features_compiled(bad) is None
+    F._point_features(bad)
+    assert calls == ["numpy"]
+
+
+def test_a_rule_base_the_kernel_does_not_evaluate_is_left_to_numpy() -> None:
+    """A Mamdani rule base (or one of other than three inputs) has no grading tables."""
+    bases = rule_bases(Config().fuzzy)
+    assert P.grading_tables(bases.virtual_points) is not None
+    mamdani = dataclasses.replace(bases.virtual_points, mode="mamdani")
+    assert P.grading_tables(mamdani) is None
+    assert P.grading_tables(bases.points) is None  # two inputs
+
+
+@BUDGET
+@given(
+    x=st.lists(
+        st.tuples(st.floats(-0.5, 1.5), st.floats(-0.5, 1.5), st.floats(-1.0, 10.0)),
+        min_size=0, max_size=30,
+    )
+)  # fmt: skip
+def test_the_kernels_grading_is_the_rule_bases_own(x) -> None:
+    """``grade``: eq. 4's centre average of the three-input product rule base, clamped to its
+    centres, as ``RuleBase.__call__`` computes it (to rounding: numpy sums in its own order),
+    inputs beyond the sets' range included."""
+    from fuzzypos._kernels.points import grade
+
+    rb = rule_bases(Config().fuzzy).virtual_points
+    tables = P.grading_tables(rb)
+    assert tables is not None
+    a = np.array(x, dtype=float).reshape(-1, 3)
+    got = grade(
+        a[:, 0].copy(), a[:, 1].copy(), a[:, 2].copy(), *tables, rb._centre_lo, rb._centre_hi
+    )
+    np.testing.assert_allclose(got, rb(a[:, 0], a[:, 1], a[:, 2]), rtol=0, atol=1e-12)
+
+
+@BUDGET
+@given(
+    pts=st.lists(
+        st.tuples(
+            st.integers(0, 12), st.integers(0, 12), st.sampled_from([0.0, 0.1, 0.25, 0.5]),
+            st.integers(0, 2),
+        ),
+        min_size=0, max_size=25,
+    ),
+    radius=st.sampled_from([0.0, 0.05, 0.12, 0.3]),
+)  # fmt: skip
+def test_the_kernels_merge_keeps_what_merge_duplicates_keeps(pts, radius) -> None:
+    """``_merge``: the kept indices of ``merge_duplicates`` (most certain first, ties: virtual,
+    angular, break; stable), on points on a 0.1 m lattice with repeated uncertainties."""
+    from fuzzypos._kernels.points import _merge
+
+    a = np.array(pts, dtype=float).reshape(-1, 4)
+    xy, u, kind = 0.1 * a[:, :2], a[:, 2].copy(), a[:, 3].astype(np.int8)
+    want = merge_duplicates(FeaturePoints(xy, u, kind), radius)
+    keep = _merge(np.ascontiguousarray(xy), u, kind, radius)
+    np.testing.assert_array_equal(xy[keep], want.xy)
+    np.testing.assert_array_equal(u[keep], want.uncertainty)
+    np.testing.assert_array_equal(kind[keep], want.kind)
+
+
+@pytest.fixture(autouse=True)
+def _kernels_on() -> Any:
+    before = kernels._ENABLED
+    yield
+    kernels._ENABLED = before
+
+
+@pytest.mark.parametrize("shift", [0.0, 0.04, 0.2, 0.4, 0.6, 1.0])
+def test_refined_angular_points_keep_the_sample_where_the_intersection_lies_far(shift) -> None:
+    """A joined corner whose lines' intersection lies more than three beam spacings and 5 cm
+    from the sampled angular point keeps the sample (and is not paired unless
+    ``pair_unrefined``): the corners' intersections moved by ``shift`` metres, each the numpy
+    chain's."""
+    for cfg in (Config(), Config().with_overrides({"angular_points": {"pair_unrefined": True}})):
+        views = (_context("office", (float(x), 0.2, 0.3 * k), k, cfg)
+                 for k, x in enumerate(np.linspace(-6.0, 6.0, 13)))  # fmt: skip
+        c = next(v for v in views if v.joined.any())
+        moved = dataclasses.replace(c, corner_xy=c.corner_xy + np.array([shift, -0.5 * shift]))
+        got = P.point_features_compiled(moved)
+        assert got is not None
+        want = F._point_features_numpy(moved)
+        _assert_same(got, want)
+        if shift == 1.0:  # every joined corner is back at its sample (8 m range at most)
+            idx = c.corner_index[c.joined]
+            assert not np.isin(want[0].xy, moved.corner_xy).all(axis=1).any()
+            np.testing.assert_array_equal(want[0].xy[c.joined], c.kept_points[idx])
