@@ -76,9 +76,10 @@ def point_features_compiled(c: _CornerContext) -> _PointFeatures | None:
     o = (0, na, na + nv, na + nv + nb, na + nv + nb + nk)
 
     def part(k: int, kind: int | NDArray[np.int8]) -> FeaturePoints:
+        """Rows ``o[k]:o[k + 1]`` of the packed points, all of ``kind`` or of those kinds."""
         n = o[k + 1] - o[k]
-        kinds = np.full(n, kind, dtype=np.int8) if isinstance(kind, int) else kind
-        return FeaturePoints(xy[o[k] : o[k + 1]], u[o[k] : o[k + 1]], kinds)
+        of_kind = np.full(n, kind, dtype=np.int8) if isinstance(kind, int) else kind
+        return FeaturePoints(xy[o[k] : o[k + 1]], u[o[k] : o[k + 1]], of_kind)
 
     virtual_lines = ints[4 + na :].reshape(nv, 2)
     return (
