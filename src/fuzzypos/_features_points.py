@@ -81,7 +81,7 @@ def point_features_compiled(c: _CornerContext) -> _PointFeatures | None:
         of_kind = np.full(n, kind, dtype=np.int8) if isinstance(kind, int) else kind
         return FeaturePoints(xy[o[k] : o[k + 1]], u[o[k] : o[k + 1]], of_kind)
 
-    virtual_lines = ints[4 + na :].reshape(nv, 2)
+    virtual_lines = ints[4:].reshape(nv, 2)
     return (
         part(0, ANGULAR_POINT), part(1, VIRTUAL_ANGULAR_POINT), virtual_lines,
         part(2, BREAK_POINT), part(3, kinds),

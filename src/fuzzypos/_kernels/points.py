@@ -303,8 +303,8 @@ def point_features(
     Returns whether it is done (False: a NaN on the way or what numpy would raise at, the
     numpy chain's) and, packed: ``xy`` (rows: the angular points, the virtual ones, the break
     points, the points of interest), their uncertainties in the same order, the integers (the
-    counts of the four, the pairable angular points' mask as 0/1, the virtual points' line
-    pairs, row by row) and the points of interest's kinds."""
+    counts of the four, then the virtual points' line pairs, row by row) and the points of
+    interest's kinds."""
     fail = (False, np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int8))
     line_scale, max_uncertainty = params[2], params[3]
     ok, excluded = _excluded_pairs(normal.shape[0], segment, seg_before, seg_after)
@@ -352,13 +352,11 @@ def point_features(
             poi_u[q],
             poi_kind[q],
         )
-    ints = np.empty(4 + na + 2 * nv, dtype=np.int64)
+    ints = np.empty(4 + 2 * nv, dtype=np.int64)
     ints[0], ints[1], ints[2], ints[3] = na, nv, nb, nk
-    for k in range(na):
-        ints[4 + k] = 1 if pairable[k] else 0
     v = 0
     for k in range(nc):
         if certain[k]:
-            ints[4 + na + 2 * v], ints[4 + na + 2 * v + 1] = c_i[k], c_j[k]
+            ints[4 + 2 * v], ints[5 + 2 * v] = c_i[k], c_j[k]
             v += 1
     return True, xy, u, ints, kinds
