@@ -12,6 +12,7 @@ from hypothesis.extra.numpy import arrays
 
 from fuzzypos.geometry import (
     Pose2D,
+    _wrap_scalar,
     circular_mean,
     compose,
     compose3,
@@ -76,6 +77,32 @@ def test_wrap_angle_just_below_minus_pi_stays_in_range():
     a = np.nextafter(-math.pi, -4.0)
     w = float(wrap_angle(a))
     assert -math.pi <= w < math.pi
+
+
+@given(
+    st.one_of(
+        st.floats(-1e6, 1e6, allow_nan=False),
+        # the edges: multiples of pi and their neighbours, where the mod rounds
+        st.builds(
+            lambda k, ulps: (
+                float(np.nextafter(k * math.pi, math.copysign(math.inf, ulps)))
+                if ulps
+                else k * math.pi
+            ),
+            st.integers(-1000, 1000),
+            st.integers(-1, 1),
+        ),
+        st.sampled_from([math.inf, -math.inf, math.nan]),
+    )
+)
+def test_one_floats_wrap_is_wrap_angle_to_the_bit(a):
+    """The scalar wrap the float paths use (``compose3``, ``Pose2D``) is ``wrap_angle``'s
+    value to the last bit, NaN and infinities as numpy gives them."""
+    with np.errstate(invalid="ignore"):  # (numpy's mod of an infinity)
+        expected = float(wrap_angle(a))
+        got = _wrap_scalar(a)
+    assert np.array_equal(np.float64(got), np.float64(expected), equal_nan=True), (a, got)
+    assert math.copysign(1.0, got) == math.copysign(1.0, expected) or math.isnan(expected)
 
 
 def test_wrap_angle_array_shape_and_values():

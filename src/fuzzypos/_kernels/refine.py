@@ -508,6 +508,45 @@ def refine_both(
     return which, paired, close, on_start, result
 
 
+#: ``weighing`` of :func:`weigh_and_refine_both`, in order (``scan_weights``' settings)
+WEIGHING = ("angle_increment", "weight_floor", "length_weight_max", "length_cap")
+
+
+@kernel
+def weigh_and_refine_both(
+    geometry: FloatArray,
+    shape: IntArray,
+    cells: IntArray,
+    table: FloatArray,
+    points: FloatArray,
+    ranges: FloatArray,
+    uncertainty: FloatArray,
+    weighing: FloatArray,
+    start: FloatArray,
+    prior: FloatArray,
+    hold: FloatArray,
+    gates: FloatArray,
+    params: FloatArray,
+    iterations: int,
+    prior_diag: FloatArray,
+    start_info: FloatArray,
+    full_start: bool,
+    hold_info: FloatArray,
+    full_hold: bool,
+    checks: FloatArray,
+) -> tuple[int, int, int, bool, FloatArray]:
+    """:func:`refine_both` of the points weighed and spaced as :func:`scan_weights` weighs them
+    from their ``ranges`` and ``uncertainty`` (``weighing`` as :data:`WEIGHING`), in the same
+    call: two arrays fewer to hand to Python and back."""
+    w, spacing = _weighed(
+        points, ranges, uncertainty, weighing[0], weighing[1], weighing[2], weighing[3]
+    )
+    return refine_both(
+        geometry, shape, cells, table, points, w, start, prior, hold, gates, spacing, params,
+        iterations, prior_diag, start_info, full_start, hold_info, full_hold, checks,
+    )  # fmt: skip
+
+
 @kernel
 def surface_table(
     xy: FloatArray, normal: FloatArray, weight: FloatArray, order: IntArray
@@ -538,6 +577,22 @@ def scan_weights(
     its certainty 1 − u (at least ``weight_floor``) times the stretch of surface it stands for
     over the scan's median (within [1/max, max]; ``length_weight_max`` 1: not at all); and
     the beam spacing at each point's range (``ranges · |angle_increment|``)."""
+    return _weighed(
+        points, ranges, uncertainty, angle_increment, weight_floor, length_weight_max, length_cap
+    )
+
+
+@inlined
+def _weighed(
+    points: FloatArray,
+    ranges: FloatArray,
+    uncertainty: FloatArray,
+    angle_increment: float,
+    weight_floor: float,
+    length_weight_max: float,
+    length_cap: float,
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`scan_weights`' weights and beam spacings."""
     n = points.shape[0]
     w = np.empty(n)
     spacing = abs(angle_increment)

@@ -71,6 +71,10 @@ class SurfacePoints:
         return surface_table(grid.xy, f64(self.normal), f64(self.weight), grid.order)
 
 
+#: what ``_kernels.refine.scan_weights`` weighs a scan's points from: their ranges, their
+#: uncertainty and its settings (``_kernels.refine.WEIGHING``)
+Weighing = tuple[FloatArray, FloatArray, FloatArray]
+
 #: the side (m) of the surface grid's cells: about the refinement's pairing distance
 GRID_CELL = 0.15
 _NO_SPACING = np.zeros(0)  # (writeable: numba types read-only arrays apart)
@@ -320,7 +324,7 @@ def _refine_compiled(
 def refine_both(
     reference: SurfacePoints,
     points: FloatArray,
-    weights: FloatArray,
+    weights: FloatArray | None,
     start: FloatArray,
     prior: FloatArray,
     hold: FloatArray,
@@ -331,12 +335,15 @@ def refine_both(
     prior_information: FloatArray | None,
     hold_information: FloatArray | None,
     spacing: FloatArray | None,
+    weighing: Weighing | None = None,
 ) -> Refinement | None:
     """The fit from ``start`` held to ``prior`` and, where ``start`` and ``hold`` differ enough,
     the fit from ``hold`` held to it, each kept only where it counts, the better of the two
     (``checks`` as ``_kernels.refine.CHECKS``), in one compiled call
     (``_kernels.refine.refine_both``: ``Refiner.refine``'s steps with the refinement's compiled
-    kernel, ``prior_scale`` 1). None where neither counts."""
+    kernel, ``prior_scale`` 1). None where neither counts. ``weighing``: the points' weights
+    and spacings are the ones ``_kernels.refine.scan_weights`` gives for these inputs, weighed
+    in the same call (``weights`` and ``spacing`` are then not read)."""
     if len(reference) < 3 or points.shape[0] == 0:
         return None
     kernel = _KERNEL[0] if _KERNEL else _load_kernel()
@@ -349,12 +356,21 @@ def refine_both(
     hold_info = np.array(hold_information, dtype=np.float64) if full_hold else diagonal
     geometry, shape, cells, _order, _xy = reference.grid
     contiguous = np.ascontiguousarray
-    which, paired, close, on_start, result = kernel.refine_both(
-        geometry, shape, cells, reference.table, contiguous(points, dtype=np.float64),
-        contiguous(weights, dtype=np.float64), start, prior, hold, gates,
-        _NO_SPACING if spacing is None else contiguous(spacing, dtype=np.float64), params,
-        int(cfg.iterations), info_prior, start_info, full_start, hold_info, full_hold, checks,
-    )  # fmt: skip
+    if weighing is not None:
+        ranges, uncertainty, settings = weighing
+        which, paired, close, on_start, result = kernel.weigh_and_refine_both(
+            geometry, shape, cells, reference.table, f64(points), f64(ranges), f64(uncertainty),
+            settings, start, prior, hold, gates, params, int(cfg.iterations), info_prior,
+            start_info, full_start, hold_info, full_hold, checks,
+        )  # fmt: skip
+    else:
+        which, paired, close, on_start, result = kernel.refine_both(
+            geometry, shape, cells, reference.table, contiguous(points, dtype=np.float64),
+            contiguous(weights, dtype=np.float64), start, prior, hold, gates,
+            _NO_SPACING if spacing is None else contiguous(spacing, dtype=np.float64), params,
+            int(cfg.iterations), info_prior, start_info, full_start, hold_info, full_hold,
+            checks,
+        )  # fmt: skip
     if which == kernel.NEITHER:
         return None
     n = points.shape[0]

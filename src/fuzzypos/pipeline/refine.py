@@ -24,6 +24,7 @@ from ..matching import (
     surface_lengths,
 )
 from ..matching._robust import median as _median
+from ..matching.surface import Weighing
 
 __all__ = ["Refiner", "ScanPoints", "Starts"]
 
@@ -52,6 +53,40 @@ class ScanPoints:
         out = object.__new__(cls)
         out.__dict__.update(xy=xy, weights=weights, spacing=spacing)
         return out
+
+
+class _WeighedOnUse(ScanPoints):
+    """:class:`ScanPoints` whose weights and spacing are computed on first use (by the
+    compiled ``scan_weights``, from the ``weighing`` inputs): the fused refinement weighs the
+    points in its own call, and only the searches and fits after it read them."""
+
+    # (the instance's dict holds xy and weighing, then the two arrays once computed)
+    weighing: Weighing
+
+    @classmethod
+    def _lazy(cls, xy: FloatArray, weighing: Weighing) -> _WeighedOnUse:
+        out = object.__new__(cls)
+        out.__dict__.update(xy=xy, weighing=weighing)
+        return out
+
+    def _weigh(self) -> tuple[FloatArray, FloatArray]:
+        ranges, uncertainty, settings = self.weighing
+        inc, floor, most, cap = settings.tolist()
+        weights, spacing = _kernels().scan_weights(
+            f64(self.xy), f64(ranges), f64(uncertainty), inc, floor, most, cap
+        )
+        self.__dict__.update(_weights=weights, _spacing=spacing)
+        return weights, spacing
+
+    @property
+    def weights(self) -> FloatArray:
+        found: FloatArray | None = self.__dict__.get("_weights")
+        return found if found is not None else self._weigh()[0]
+
+    @property
+    def spacing(self) -> FloatArray | None:
+        found: FloatArray | None = self.__dict__.get("_spacing")
+        return found if found is not None else self._weigh()[1]
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,6 +136,9 @@ class Refiner:
             float(r.length_weight_max),
             float(r.length_cap),
         )
+        # the weight kernel's settings with the last scan's angle increment, as one array
+        # (``_kernels.refine.WEIGHING``)
+        self._weighing: tuple[float, FloatArray] | None = None
         # the checks of the fused refinement (``_kernels.refine.CHECKS``), after an odometry
         # jump (True: no fit from the odometry's motion) or not
         self._checks = {
@@ -120,15 +158,12 @@ class Refiner:
         if pts.shape[0] < r.min_points:
             return None
         ranges = features.ranges
-        if compiled():
-            uncertainty = features.uncertainty
-            if "_packed" not in features.__dict__:  # (the compiled chain's: float64 views)
-                pts, ranges, uncertainty = f64(pts), f64(ranges), f64(uncertainty)
-            floor, most, cap = self._weight_settings
-            weights, spacing = _kernels().scan_weights(
-                pts, ranges, uncertainty, float(angle_increment), floor, most, cap
-            )
-            return ScanPoints._of(features.points, weights, spacing)
+        if compiled():  # (weighed in the fused refinement's call, or on first use)
+            last = self._weighing
+            if last is None or last[0] != angle_increment:  # (one scanner: once a log)
+                settings = np.array([float(angle_increment), *self._weight_settings])
+                last = self._weighing = (angle_increment, settings)
+            return _WeighedOnUse._lazy(pts, (ranges, features.uncertainty, last[1]))
         spacing = ranges * abs(float(angle_increment))
         return ScanPoints._of(pts, self._weights_numpy(features, angle_increment), spacing)
 
@@ -161,11 +196,16 @@ class Refiner:
         start, hold = starts.start, starts.hold
         max_distance = self.search.jump_distance if wide else r.max_distance
         if compiled():  # both fits and the choice in one compiled call
+            if isinstance(points, _WeighedOnUse) and "_weights" not in points.__dict__:
+                weights, spacing, weighing = None, None, points.weighing  # (weighed in it)
+            else:
+                weights, spacing, weighing = points.weights, points.spacing, None
             return refine_both(
-                surface, points.xy, points.weights, start, starts.prior, hold, r,
+                surface, points.xy, weights, start, starts.prior, hold, r,
                 self._checks[wide], max_distance=max_distance,
                 prior_information=starts.prior_information,
-                hold_information=starts.odometry_information, spacing=points.spacing,
+                hold_information=starts.odometry_information, spacing=spacing,
+                weighing=weighing,
             )  # fmt: skip
         return self._refine_staged(surface, points, starts, max_distance, wide)
 
