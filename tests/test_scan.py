@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -52,6 +53,20 @@ def test_ranges_are_a_read_only_copy():
         s.angles[0] = 5.0
     with pytest.raises(ValueError):
         s.valid[0] = False
+
+
+def test_a_pickled_scan_comes_back_equal_and_read_only():
+    """Through pickle (a process pool's, Ray's) the scan is the same to the bit, and its
+    arrays are read-only again, as the constructor makes them."""
+    scan = LaserScan([1.0, np.inf, 2.5, 0.0], -0.5, 0.25, 0.1, 10.0, 3.5, Pose2D(0.1, 0.0, 0.2))
+    back = pickle.loads(pickle.dumps(scan))
+    for name in ("ranges", "angles", "valid"):
+        a, b = getattr(scan, name), getattr(back, name)
+        np.testing.assert_array_equal(a, b)
+        assert a.dtype == b.dtype and not b.flags.writeable, name
+    assert (back.angle_min, back.stamp, back.sensor_pose) == (-0.5, 3.5, Pose2D(0.1, 0.0, 0.2))
+    with pytest.raises(ValueError, match="read-only"):
+        back.ranges[0] = 5.0
 
 
 def test_frozen():

@@ -131,6 +131,15 @@ class LaserScan:
         object.__setattr__(self, "_angles", angles)
         object.__setattr__(self, "_valid", valid)
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled (a process pool's, Ray's): the arrays read-only again, as constructed
+        (pickle hands them back writable, which the compiled kernels would also take for
+        another type, compiled anew)."""
+        for value in state.values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+        self.__dict__.update(state)
+
     # -- construction ------------------------------------------------------------------
     @classmethod
     def from_angles(
