@@ -3,7 +3,7 @@ kiss-icp on the shared logs, all scored with the benchmark's relations metric, w
 time per scan of each measured in the same process.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_peers.py [--data ../shared/data]
-        [--logs intel,aces,sim180,sim360] [--max-scans N] [--json OUT.json]
+        [--logs intel,aces,sim180,sim360] [--max-scans N] [--json OUT.json] [--rounds N]
 
 ``sim180`` and ``sim360`` are simulated logs (``simulated_log``: the demo's gym, three laps,
 180 or 360 beams), written as CARMEN logs with relations from the truth before the runs: the
@@ -37,7 +37,10 @@ fuzzypos's compiled kernels are compiled (or loaded from numba's disk cache) bef
 by ``fuzzypos.pipeline.warm.warm_up``, whose time is printed apart. After the table, the
 ratios of this run: fuzzypos's ``Positioner.update`` per scan over small_gicp GICP's
 ``align`` (1 m / 30° keyframes) and over kiss-icp's ``register_frame`` (odometry, default
-voxels), on the same scans (below 1: fuzzypos is faster).
+voxels), on the same scans (below 1: fuzzypos is faster). With ``--rounds N``, those ratios
+again from N timing rounds per log (the main run's, then fuzzypos and the two peers run anew
+one after the other, N − 1 times, in alternating order) and their median: the machine's
+speed drifts over a run, and a round's two times lie minutes apart, not the run's length.
 """
 
 from __future__ import annotations
@@ -59,6 +62,7 @@ import dataclasses  # noqa: E402
 import datetime  # noqa: E402
 import importlib.metadata  # noqa: E402
 import math  # noqa: E402
+import statistics  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -483,6 +487,46 @@ def print_ratios(rows: list[dict[str, Any]]) -> None:
                 print(f"| {log} | {f:.3f} | {peer} | {p:.3f} | {f / p:.2f} |")
 
 
+def timing_rounds(
+    log_path: Path, rounds: int, max_scans: int | None, first: dict[str, float]
+) -> dict[str, list[float]]:
+    """fuzzypos's matcher time per scan over each of RATIO_PEERS', round by round: the
+    first round's the main run's (``first``: ms a scan by method), then ``rounds`` − 1 more,
+    each running fuzzypos and the peers anew one after the other (fuzzypos first in the
+    odd rounds, last in the even ones), so that a ratio's two times are taken minutes apart,
+    not the whole run's length, on a machine whose speed drifts."""
+    ratios: dict[str, list[float]] = {}
+    for peer in RATIO_PEERS:
+        if peer in first:
+            ratios[peer] = [first[FuzzyposDefault.name] / first[peer]]
+    for r in range(1, rounds):
+        wanted = {FuzzyposDefault.name, *ratios}
+        methods = [m for m in make_methods()[0] if m.name in wanted]
+        if r % 2:
+            methods.reverse()
+        ms = {}
+        for method in methods:
+            run = run_method(method, log_path, max_scans)
+            ms[method.name] = 1000.0 * run["matcher_seconds"] / max(run["scans"], 1)
+        for peer in ratios:
+            ratios[peer].append(ms[FuzzyposDefault.name] / ms[peer])
+        print(f"{log_path.name}: timing round {r + 1} of {rounds}", file=sys.stderr)
+    return ratios
+
+
+def print_rounds(rounds: dict[str, dict[str, list[float]]]) -> None:
+    """The ratios of :func:`timing_rounds`, per log and peer, and their median."""
+    print()
+    print("fuzzypos ÷ peer, round by round (each round's two times minutes apart), the median:")
+    print()
+    print("| log | peer | rounds | median |")
+    print("|---|---|---|---:|")
+    for log, by_peer in rounds.items():
+        for peer, values in by_peer.items():
+            each = ", ".join(f"{v:.2f}" for v in values)
+            print(f"| {log} | {peer} | {each} | {statistics.median(values):.2f} |")
+
+
 def main() -> None:
     here = Path(__file__).resolve().parent
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -498,7 +542,16 @@ def main() -> None:
     )
     ap.add_argument("--max-scans", type=int, default=None, help="the first N scans of each log")
     ap.add_argument("--json", type=Path, default=None, help="write the rows to this JSON file")
+    ap.add_argument(
+        "--rounds",
+        type=int,
+        default=1,
+        help="time fuzzypos against the ratio peers this many times per log (the main run "
+        "and rounds − 1 more, alternating) and print each round's ratio and the median",
+    )
     args = ap.parse_args()
+    if args.rounds < 1:
+        sys.exit(f"--rounds: at least 1, got {args.rounds}")
 
     _, notes = make_methods()
     for note in notes:
@@ -512,6 +565,7 @@ def main() -> None:
 
     print(f"fuzzypos: every compiled kernel ready in {warm_up():.2f} s", file=sys.stderr)
     rows: list[dict[str, Any]] = []
+    rounds: dict[str, dict[str, list[float]]] = {}
     for name in names:
         if name in SIMULATED:
             log_path, rel_path = simulated_log(Path(scratch.name), name)
@@ -556,9 +610,15 @@ def main() -> None:
                 r["matcher_ratio"] = r["matcher_ms_per_scan"] / base["matcher_ms_per_scan"]
                 r["loop_ratio"] = r["loop_ms_per_scan"] / base["loop_ms_per_scan"]
         rows.extend(log_rows)
+        if args.rounds > 1:
+            timed = [r for r in log_rows if "matcher_ms_per_scan" in r]
+            first = {r["method"]: r["matcher_ms_per_scan"] for r in timed}
+            rounds[log_path.name] = timing_rounds(log_path, args.rounds, args.max_scans, first)
 
     print_table(rows)
     print_ratios(rows)
+    if rounds:
+        print_rounds(rounds)
     scratch.cleanup()
     for note in notes:
         print(f"\n{note}")
@@ -573,6 +633,7 @@ def main() -> None:
                 "max_scans": args.max_scans,
                 "threads": 1,
                 "rows": rows,
+                "timing_rounds": rounds,
             },
         )
 

@@ -54,3 +54,31 @@ def test_the_simulated_log_reads_back_and_its_relations_are_the_truth(bench, tmp
     assert truth.all.translation_m.mean < 1e-9 and truth.all.rotation_deg.mean < 1e-7
     odometry = np.array([r.odometry.as_array() for r in records])
     assert relations_errors(stamps, odometry, relations).all.translation_m.mean > 0.01
+
+
+def test_the_timing_rounds_ratio_each_round_and_alternate_the_order(bench, monkeypatch) -> None:
+    """``--rounds``: the main run's ratio first, then one per round of fuzzypos and the ratio
+    peers run anew (no other method), fuzzypos last in the even rounds, first in the odd."""
+    gicp, kiss = bench.RATIO_PEERS
+    names = [bench.FuzzyposDefault.name, gicp, "small_gicp PLANE_ICP, 1 m / 30° keyframes", kiss]
+    ms = {bench.FuzzyposDefault.name: [0.2, 0.3], gicp: [0.5, 0.6], kiss: [0.4, 1.2]}
+    order: list[str] = []
+
+    class Stub(bench.Method):
+        def __init__(self, name: str) -> None:
+            super().__init__()
+            self.name = name
+
+    def run(method, log_path, max_scans):
+        k = sum(name == method.name for name in order)
+        order.append(method.name)
+        return {"matcher_seconds": ms[method.name][k] * 10 / 1000.0, "scans": 10}
+
+    monkeypatch.setattr(bench, "make_methods", lambda: ([Stub(n) for n in names], []))
+    monkeypatch.setattr(bench, "run_method", run)
+    first = {bench.FuzzyposDefault.name: 0.25, gicp: 0.5, kiss: 1.0, names[2]: 0.1}
+    out = bench.timing_rounds(Path("log.clf"), 3, None, first)
+    assert out[gicp] == pytest.approx([0.5, 0.4, 0.5])
+    assert out[kiss] == pytest.approx([0.25, 0.5, 0.25])
+    assert set(out) == {gicp, kiss}
+    assert order == [kiss, gicp, bench.FuzzyposDefault.name, bench.FuzzyposDefault.name, gicp, kiss]
