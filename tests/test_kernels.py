@@ -256,6 +256,39 @@ def test_the_scan_points_weights_are_the_numpy_ones(pose, seed, weight) -> None:
     np.testing.assert_array_equal(points.spacing, again.spacing)
 
 
+def test_the_points_weighed_on_first_use_are_the_weighed_ones_and_can_be_replaced() -> None:
+    """``Refiner.points`` leaves the weights to first use (the fused refinement weighs them
+    in its own call): read, they are ``scan_weights``' own; ``dataclasses.replace`` gives
+    already weighed points; the fused refinement of either is the same to the bit."""
+    from fuzzypos._kernels.refine import scan_weights
+    from fuzzypos.pipeline.refine import Refiner, Starts
+
+    kernels._ENABLED = True
+    a, b = scan_at((0.3, -0.2, 0.4), 5), scan_at((0.45, -0.2, 0.43), 6)
+    fa, fb = extract_features(a, CFG), extract_features(b, CFG)
+    refiner = Refiner(R, CFG.search)
+    lazy = refiner.points(fb, b.angle_increment)
+    weighed = refiner.points(fb, b.angle_increment)
+    assert lazy is not None and weighed is not None
+    copied = replace(weighed, xy=weighed.xy.copy())  # (reads the weights: weighed now)
+    weights, spacing = scan_weights(
+        np.ascontiguousarray(fb.points), np.ascontiguousarray(fb.ranges),
+        np.ascontiguousarray(fb.uncertainty), b.angle_increment, R.weight_floor,
+        R.length_weight_max, R.length_cap,
+    )  # fmt: skip
+    for points in (weighed, copied):
+        np.testing.assert_array_equal(points.weights, weights)
+        np.testing.assert_array_equal(points.spacing, spacing)
+    surface = surface_points(fa.points, fa.ranges, fa.uncertainty, R)
+    motion = np.array([0.15, 0.0, 0.03])
+    starts = Starts(motion, motion, motion + np.array([0.1, 0.0, 0.02]))
+    fits = [refiner.refine(surface, p, starts, False) for p in (lazy, weighed, copied)]
+    assert all(f is not None for f in fits)
+    for other in fits[1:]:
+        np.testing.assert_array_equal(other.increment, fits[0].increment)
+        np.testing.assert_array_equal(other.gradient_covariance, fits[0].gradient_covariance)
+
+
 class Margins:
     """The smallest distance of the reference's own values to the thresholds they are tested
     against, recorded by wrapping the reference's helpers."""

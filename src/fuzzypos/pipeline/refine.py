@@ -61,7 +61,13 @@ class _WeighedOnUse(ScanPoints):
     points in its own call, and only the searches and fits after it read them."""
 
     # (the instance's dict holds xy and weighing, then the two arrays once computed)
-    weighing: Weighing
+    weighing: Weighing | None
+
+    def __init__(
+        self, xy: FloatArray, weights: FloatArray, spacing: FloatArray | None = None
+    ) -> None:
+        """Already weighed (``dataclasses.replace``'s way in: the fields as given)."""
+        self.__dict__.update(xy=xy, weighing=None, _weights=weights, _spacing=spacing)
 
     @classmethod
     def _lazy(cls, xy: FloatArray, weighing: Weighing) -> _WeighedOnUse:
@@ -69,24 +75,28 @@ class _WeighedOnUse(ScanPoints):
         out.__dict__.update(xy=xy, weighing=weighing)
         return out
 
-    def _weigh(self) -> tuple[FloatArray, FloatArray]:
+    def _weigh(self) -> None:
+        assert self.weighing is not None
         ranges, uncertainty, settings = self.weighing
         inc, floor, most, cap = settings.tolist()
         weights, spacing = _kernels().scan_weights(
             f64(self.xy), f64(ranges), f64(uncertainty), inc, floor, most, cap
         )
         self.__dict__.update(_weights=weights, _spacing=spacing)
-        return weights, spacing
 
     @property
     def weights(self) -> FloatArray:
-        found: FloatArray | None = self.__dict__.get("_weights")
-        return found if found is not None else self._weigh()[0]
+        if "_weights" not in self.__dict__:
+            self._weigh()
+        weights: FloatArray = self.__dict__["_weights"]
+        return weights
 
     @property
     def spacing(self) -> FloatArray | None:
-        found: FloatArray | None = self.__dict__.get("_spacing")
-        return found if found is not None else self._weigh()[1]
+        if "_weights" not in self.__dict__:
+            self._weigh()
+        spacing: FloatArray | None = self.__dict__["_spacing"]
+        return spacing
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,6 +208,7 @@ class Refiner:
         if compiled():  # both fits and the choice in one compiled call
             if isinstance(points, _WeighedOnUse) and "_weights" not in points.__dict__:
                 weights, spacing, weighing = None, None, points.weighing  # (weighed in it)
+                assert weighing is not None
             else:
                 weights, spacing, weighing = points.weights, points.spacing, None
             return refine_both(
