@@ -355,7 +355,6 @@ def refine_both(
     start_info = np.array(prior_information, dtype=np.float64) if full_start else diagonal
     hold_info = np.array(hold_information, dtype=np.float64) if full_hold else diagonal
     geometry, shape, cells, _order, _xy = reference.grid
-    contiguous = np.ascontiguousarray
     if weighing is not None:
         ranges, uncertainty, settings = weighing
         which, paired, close, on_start, result = kernel.weigh_and_refine_both(
@@ -365,9 +364,8 @@ def refine_both(
         )  # fmt: skip
     else:
         which, paired, close, on_start, result = kernel.refine_both(
-            geometry, shape, cells, reference.table, contiguous(points, dtype=np.float64),
-            contiguous(weights, dtype=np.float64), start, prior, hold, gates,
-            _NO_SPACING if spacing is None else contiguous(spacing, dtype=np.float64), params,
+            geometry, shape, cells, reference.table, f64(points), f64(weights), start, prior,
+            hold, gates, _NO_SPACING if spacing is None else f64(spacing), params,
             int(cfg.iterations), info_prior, start_info, full_start, hold_info, full_hold,
             checks,
         )  # fmt: skip
