@@ -251,6 +251,9 @@ def learning_run(turn_at: int | None, gap_at: int | None, n: int = 60) -> list:
              for p, t in zip(truth, stamps)]  # fmt: skip
     pos = Positioner(GATED)
     if turn_at is not None:
+        # (the false match forced in the staged refinement: the compiled call that fuses it
+        # with the matching and the assessment off, tests/test_step.py checks both agree)
+        pos._fused = False
         real = pos.refiner.refine
 
         def false_match(surface, points, starts, wide):

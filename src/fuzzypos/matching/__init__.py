@@ -19,7 +19,9 @@ from .surface import (
     Refinement,
     SurfacePoints,
     refine_both,
+    refine_both_settings,
     refine_point_to_line,
+    refinement_of,
     surface_lengths,
     surface_points,
 )
@@ -42,6 +44,8 @@ __all__ = [
     "Refinement",
     "refine_point_to_line",
     "refine_both",
+    "refine_both_settings",
+    "refinement_of",
     "SearchHit",
     "search_start",
     "surface_lengths",

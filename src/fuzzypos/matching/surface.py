@@ -29,6 +29,8 @@ __all__ = [
     "Refinement",
     "refine_point_to_line",
     "refine_both",
+    "refine_both_settings",
+    "refinement_of",
 ]
 
 
@@ -371,14 +373,52 @@ def refine_both(
         )  # fmt: skip
     if which == kernel.NEITHER:
         return None
-    n = points.shape[0]
-    if which == kernel.FROM_START:
-        info, begin, held, full = start_info, start, prior, full_start
-    else:
-        info, begin, held, full = hold_info, hold, hold.copy(), full_hold
+    return refinement_of(
+        which == kernel.FROM_START, paired, close, on_start, result, points.shape[0],
+        (start, prior, start_info, full_start), (hold, hold, hold_info, full_hold),
+    )  # fmt: skip
+
+
+def refinement_of(
+    from_start: bool,
+    paired: int,
+    close: int,
+    on_start: bool,
+    result: FloatArray,
+    n: int,
+    start_fit: tuple[FloatArray, FloatArray, FloatArray, bool],
+    hold_fit: tuple[FloatArray, FloatArray, FloatArray, bool],
+) -> Refinement:
+    """The :class:`Refinement` of ``_kernels.refine.refine_both``' values (``result`` its
+    (4, 3, 3) array, ``n`` the scan's points): the fit from the start (``from_start``) or
+    from the hold, each given as (its start, its prior, its prior's information, whether
+    that is the full 3×3 rather than the diagonal's; a prior that is its start's very
+    array gets one of its own)."""
+    begin, held, info, full = start_fit if from_start else hold_fit
+    if held is begin:
+        held = held.copy()
     return Refinement._trusted(
         result[0, 0], paired, paired / n, close / n, result[1], info if full else info.copy(),
         result[2], on_start, begin, held, result[3],
+    )  # fmt: skip
+
+
+def refine_both_settings(
+    reference: SurfacePoints, cfg: RefinementConfig, information: FloatArray | None
+) -> tuple[FloatArray, IntArray, IntArray, FloatArray, FloatArray, FloatArray, int,
+           FloatArray, FloatArray, bool]:  # fmt: skip
+    """What ``_kernels.refine.refine_both`` reads of the surface and the section, as
+    :func:`refine_both` hands it over from ``max_distance`` (no search's): the surface's
+    grid (geometry, shape, cells) and table, the pairing distances, the params, the
+    iterations, the prior's diagonal information, and both fits' information (the learned
+    ``information``, else the diagonal's 3×3) and whether it is the full 3×3."""
+    gates, params, info_prior, diagonal = _kernel_settings(cfg, cfg.max_distance, 1.0)
+    geometry, shape, cells, _order, _xy = reference.grid
+    full = information is not None
+    info = np.array(information, dtype=np.float64) if full else diagonal
+    return (
+        geometry, shape, cells, reference.table, gates, params, int(cfg.iterations), info_prior,
+        info, full,
     )  # fmt: skip
 
 

@@ -101,12 +101,35 @@ class FeatureMatcher:
             increment, n_lines = self.match_lines(prev.lines, curr.lines, None, prior)
             if increment is not None:
                 return FeatureMatch._of(increment, n_lines, Reason.MATCHED)
+        return self.match_after_lines(prev, curr, prior)
+
+    def match_after_lines(self, prev: Features, curr: Features, prior: FloatArray) -> FeatureMatch:
+        """:meth:`match` where the lines matched from the prior gave no motion (or were not
+        tried first): the point pairing, refined by line matching."""
+        m = self.matching
+        lines_tried = m.match_lines and m.lines_first
         points = self.match_points(prev.points_of_interest, curr.points_of_interest, prior)
         if m.match_lines and (points.increment is not None or not lines_tried):
             refined, n_lines = self.match_lines(prev.lines, curr.lines, points.increment, prior)
             if refined is not None:
                 return FeatureMatch._of(refined, n_lines, Reason.MATCHED)
         return points
+
+    def lines_first_inputs(self, prev: Features, curr: Features) -> _LinesFirst | None:
+        """What ``_kernels.lines.match_lines`` reads for :meth:`match`' first try (the lines
+        from the prior) but the prior itself: both scans' line arrays, the prior's gates,
+        the params, the passes and the least pairs; None where that try is not the compiled
+        one's (not configured, lines without variances, or none)."""
+        m = self.matching
+        a, b = prev.lines, curr.lines
+        if not (m.match_lines and m.lines_first and compiled()):
+            return None
+        if not (_has_variances(a) and _has_variances(b)) or len(a) == 0 or len(b) == 0:
+            return None
+        return (
+            *self._arrays_of(a), *self._arrays_of(b), self._line_settings[True],
+            self._line_params, int(m.line_passes), int(m.line_min_pairs),
+        )  # fmt: skip
 
     def match_points(
         self, prev: FeaturePoints, curr: FeaturePoints, prior: FloatArray
@@ -189,6 +212,10 @@ class FeatureMatcher:
 def _has_variances(lines: Lines) -> bool:
     return lines.angle_variance is not None and lines.distance_variance is not None
 
+
+#: :meth:`FeatureMatcher.lines_first_inputs`: the previous scan's and this one's
+#: :data:`_LineArrays`, the gates, the params, the passes and the least pairs
+_LinesFirst = tuple[FloatArray, int, int, FloatArray, int, int, FloatArray, FloatArray, int, int]
 
 #: a scan's lines as the line-matching kernel reads them: a flat array of floats, the first
 #: element and the number of lines (``fuzzypos._kernels.lines.LINE_FLOATS``)

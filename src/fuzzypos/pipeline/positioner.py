@@ -10,9 +10,12 @@ empty or all-invalid scan is not an error but such a degraded estimate.
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
 from collections.abc import Iterable, Iterator, Sized
 from dataclasses import replace
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,11 +26,11 @@ from ..geometry import Pose2D, Pose3, compose3, relative3
 from ..matching import Refinement
 from ..scan import LaserScan
 from .estimate import Estimate, Reason
-from .feature_match import FeatureMatch, FeatureMatcher
+from .feature_match import FeatureMatch, FeatureMatcher, _LinesFirst
 from .local_map import LocalMap
 from .noise import OdometryNoise
 from .prior import OdometryPrior, Prior
-from .refine import Refiner, Starts
+from .refine import Refiner, ScanPoints, Starts, _FromLines
 from .search import Relocaliser
 from .uncertainty import Assessment, Uncertainty
 
@@ -36,6 +39,15 @@ __all__ = ["Positioner"]
 FloatArray = NDArray[np.float64]
 
 _END = object()
+
+
+@functools.cache
+def _step() -> ModuleType:
+    """The compiled match, refinement and assessment (``_kernels.step``), imported with
+    numba on first use and kept."""
+    return importlib.import_module("fuzzypos._kernels.step")
+
+
 _IDENTITY = Pose2D()
 
 
@@ -73,6 +85,9 @@ class Positioner:
         self.refiner = Refiner(cfg.refinement, cfg.search)
         self.relocaliser = Relocaliser(cfg.search, self.refiner)
         self.uncertainty = Uncertainty(cfg.covariance, cfg.gate)
+        # the common path's one compiled call (False: the staged calls it fuses, which give
+        # the same values to the bit; the tests' reference and ``warm_up``'s second drive)
+        self._fused = True
         self.reset()
 
     def reset(self) -> None:
@@ -114,16 +129,11 @@ class Positioner:
         features = extract_features(scan, self.config)
         # the same prior from the keyframe: what was estimated up to the previous scan, then it
         key_prior = self.local_map.from_keyframe(self._pose, prior.increment)
-        match = self.feature_matcher.match(self.local_map.features, features, key_prior)
         prior_cov = self._prior_covariance(prior)
         information = self._prior_information(t_prev, prior, prior_cov)
-        fit, on_previous = self._refine(
-            features, match, key_prior, prior, scan.angle_increment, information
+        n_pairs, reason, refined, from_key, judged = self._match_refine_assess(
+            features, key_prior, prior, prior_cov, information, t_prev, scan.angle_increment
         )
-        from_key = match.increment if fit is None else fit.increment
-        judged = self._assess(t_prev, prior, prior_cov, from_key, fit, on_previous, key_prior)
-        if judged.rejected:  # too unlikely under both covariances: the odometry stands
-            from_key = None
         # (the poses as floats once: the arrays' tolist() gives these very floats back)
         previous = self._pose.tolist()
         if from_key is None:  # fall back to the prior, and start afresh from this scan
@@ -135,22 +145,120 @@ class Positioner:
             increment3 = relative3(previous, pose3)
             increment = np.array(increment3)
         pose = np.array(pose3)
-        self._learn(prior, t_prev, fit, judged)
         renewed = self.local_map.add(features, pose, from_key)
         if renewed:
             self.uncertainty.renewed()
         self._pose = pose
         self.odometry_prior.accept(increment, prior.dt)
-        reason = Reason.GATED if judged.rejected else match.reason
-        refined = fit is not None and from_key is not None
+        reason = Reason.GATED if judged.rejected else reason
+        refined = refined and from_key is not None
         return Estimate._trusted(
             stamp=scan.stamp, pose=_pose3(pose3), increment=_pose3(increment3),
-            prior=_pose(prior.increment), n_pairs=match.n_pairs, degraded=from_key is None,
+            prior=_pose(prior.increment), n_pairs=n_pairs, degraded=from_key is None,
             features=features, reason=Reason.MATCHED if from_key is not None else reason,
             odometry_rejected=prior.odometry_rejected, refined=refined,
             covariance=judged.covariance, keyframe_covariance=judged.keyframe_covariance,
             gate=judged.gate, keyframe=renewed,
         )  # fmt: skip
+
+    def _match_refine_assess(
+        self,
+        features: Features,
+        key_prior: FloatArray,
+        prior: Prior,
+        prior_cov: FloatArray,
+        information: tuple[FloatArray, FloatArray] | None,
+        t_prev: FloatArray,
+        angle_increment: float,
+    ) -> tuple[int, Reason, bool, FloatArray | None, Assessment]:
+        """The scan's features matched against the keyframe's, the refinement, the
+        assessment and what it teaches the odometry's noise (:meth:`_learn`). Returns the
+        match's pairs and reason, whether a fit gave the motion, the motion from the keyframe
+        (None: the prior stands) and the assessment. Its common path (the lines from the
+        prior give a motion, a fit from it counts and the gate lets it stand) is one
+        compiled call (``_kernels.step``); where a stage leaves it, the staged calls go on
+        from that stage with what the call gave (the same values to the bit: ``tests``)."""
+        prev = self.local_map.features
+        fused = self._fused_inputs(prev, features, prior, information, angle_increment)
+        if fused is None:
+            match = self.feature_matcher.match(prev, features, key_prior)
+            fit, on_previous = self._refine(
+                features, match, key_prior, prior, angle_increment, information
+            )
+            return self._judged(match, fit, on_previous, t_prev, prior, prior_cov, key_prior)
+        lines, points, refinement = fused
+        step = _step()
+        gate_open = self._gate_open(prior)
+        assessment = self.uncertainty.assessment_inputs(
+            t_prev, prior.increment, prior_cov, gate_open, self._learns_from(prior, True)
+        )
+        stage, n_pairs, which, paired, close, on_start, gate, ok, out = step.match_refine_assess(
+            *lines, key_prior, *refinement, *assessment, 0.0 not in t_prev.tolist()
+        )  # fmt: skip
+        if stage == step.NO_LINES:
+            match = self.feature_matcher.match_after_lines(prev, features, key_prior)
+            fit, on_previous = self._refine(
+                features, match, key_prior, prior, angle_increment, information
+            )
+            return self._judged(match, fit, on_previous, t_prev, prior, prior_cov, key_prior)
+        est = out[step.LINES, 0]
+        match = FeatureMatch._of(est, n_pairs, Reason.MATCHED)
+        if stage == step.NOT_REFINED:  # (neither fit counts: the search, as _refine goes on)
+            starts = self._starts(match, key_prior, information)
+            fit, on_previous = self._searched(None, points, starts, prior)
+            return self._judged(match, fit, on_previous, t_prev, prior, prior_cov, key_prior)
+        if stage == step.ASSESSED:
+            judged = self.uncertainty.assessed(gate, ok, out, step.ASSESSMENT, gate_open)
+            if judged is not None:  # (a fit's own values are read for a rejected match only)
+                self._learn(prior, t_prev, None, judged)
+                return n_pairs, Reason.MATCHED, True, out[step.FIT, 0], judged
+        fit = self.refiner.from_lines(
+            which == step.FROM_START, paired, close, on_start, out[step.FIT : step.FIT + 4],
+            points, est, key_prior, refinement,
+        )  # fmt: skip
+        return self._judged(match, fit, False, t_prev, prior, prior_cov, key_prior)
+
+    def _fused_inputs(
+        self,
+        prev: Features,
+        features: Features,
+        prior: Prior,
+        information: tuple[FloatArray, FloatArray] | None,
+        angle_increment: float,
+    ) -> tuple[_LinesFirst, ScanPoints, _FromLines] | None:
+        """What :meth:`_match_refine_assess`' compiled call reads of the matcher's and the
+        refiner's: None where the staged calls would not make those very calls (no
+        refinement, an odometry jump, the lines not matched first in the compiled way, too
+        few points), and where the fused call is switched off (``_fused``)."""
+        if not self._fused or prior.odometry_rejected or not self.config.refinement.enabled:
+            return None
+        lines = self.feature_matcher.lines_first_inputs(prev, features)
+        if lines is None:
+            return None
+        points = self.refiner.points(features, angle_increment)
+        if points is None:
+            return None
+        held = None if information is None else information[1]
+        refinement = self.refiner.lines_start_inputs(self.local_map.surface(), points, held)
+        return None if refinement is None else (lines, points, refinement)
+
+    def _judged(
+        self,
+        match: FeatureMatch,
+        fit: Refinement | None,
+        on_previous: bool,
+        t_prev: FloatArray,
+        prior: Prior,
+        prior_cov: FloatArray,
+        key_prior: FloatArray,
+    ) -> tuple[int, Reason, bool, FloatArray | None, Assessment]:
+        """:meth:`_match_refine_assess`' values of a match and its fit (None: none)."""
+        from_key = match.increment if fit is None else fit.increment
+        judged = self._assess(t_prev, prior, prior_cov, from_key, fit, on_previous, key_prior)
+        if judged.rejected:  # too unlikely under both covariances: the odometry stands
+            from_key = None
+        self._learn(prior, t_prev, fit, judged)
+        return match.n_pairs, match.reason, fit is not None, from_key, judged
 
     def _prior(self, stamp: float, odom: Pose2D | None) -> Prior:
         """The odometry prior, its increment corrected by the learned calibration."""
@@ -221,11 +329,12 @@ class Positioner:
         return judged
 
     @staticmethod
-    def _learns_from(prior: Prior, fit: Refinement | None) -> bool:
+    def _learns_from(prior: Prior, fit: Refinement | bool | None) -> bool:
         """Whether a refined match (its prior the odometry's) would teach the odometry's noise
         and calibration (on time) or the stale rates (after a gap), where it stands: the
-        assessment then gives the scan's own motion with it (one compiled call for both)."""
-        return fit is not None and prior.from_odometry and prior.odometry is not None
+        assessment then gives the scan's own motion with it (one compiled call for both).
+        ``fit``: the fit (None: none), or whether there is one."""
+        return fit not in (None, False) and prior.from_odometry and prior.odometry is not None
 
     def _learn(
         self, prior: Prior, t_prev: FloatArray, fit: Refinement | None, judged: Assessment
@@ -282,14 +391,33 @@ class Positioner:
         points = self.refiner.points(features, angle_increment)
         if points is None:
             return None, False
+        starts = self._starts(match, key_prior, information)
+        best = self.refiner.refine(surface, points, starts, prior.odometry_rejected)
+        return self._searched(best, points, starts, prior)
+
+    def _starts(
+        self,
+        match: FeatureMatch,
+        key_prior: FloatArray,
+        information: tuple[FloatArray, FloatArray] | None,
+    ) -> Starts:
+        """Where the refinement starts: the features' motion, else the prior from the
+        keyframe ``key_prior``; held to the features' motion (``prior_from_features``) or to
+        the prior, with the learned ``information`` where given."""
         start = key_prior if match.increment is None else match.increment
-        from_features = match.increment is not None and r.prior_from_features
+        from_features = match.increment is not None and self.config.refinement.prior_from_features
         if information is None:
-            starts = Starts._of(start, start if from_features else key_prior, key_prior, None, None)
-        else:  # the learned odometry is the prior, the features the start
-            starts = Starts._of(start, key_prior, key_prior, information[1], information[1])
+            return Starts._of(start, start if from_features else key_prior, key_prior, None, None)
+        # the learned odometry is the prior, the features the start
+        return Starts._of(start, key_prior, key_prior, information[1], information[1])
+
+    def _searched(
+        self, best: Refinement | None, points: ScanPoints, starts: Starts, prior: Prior
+    ) -> tuple[Refinement | None, bool]:
+        """:meth:`_refine` after the refinement gave ``best`` (None: no fit counts): the
+        searches, and the fit against the previous scan too."""
+        r = self.config.refinement
         wide = prior.odometry_rejected
-        best = self.refiner.refine(surface, points, starts, wide)
         if wide or best is None:
             full = wide or prior.dt > self.config.search.after_gap
             best = self.relocaliser.relocalise(self.local_map, points, starts, best, full)

@@ -20,7 +20,9 @@ from ..matching import (
     Refinement,
     SurfacePoints,
     refine_both,
+    refine_both_settings,
     refine_point_to_line,
+    refinement_of,
     surface_lengths,
 )
 from ..matching._robust import median as _median
@@ -29,6 +31,15 @@ from ..matching.surface import Weighing
 __all__ = ["Refiner", "ScanPoints", "Starts"]
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+#: :meth:`Refiner.lines_start_inputs`: the surface's grid and table, the points, their
+#: ranges and uncertainty, the weighing settings, the pairing distances, the params, the
+#: iterations, the prior's diagonal, both fits' information, whether it is the full 3×3,
+#: whether the fit is held to the features' motion, and the checks
+_FromLines = tuple[
+    FloatArray, IntArray, IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray,
+    FloatArray, FloatArray, int, FloatArray, FloatArray, bool, bool, FloatArray,
+]  # fmt: skip
 
 
 @functools.cache
@@ -219,6 +230,51 @@ class Refiner:
                 weighing=weighing,
             )  # fmt: skip
         return self._refine_staged(surface, points, starts, max_distance, wide)
+
+    def lines_start_inputs(
+        self, surface: SurfacePoints, points: ScanPoints, information: FloatArray | None
+    ) -> _FromLines | None:
+        """What ``_kernels.refine.weigh_and_refine_both`` reads for :meth:`refine` from the
+        lines' motion (no odometry jump) but the starts: the surface's, the scan's points
+        with their weighing inputs, the section's settings, both fits' information (the
+        learned ``information``, else the diagonal's) and whether it is the full 3×3,
+        whether the fit is held to the features' motion, and the checks; None where that
+        call is not the one :meth:`refine` would make (points already weighed, or too few
+        on either side)."""
+        weighing = points.__dict__.get("weighing")
+        if weighing is None or len(surface) < 3 or points.xy.shape[0] == 0:
+            return None
+        geometry, shape, cells, table, gates, params, iterations, diag, info, full = (
+            refine_both_settings(surface, self.refinement, information)
+        )
+        ranges, uncertainty, settings = weighing
+        return (
+            geometry, shape, cells, table, f64(points.xy), f64(ranges), f64(uncertainty),
+            settings, gates, params, iterations, diag, info, full,
+            bool(self.refinement.prior_from_features), self._checks[False],
+        )  # fmt: skip
+
+    @staticmethod
+    def from_lines(
+        which_from_start: bool,
+        paired: int,
+        close: int,
+        on_start: bool,
+        result: FloatArray,
+        points: ScanPoints,
+        start: FloatArray,
+        key_prior: FloatArray,
+        inputs: _FromLines,
+    ) -> Refinement:
+        """The :class:`Refinement` of the fit :meth:`lines_start_inputs`' call made from the
+        lines' motion ``start`` (``result``: its (4, 3, 3) values) with the prior from the
+        keyframe ``key_prior``: :meth:`refine`'s, to the bit."""
+        info, full, from_features = inputs[12], inputs[13], inputs[14]
+        prior = start if from_features and not full else key_prior
+        return refinement_of(
+            which_from_start, paired, close, on_start, result, points.xy.shape[0],
+            (start, prior, info, full), (key_prior, key_prior, info, full),
+        )  # fmt: skip
 
     def _refine_staged(
         self,

@@ -62,6 +62,22 @@ def _pipeline_kernels() -> ModuleType:
     return importlib.import_module("fuzzypos._kernels.pipeline")
 
 
+#: :meth:`Uncertainty.assessment_inputs`
+_AssessmentInputs = tuple[
+    FloatArray,
+    FloatArray,
+    FloatArray,
+    FloatArray,
+    FloatArray,
+    FloatArray,
+    float,
+    bool,
+    float,
+    bool,
+    float,
+]
+
+
 def _read_only(a: FloatArray) -> FloatArray:
     a.flags.writeable = False
     return a
@@ -274,10 +290,44 @@ class Uncertainty:
             judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
             held = fit is not None and np.count_nonzero(fit.hold_information)
             return self._with_scan_only(judged, fit, t_prev) if wanted and not held else judged
+        standing = self.assessed(gate, ok, out, 0, gate_open)
+        assert standing is not None  # (the gate let it stand)
+        return standing
+
+    def assessment_inputs(
+        self,
+        t_prev: FloatArray,
+        prior: FloatArray,
+        prior_covariance: FloatArray,
+        gate_open: bool,
+        wanted: bool,
+    ) -> _AssessmentInputs:
+        """What ``_kernels.pipeline.assess_and_scan_only`` reads for :meth:`assess` of a
+        refined match but the fit's and the match's own values: the previous scan's pose from
+        the keyframe ``t_prev``, the ``prior`` and its covariance, the previous covariance,
+        the features', the floor, the points' correlation, whether the gate is open, its
+        threshold, whether the scan's own motion is ``wanted`` and the condition's limit."""
+        return (
+            f64(t_prev), f64(prior), f64(prior_covariance), self._previous, self._feature,
+            self.floor, self._point_correlation, bool(gate_open), self.threshold, bool(wanted),
+            _MAX_CONDITION,
+        )  # fmt: skip
+
+    def assessed(
+        self, gate: float, ok: bool, out: FloatArray, first: int, gate_open: bool
+    ) -> Assessment | None:
+        """The :class:`Assessment` of ``_kernels.pipeline.assess_and_scan_only``' values (its
+        (5, 3, 3) array from element ``first`` of ``out``), as :meth:`assess` gives it, the
+        previous covariance now its; None where the gate rejects the match (then
+        :meth:`assess` gives it, with the numpy reference)."""
+        if gate_open and gate > self.threshold:
+            return None
         # (views of the kernel's one array)
-        self._previous = out[2]
-        scan = (out[4, 0], out[3]) if ok else None
-        return Assessment._of(out[0], out[1], None if not gate_open else float(gate), False, scan)
+        self._previous = out[first + 2]
+        scan = (out[first + 4, 0], out[first + 3]) if ok else None
+        return Assessment._of(
+            out[first], out[first + 1], None if not gate_open else float(gate), False, scan
+        )
 
     def _assess_numpy(
         self,
