@@ -5,7 +5,8 @@ the line matcher, the refiner and the uncertainty stage called one after the oth
 estimates to the bit, scan by scan, on simulated runs that reach every stage where the call
 hands over to the staged path (the lines give no motion, neither fit counts, the assessment is
 left to Python, the gate rejects the match) and the cases around it (learned information, an
-odometry jump, no odometry, the fit held to the prior rather than to the features' motion)."""
+odometry jump, no odometry, the fit held to the prior rather than to the features' motion),
+and on other kinds of log (an interlaced SICK outdoors, a 360° scanner of 360 beams)."""
 
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ from fuzzypos.pipeline import Estimate, Positioner
 from fuzzypos.pipeline import positioner as positioner_module
 
 #: the scenarios: a config's overrides, and the metres added to the odometry's x at some scans
-#: (None: no odometry at all)
+#: (None: no odometry at all), on the office run unless :data:`KINDS` names another
 SCENARIOS: dict[str, tuple[dict[str, Any], dict[int, float] | None]] = {
     "default": ({}, {}),
     # neither fit counts for some scans (the search, and the fit against the previous scan)
@@ -48,19 +49,33 @@ SCENARIOS: dict[str, tuple[dict[str, Any], dict[int, float] | None]] = {
         dict.fromkeys(range(40, 63, 4), 0.1),
     ),
     "no odometry": ({}, None),
+    # other kinds of log: an interlaced SICK outdoors (181/180 beams, no-return codes, far
+    # structure) and a 360° scanner of 360 beams
+    "sick yard": ({}, {}),
+    "360 beams": ({}, {}),
 }
+KINDS = {"sick yard": "sick yard", "360 beams": "360 beams"}
 
 
 @cache
-def _run() -> sim.SimulatedRun:
-    """63 scans of the office, driving part of a circle."""
-    world = sim.world_by_name("office")
+def _run(kind: str = "office") -> sim.SimulatedRun:
+    """63 scans of the office, driving part of a circle (the demo's scanner); or 64 of the
+    interlaced SICK's yard (``"sick yard"``); or 63 of the gym with a 360° scanner of 360
+    beams (``"360 beams"``)."""
+    if kind == "sick yard":
+        return sim.sick_outdoor_run(0, duration=40.0)
     path = sim.CommandedPath.circle(1.0, laps=0.3, speed=0.3)
+    if kind == "360 beams":
+        scanner = sim.ScannerModel(
+            n_beams=360, field_of_view_deg=360.0, angle_min_deg=-180.0, range_max=20.0,
+            range_noise_std=0.01,
+        )  # fmt: skip
+        return sim.simulate_run(sim.world_by_name("gym"), path, scanner, sim.SlipModel(), 2)
+    world = sim.world_by_name("office")
     return sim.simulate_run(world, path, DemoSettings().scanner, sim.SlipModel(), 1)
 
 
-def _odometry(shifts: dict[int, float] | None) -> Iterator[Pose2D | None]:
-    run = _run()
+def _odometry(run: sim.SimulatedRun, shifts: dict[int, float] | None) -> Iterator[Pose2D | None]:
     for k in range(len(run.scans)):
         if shifts is None:
             yield None
@@ -73,7 +88,8 @@ def _estimates(name: str, fused: bool) -> tuple[list[Estimate], Positioner]:
     overrides, shifts = SCENARIOS[name]
     positioner = Positioner(Config().with_overrides(overrides))
     positioner._fused = fused
-    estimates = [positioner.update(s, o) for s, o in zip(_run().scans, _odometry(shifts))]
+    run = _run(KINDS.get(name, "office"))
+    estimates = [positioner.update(s, o) for s, o in zip(run.scans, _odometry(run, shifts))]
     return estimates, positioner
 
 
@@ -127,7 +143,7 @@ def test_the_compiled_step_gives_the_staged_estimates_to_the_bit(
     stages = _Stages(monkeypatch)
     fused, fused_positioner = _estimates(name, fused=True)
     assert sum(stages.reached.values()) > 0  # (the compiled call was made)
-    assert len(fused) == len(staged) == len(_run().scans)
+    assert len(fused) == len(staged) == len(_run(KINDS.get(name, "office")).scans)
     for k, (a, b) in enumerate(zip(fused, staged)):
         assert _fields(a) == _fields(b), f"scan {k}"
     increment = np.array([0.1, 0.02, 0.05])
@@ -156,6 +172,8 @@ def test_the_scenarios_reach_every_stage(monkeypatch: pytest.MonkeyPatch) -> Non
     assert full > 0
     # no odometry: the prior is no odometry's, nothing learned, no gate
     assert reached["no odometry"][-1] == 0
+    for kind in KINDS:  # (the other kinds of log take the common path too)
+        assert reached[kind][step.ASSESSED] > 0, kind
 
 
 def test_the_odometry_jump_leaves_the_compiled_call(monkeypatch: pytest.MonkeyPatch) -> None:
