@@ -1,6 +1,7 @@
 """``warm_up`` pays the compile cost before the first scan: after it, a drive through every
 path of ``Positioner.update`` (an odometry jump and its wide search, a gap in time, a scan
-without odometry, standing still) compiles (or loads from the cache) no kernel."""
+without odometry, standing still) compiles (or loads from the cache) no kernel, and each
+kernel has been compiled for one set of argument types only."""
 
 from __future__ import annotations
 
@@ -59,6 +60,7 @@ _SCRIPT = textwrap.dedent(
     new = {k: sorted(set(after[k]) - set(before.get(k, []))) for k in after}
     print(json.dumps({
         "new": {k: v for k, v in new.items() if v},
+        "twice": sorted(k for k, v in after.items() if len(v) > 1),
         "jumps": positioner.odometry_jumps,
         "reasons": reasons,
     }))
@@ -77,3 +79,6 @@ def test_after_warm_up_no_path_of_update_compiles_a_kernel() -> None:
     assert out["jumps"] == 1  # the drive took the wide search's path
     assert "standing still" in out["reasons"], out["reasons"]
     assert out["new"] == {}, f"compiled after warm_up: {out['new']}"
+    # one compiled version of each kernel: the update hands every kernel the same types (a
+    # read-only array where it is otherwise writable would compile it, and its callees, again)
+    assert out["twice"] == [], f"compiled for two sets of types: {out['twice']}"

@@ -277,8 +277,10 @@ class Positioner:
     def _prior_covariance(self, prior: Prior) -> FloatArray:
         """The covariance of the prior: the odometry's learned noise (grown by the time it was
         stale), or a broad one where the prior is the last increment."""
-        if not prior.from_odometry:
-            return self.uncertainty.broad()
+        if not prior.from_odometry:  # (a writable copy of the read-only constant: the kernels
+            # that read it are compiled for writable arrays, not once more for read-only ones)
+            broad: FloatArray = self.uncertainty.broad().copy()
+            return broad
         return self.odometry_noise.covariance(prior.increment, prior.stale)
 
     def _prior_information(
