@@ -182,10 +182,8 @@ class Positioner:
         fused = self._fused_inputs(prev, features, prior, information, angle_increment)
         if fused is None:
             match = self.feature_matcher.match(prev, features, key_prior)
-            fit, on_previous = self._refine(
-                features, match, key_prior, prior, angle_increment, information
-            )
-            return self._judged(match, fit, on_previous, t_prev, prior, prior_cov, key_prior)
+            return self._staged(match, features, key_prior, prior, prior_cov, information,
+                                t_prev, angle_increment)  # fmt: skip
         lines, points, refinement = fused
         step = _step()
         gate_open = self._gate_open(prior)
@@ -193,14 +191,12 @@ class Positioner:
             t_prev, prior.increment, prior_cov, gate_open, self._learns_from(prior, True)
         )
         stage, n_pairs, which, paired, close, on_start, gate, ok, out = step.match_refine_assess(
-            *lines, key_prior, *refinement, *assessment, 0.0 not in t_prev.tolist()
+            *lines, key_prior, *refinement, *assessment, self._is_key_prior(t_prev)
         )  # fmt: skip
         if stage == step.NO_LINES:
             match = self.feature_matcher.match_after_lines(prev, features, key_prior)
-            fit, on_previous = self._refine(
-                features, match, key_prior, prior, angle_increment, information
-            )
-            return self._judged(match, fit, on_previous, t_prev, prior, prior_cov, key_prior)
+            return self._staged(match, features, key_prior, prior, prior_cov, information,
+                                t_prev, angle_increment)  # fmt: skip
         est = out[step.LINES, 0]
         match = FeatureMatch._of(est, n_pairs, Reason.MATCHED)
         if stage == step.NOT_REFINED:  # (neither fit counts: the search, as _refine goes on)
@@ -212,11 +208,29 @@ class Positioner:
             if judged is not None:  # (a fit's own values are read for a rejected match only)
                 self._learn(prior, t_prev, None, judged)
                 return n_pairs, Reason.MATCHED, True, out[step.FIT, 0], judged
+        starts = self._starts(match, key_prior, information)
         fit = self.refiner.from_lines(
             which == step.FROM_START, paired, close, on_start, out[step.FIT : step.FIT + 4],
-            points, est, key_prior, refinement,
+            points, starts, refinement,
         )  # fmt: skip
         return self._judged(match, fit, False, t_prev, prior, prior_cov, key_prior)
+
+    def _staged(
+        self,
+        match: FeatureMatch,
+        features: Features,
+        key_prior: FloatArray,
+        prior: Prior,
+        prior_cov: FloatArray,
+        information: tuple[FloatArray, FloatArray] | None,
+        t_prev: FloatArray,
+        angle_increment: float,
+    ) -> tuple[int, Reason, bool, FloatArray | None, Assessment]:
+        """:meth:`_match_refine_assess` in the staged calls from the ``match``: the
+        refinement and its searches, then :meth:`_judged`."""
+        fit, on_previous = self._refine(features, match, key_prior, prior, angle_increment,
+                                        information)  # fmt: skip
+        return self._judged(match, fit, on_previous, t_prev, prior, prior_cov, key_prior)
 
     def _fused_inputs(
         self,
@@ -318,9 +332,7 @@ class Positioner:
         it teaches the odometry's noise); a fit against the previous scan too carries that
         scan's error relative to the keyframe; ``key_prior``: the prior from the keyframe."""
         previous_cov = self.uncertainty.previous_covariance() if on_previous else None
-        # (the prior from the keyframe is compose(t_prev, prior) to the bit where t_prev is the
-        # keyframe's relative pose itself, no coordinate of it zero: LocalMap.at)
-        known = key_prior if 0.0 not in t_prev.tolist() else None
+        known = key_prior if self._is_key_prior(t_prev) else None
         judged = self.uncertainty.assess(
             t_prev, prior.increment, prior_cov, from_key, fit, gate_open=self._gate_open(prior),
             with_scan_only=self._learns_from(prior, fit), key_prior=known,
@@ -331,12 +343,20 @@ class Positioner:
         return judged
 
     @staticmethod
+    def _is_key_prior(t_prev: FloatArray) -> bool:
+        """Whether the prior from the keyframe is compose(t_prev, prior) to the bit, as the
+        assessment computes it: where t_prev is the keyframe's relative pose itself, no
+        coordinate of it zero (``LocalMap.at``)."""
+        return 0.0 not in t_prev.tolist()
+
+    @staticmethod
     def _learns_from(prior: Prior, fit: Refinement | bool | None) -> bool:
         """Whether a refined match (its prior the odometry's) would teach the odometry's noise
         and calibration (on time) or the stale rates (after a gap), where it stands: the
         assessment then gives the scan's own motion with it (one compiled call for both).
         ``fit``: the fit (None: none), or whether there is one."""
-        return fit not in (None, False) and prior.from_odometry and prior.odometry is not None
+        has_fit = fit is not None and fit is not False
+        return has_fit and prior.from_odometry and prior.odometry is not None
 
     def _learn(
         self, prior: Prior, t_prev: FloatArray, fit: Refinement | None, judged: Assessment

@@ -262,18 +262,16 @@ class Refiner:
         on_start: bool,
         result: FloatArray,
         points: ScanPoints,
-        start: FloatArray,
-        key_prior: FloatArray,
+        starts: Starts,
         inputs: _FromLines,
     ) -> Refinement:
-        """The :class:`Refinement` of the fit :meth:`lines_start_inputs`' call made from the
-        lines' motion ``start`` (``result``: its (4, 3, 3) values) with the prior from the
-        keyframe ``key_prior``: :meth:`refine`'s, to the bit."""
-        info, full, from_features = inputs[12], inputs[13], inputs[14]
-        prior = start if from_features and not full else key_prior
+        """The :class:`Refinement` of the fit :meth:`lines_start_inputs`' call made from
+        ``starts`` (the lines' motion the start; ``result``: its (4, 3, 3) values):
+        :meth:`refine`'s, to the bit."""
+        *_, info, full, _from_features, _checks = inputs
         return refinement_of(
             which_from_start, paired, close, on_start, result, points.xy.shape[0],
-            (start, prior, info, full), (key_prior, key_prior, info, full),
+            (starts.start, starts.prior, info, full), (starts.hold, starts.hold, info, full),
         )  # fmt: skip
 
     def _refine_staged(

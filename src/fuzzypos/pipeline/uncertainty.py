@@ -286,13 +286,13 @@ class Uncertainty:
             self._point_correlation, bool(gate_open), self.threshold, wanted, increment,
             _MAX_CONDITION,
         )  # fmt: skip
-        if gate_open and gate > self.threshold:
-            judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
-            held = fit is not None and np.count_nonzero(fit.hold_information)
-            return self._with_scan_only(judged, fit, t_prev) if wanted and not held else judged
         standing = self.assessed(gate, ok, out, 0, gate_open)
-        assert standing is not None  # (the gate let it stand)
-        return standing
+        if standing is not None:
+            return standing
+        # the gate rejects the match: the numpy reference gives the assessment
+        judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
+        held = fit is not None and np.count_nonzero(fit.hold_information)
+        return self._with_scan_only(judged, fit, t_prev) if wanted and not held else judged
 
     def assessment_inputs(
         self,
