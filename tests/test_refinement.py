@@ -17,6 +17,7 @@ from fuzzypos.config import Config
 from fuzzypos.features import extract_features
 from fuzzypos.geometry import Pose2D, compose, relative, transform_points
 from fuzzypos.matching import refine_point_to_line, surface_points
+from fuzzypos.matching.surface import _converged
 from fuzzypos.pipeline import Positioner, Reason
 from fuzzypos.pipeline.prior import OdometryPrior
 
@@ -522,3 +523,28 @@ def test_where_the_keyframe_is_out_of_sight_the_previous_scan_is_refined_against
     assert err_on < 0.8 * err_off and math.degrees(err_on) < 1.0, (err_on, err_off)
     # its pose relative to the keyframe carries the previous scan's error too
     assert est.keyframe_covariance[2, 2] > on[2][1].keyframe_covariance[2, 2]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.floats(-1e-2, 1e-2), st.floats(-1e-2, 1e-2), st.floats(-1e-3, 1e-3),
+    st.floats(-1e-2, 1e-2), st.floats(-1e-2, 1e-2), st.floats(-1e-3, 1e-3),
+)  # fmt: skip
+def test_gauss_newton_has_converged_on_a_small_step_or_a_two_cycle(
+    dx, dy, dth, lx, ly, lth
+) -> None:
+    """A step below the convergence thresholds has converged; so has one that undoes the step
+    before it (a two-cycle: a point at the gate's edge paired and unpaired by turns would put
+    the pose back and forth to the last iteration); two steps that do not cancel have not."""
+    conv_t, conv_r = R.converged_translation, R.converged_rotation
+
+    def small(x: float, y: float, t: float) -> bool:
+        return abs(x) + abs(y) < conv_t and abs(t) < conv_r
+
+    step, last = np.array([dx, dy, dth]), np.array([lx, ly, lth])
+    assert _converged(step, None, R) == small(dx, dy, dth)
+    assert _converged(step, -step, R)
+    back = step + last
+    assert _converged(step, last, R) == (small(dx, dy, dth) or small(*back))
+    # the same step twice: back twice as far (only a small step has converged)
+    assert _converged(step, step, R) == small(dx, dy, dth)

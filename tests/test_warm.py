@@ -1,7 +1,8 @@
 """``warm_up`` pays the compile cost before the first scan: after it, a drive through every
 path of ``Positioner.update`` (an odometry jump and its wide search, a gap in time, a scan
 without odometry, standing still) compiles (or loads from the cache) no kernel, and each
-kernel has been compiled for one set of argument types only."""
+kernel has been compiled for one set of argument types only (from an empty cache, as a fresh
+install compiles them)."""
 
 from __future__ import annotations
 
@@ -69,8 +70,11 @@ _SCRIPT = textwrap.dedent(
 
 
 @pytest.mark.skipif(not compiled(), reason="the compiled kernels are off (FUZZYPOS_KERNELS)")
-def test_after_warm_up_no_path_of_update_compiles_a_kernel() -> None:
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+def test_after_warm_up_no_path_of_update_compiles_a_kernel(tmp_path) -> None:
+    # an empty cache of its own: a kernel loaded from the cache holds the kernels it calls,
+    # whose own types are then never looked at (the test session's cache would hide a kernel
+    # that a compiled caller compiles for other types than Python's calls do)
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "NUMBA_CACHE_DIR": os.fspath(tmp_path)}
     done = subprocess.run(
         [sys.executable, "-c", _SCRIPT], capture_output=True, text=True, env=env, timeout=600
     )
@@ -82,3 +86,41 @@ def test_after_warm_up_no_path_of_update_compiles_a_kernel() -> None:
     # one compiled version of each kernel: the update hands every kernel the same types (a
     # read-only array where it is otherwise writable would compile it, and its callees, again)
     assert out["twice"] == [], f"compiled for two sets of types: {out['twice']}"
+
+
+def test_every_kernels_cache_is_keyed_on_every_kernel_modules_source() -> None:
+    """numba keys a kernel's disk cache on its own module's source, while the code it caches
+    holds the kernels it calls from other modules: each kernel's cache index carries the
+    stamp of every kernel module's source too (numba/numba#1833), on the numba installed."""
+    import importlib
+    import pkgutil
+
+    import fuzzypos._kernels
+    from fuzzypos._kernels._jit import sources_stamp
+
+    stamp = sources_stamp()
+    seen = 0
+    for info in pkgutil.iter_modules(fuzzypos._kernels.__path__):
+        module = importlib.import_module(f"fuzzypos._kernels.{info.name}")
+        for name, value in vars(module).items():
+            if hasattr(value, "py_func") and getattr(value.py_func, "__module__", "") == (
+                module.__name__
+            ):
+                own = value._cache._cache_file._source_stamp
+                assert isinstance(own, tuple) and own[1] == stamp, f"{info.name}.{name}"
+                seen += 1
+    assert seen > 50
+
+
+def test_the_sources_stamp_changes_with_any_kernel_module(tmp_path) -> None:
+    from fuzzypos._kernels._jit import sources_stamp
+
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "b.py").write_text("y = 2\n")
+    before = sources_stamp(tmp_path)
+    (tmp_path / "b.py").write_text("y = 3\n")
+    sources_stamp.cache_clear()
+    assert sources_stamp(tmp_path) != before
+    (tmp_path / "b.py").write_text("y = 2\n")
+    sources_stamp.cache_clear()
+    assert sources_stamp(tmp_path) == before

@@ -405,7 +405,8 @@ class RefinementConfig:
     converged_translation: float = _field(
         1e-4,
         "Gauss-Newton has converged when the step's |dx| + |dy| is below this (0.1 mm, far "
-        "below the range noise)",
+        "below the range noise), or when the step and the one before it cancel to within it "
+        "(a two-cycle: a point at the gate's edge paired and unpaired by turns)",
         unit=M,
         gt=0.0,
     )

@@ -314,7 +314,9 @@ def scan_front(
         fov_edge[m - 1] = True
     cluster = clusters(split, int(params[4]))
     # 5. angular points (eq. 14)
-    arm_spacing = kp_steps if not closed else steps(kp, False)  # (kp turned to the seam)
+    # (kp turned to the seam; ``not closed``, False there, typed a bool: a literal False would
+    # compile ``steps`` once more)
+    arm_spacing = kp_steps if not closed else steps(kp, not closed)
     arms_cross, arms_dot, inside = corner_arms(kp, cluster, arm_spacing, params[5], int(params[6]))
     angle = interior_angles(arms_cross, arms_dot, inside, params[7])
     is_corner = sharpest_of_runs(angle, cluster, params[7])

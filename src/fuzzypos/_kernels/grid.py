@@ -13,14 +13,12 @@ while it stays nearer than that (``nearest_bounded``).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any, NamedTuple, TypeVar, cast
+from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
-from ._jit import kernel
+from ._jit import inlined, kernel
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -29,16 +27,8 @@ IntArray = NDArray[np.int64]
 #: cells rather than a grid larger than the points
 CELLS_PER_POINT = 64
 MIN_CELLS = 4096
-_F = TypeVar("_F", bound=Callable[..., Any])
 #: a grid's geometry and shape as scalars (:func:`frame_of`)
 Frame = tuple[float, float, float, float, int, int]
-
-
-def inlined(func: _F) -> _F:
-    """A :func:`~fuzzypos._kernels._jit.kernel` that numba compiles into each kernel that calls
-    it (``inline="always"``): a call that passes arrays counts their references, which costs
-    more than a grid query's scan."""
-    return cast(_F, njit(cache=True, inline="always")(func))
 
 
 #: a bound on the distance to the points beyond a box of cells is lowered by this (m): a point
@@ -278,15 +268,19 @@ def _scan_box_near(
                 dx = xy[k, 0] - qx
                 dy = xy[k, 1] - qy
                 d2 = dx * dx + dy * dy
-                if d2 < second_d2:
-                    third_d2 = second_d2
-                    if d2 < first_d2:
-                        second, second_d2 = first, first_d2
-                        first, first_d2 = k, d2
-                    else:
-                        second, second_d2 = k, d2
-                elif d2 < third_d2:
-                    third_d2 = d2
+                # the three nearest kept without a branch on which (a select each: the
+                # comparisons' outcomes, unpredictable, cost more than the arithmetic);
+                # nearer than the first: it goes first, the first second, the second third;
+                # else nearer than the second: it goes second, the second third; else
+                # nearer than the third: it goes third (the first of equal ones kept ahead)
+                third_d2 = min(third_d2, max(d2, second_d2))
+                is_first, is_second = d2 < first_d2, d2 < second_d2
+                if is_second:  # (a select: both sides a value)
+                    second = first if is_first else k
+                    second_d2 = max(d2, first_d2)
+                if is_first:
+                    first = k
+                first_d2 = min(first_d2, d2)
     clear = _clearance(qx, qy, ix0, ix1, iy0, iy1, frame)
     return first, first_d2, second, second_d2, third_d2, clear
 

@@ -9,9 +9,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ._jit import kernel
+from ._jit import inlined, kernel
 from ._select import median
-from .grid import inlined
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

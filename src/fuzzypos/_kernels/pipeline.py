@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._jit import kernel
-from .uncertainty import _add, _inv, _jacobians, _sandwich, assess_fit, scan_only
+from .uncertainty import _add, _inv, _jacobians, _m, _put, _sandwich, _v, assessed, scan_only_of
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -72,25 +72,28 @@ def assess_and_scan_only(
     assessment's three matrices (the increment's covariance, the keyframe's, the new
     previous one), the scan's own motion's covariance, and that motion in the last one's
     first row (zeros where not computed)."""
-    inc_cov, kf, new_previous, gate = assess_fit(
-        t_prev, prior, prior_covariance, previous, from_key, feature, floor, has_fit,
-        information, prior_information, hold_information, gradient_covariance, fit_prior,
-        hold_target, point_correlation, gate_open,
+    info, prior_info, hold_info = _m(information), _m(prior_information), _m(hold_information)
+    gradient, at, key, cov_floor = _m(gradient_covariance), _v(t_prev), _v(fit_prior), _m(floor)
+    inc_cov, kf, new_previous, gate = assessed(
+        at, _v(prior), _m(prior_covariance), _m(previous), _v(from_key), _m(feature), cov_floor,
+        has_fit, info, prior_info, hold_info, gradient, key, _v(hold_target),
+        point_correlation, gate_open,
     )  # fmt: skip
     out = np.zeros((5, 3, 3))
-    out[0], out[1], out[2] = inc_cov, kf, new_previous
+    _put(out[0], inc_cov)
+    _put(out[1], kf)
+    _put(out[2], new_previous)
     ok = False
-    for i in range(3):  # (a held fit gives no motion of the scan's own)
-        for j in range(3):
-            if hold_information[i, j] != 0.0:
-                wanted = False
+    for i in range(9):  # (a held fit gives no motion of the scan's own)
+        if hold_info[i] != 0.0:
+            wanted = False
     if wanted and not (gate_open and gate > threshold):
-        ok, inc, cov = scan_only(
-            information, prior_information, gradient_covariance, increment, fit_prior, t_prev,
-            new_previous, floor, point_correlation, max_condition,
+        ok, inc, cov = scan_only_of(
+            info, prior_info, gradient, _v(increment), key, at, new_previous, cov_floor,
+            point_correlation, max_condition,
         )  # fmt: skip
-        out[3] = cov
-        out[4, 0] = inc
+        _put(out[3], cov)
+        out[4, 0, 0], out[4, 0, 1], out[4, 0, 2] = inc[0], inc[1], inc[2]
     return gate, ok, out
 
 
@@ -109,9 +112,10 @@ def prior_information(
     (``Uncertainty.key_prior_covariance``, the Jacobians of ``t_prev ⊕ prior``), then the
     inverse of it plus the features' own ``feature`` and its own inverse, in one (2, 3, 3)
     array."""
-    ja, jb = _jacobians(t_prev, prior)
-    odometry = _add(_add(_sandwich(ja, previous), _sandwich(jb, prior_covariance)), floor)
+    ja, jb = _jacobians(_v(t_prev), _v(prior))
+    moved = _add(_sandwich(ja, _m(previous)), _sandwich(jb, _m(prior_covariance)))
+    odometry = _add(moved, _m(floor))
     out = np.empty((2, 3, 3))
-    out[0] = _inv(_add(odometry, feature))
-    out[1] = _inv(odometry)
+    _put(out[0], _inv(_add(odometry, _m(feature))))
+    _put(out[1], _inv(odometry))
     return out

@@ -16,9 +16,9 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ._jit import kernel
+from ._jit import inlined, kernel
 from ._select import kth_smallest_in, median
-from .grid import frame_of, inlined, nearest_in
+from .grid import frame_of, nearest_in
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -372,7 +372,7 @@ def refine(
     rows = np.empty((n, 4))
     w, absr, scratch = np.empty(n), np.empty(n), np.empty(n)
     H, g = np.empty((3, 3)), np.empty(3)
-    result, delta = np.zeros((4, 3, 3)), np.empty(3)
+    result, delta, last = np.zeros((4, 3, 3)), np.empty(3), np.zeros(3)
     pose, info, term, gradient = result[0, 0], result[1], result[2], result[3]
     near = np.full((n, 2), -1, dtype=np.int64)  # each point's two nearest at its last search
     far, radius, moved = np.zeros(n), np.empty(n), np.zeros(2)
@@ -404,14 +404,18 @@ def refine(
         for i in range(3):
             pose[i] -= delta[i]
         moved[0], moved[1] = abs(delta[0]) + abs(delta[1]), abs(delta[2])
-        if (
-            it >= gates.shape[0] - 1
-            and abs(delta[0]) + abs(delta[1]) < conv_t
-            and abs(delta[2]) < conv_r
+        if it >= gates.shape[0] - 1 and (
+            (moved[0] < conv_t and moved[1] < conv_r)
+            or (  # a two-cycle: back where it stood two steps before (_converged of the reference)
+                it >= gates.shape[0]
+                and abs(delta[0] + last[0]) + abs(delta[1] + last[1]) < conv_t
+                and abs(delta[2] + last[2]) < conv_r
+            )
         ):
             if trimming:
                 break
             trimming = True  # converged: trim the false pairs and converge again
+        last[0], last[1], last[2] = delta[0], delta[1], delta[2]
     pose[2] = _wrap(pose[2])
     close = 0
     used, clipped = 0, 0.0

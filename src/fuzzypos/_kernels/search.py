@@ -16,8 +16,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ._jit import kernel
-from .grid import any_within, inlined
+from ._jit import inlined, kernel
+from .grid import any_within
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

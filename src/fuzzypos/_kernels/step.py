@@ -109,8 +109,10 @@ def match_refine_assess(
     else:
         return REFINED, n_pairs, which, paired, close, on_start, 0.0, False, out
     increment = result[0, 0].copy()
+    has_fit = which != NEITHER  # (True, typed a bool: a literal True would compile the
+    # assessment once more, beside the staged calls' bool)
     gate, ok, judged = assess_and_scan_only(
-        t_prev, prior, prior_covariance, previous, increment, feature, floor, True, result[1],
+        t_prev, prior, prior_covariance, previous, increment, feature, floor, has_fit, result[1],
         information, result[2], result[3], held, target, point_correlation, gate_open, threshold,
         wanted, increment, max_condition,
     )  # fmt: skip

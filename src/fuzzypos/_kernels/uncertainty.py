@@ -2,7 +2,14 @@
 gate (``Uncertainty.assess``), and the motion the scan alone gives (``Uncertainty.scan_only``).
 The references are those methods with ``FUZZYPOS_KERNELS=numpy`` (``_assess_numpy``,
 ``_scan_only_numpy`` in ``fuzzypos.pipeline.uncertainty``): a few dozen numpy calls on 3×3
-matrices, each far slower than its arithmetic."""
+matrices, each far slower than its arithmetic.
+
+Inside, a 3×3 is a tuple of its nine entries row by row (:data:`M3`) and a pose or a vector
+a tuple of three (:data:`V3`): values, not arrays, which cost nothing to make, where each
+compiled array is a heap allocation (about 50 ns, more than a 3×3 product's arithmetic). The
+operations are numpy's, in its order (a product's sums from 0.0, k = 0, 1, 2, as ``a @ b``'s
+loops were before): the same values to the bit as the array code they replace. The kernels
+that Python or other kernels call take and give arrays at the edge."""
 
 from __future__ import annotations
 
@@ -11,13 +18,56 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ._jit import kernel
-from .refine import solve3
+from ._jit import inlined, kernel
 
 FloatArray = NDArray[np.float64]
+#: a 3×3 as its nine entries, row by row
+M3 = tuple[float, float, float, float, float, float, float, float, float]
+#: a pose (x, y, θ) or a vector of three
+V3 = tuple[float, float, float]
 
 #: what keeps the fit's information invertible (``_TINY`` of the reference)
 _TINY = 1e-12
+_NAN3 = (math.nan, math.nan, math.nan)
+_ZERO: M3 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_EYE: M3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+
+
+@inlined
+def _m(a: FloatArray) -> M3:
+    """A (3, 3) array's entries (inlined: compiled into each caller for its array's type, one
+    read-only or not)."""
+    return (a[0, 0], a[0, 1], a[0, 2], a[1, 0], a[1, 1], a[1, 2], a[2, 0], a[2, 1], a[2, 2])
+
+
+@inlined
+def _v(a: FloatArray) -> V3:
+    """A 3-vector's entries (inlined, as :func:`_m`)."""
+    return (a[0], a[1], a[2])
+
+
+@kernel
+def _put(out: FloatArray, m: M3) -> None:
+    """``out`` (3, 3) := the entries ``m``."""
+    out[0, 0], out[0, 1], out[0, 2] = m[0], m[1], m[2]
+    out[1, 0], out[1, 1], out[1, 2] = m[3], m[4], m[5]
+    out[2, 0], out[2, 1], out[2, 2] = m[6], m[7], m[8]
+
+
+@kernel
+def _array(m: M3) -> FloatArray:
+    """The (3, 3) array of the entries ``m``."""
+    out = np.empty((3, 3))
+    _put(out, m)
+    return out
+
+
+@kernel
+def _array3(v: V3) -> FloatArray:
+    """The array of a 3-vector."""
+    out = np.empty(3)
+    out[0], out[1], out[2] = v[0], v[1], v[2]
+    return out
 
 
 @kernel
@@ -29,82 +79,97 @@ def _wrap(a: float) -> float:
 
 
 @kernel
-def _relative(a: FloatArray, b: FloatArray) -> FloatArray:
+def _relative(a: V3, b: V3) -> V3:
     """``⊖a ⊕ b`` of one pose each (``geometry.relative``, the same arithmetic)."""
     c, s = math.cos(a[2]), math.sin(a[2])
     ix, iy, it = -(c * a[0] + s * a[1]), s * a[0] - c * a[1], _wrap(-a[2])
     c, s = math.cos(it), math.sin(it)
-    out = np.empty(3)
-    out[0] = ix + c * b[0] - s * b[1]
-    out[1] = iy + s * b[0] + c * b[1]
-    out[2] = _wrap(it + b[2])
-    return out
+    return (ix + c * b[0] - s * b[1], iy + s * b[0] + c * b[1], _wrap(it + b[2]))
 
 
 @kernel
-def _compose(a: FloatArray, b: FloatArray) -> FloatArray:
+def _compose(a: V3, b: V3) -> V3:
     """``a ⊕ b`` of one pose each (``geometry.compose``)."""
     c, s = math.cos(a[2]), math.sin(a[2])
-    out = np.empty(3)
-    out[0] = a[0] + c * b[0] - s * b[1]
-    out[1] = a[1] + s * b[0] + c * b[1]
-    out[2] = _wrap(a[2] + b[2])
-    return out
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], _wrap(a[2] + b[2]))
 
 
 @kernel
-def _jacobians(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _jacobians(a: V3, b: V3) -> tuple[M3, M3]:
     """``geometry.compose_jacobians(a, b)``."""
     c, s = math.cos(a[2]), math.sin(a[2])
-    ja = np.eye(3)
-    ja[0, 2] = -s * b[0] - c * b[1]
-    ja[1, 2] = c * b[0] - s * b[1]
-    jb = np.eye(3)
-    jb[0, 0], jb[0, 1], jb[1, 0], jb[1, 1] = c, -s, s, c
+    ja = (1.0, 0.0, -s * b[0] - c * b[1], 0.0, 1.0, c * b[0] - s * b[1], 0.0, 0.0, 1.0)
+    jb = (c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
     return ja, jb
 
 
 @kernel
-def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``np.linalg.solve`` of a 3×3 (partial pivoting, as LAPACK's; NaN where singular):
+def _solve(a: M3, b: V3) -> V3:
+    """``np.linalg.solve`` of a 3×3 (Gaussian elimination with partial pivoting, as LAPACK's
+    dgesv and ``refine.solve3``, the same operations; NaN where a pivot is exactly zero):
     numba's own LAPACK bindings take seconds to compile."""
-    x = np.empty(3)
-    if not solve3(a, b, x):
-        x[:] = np.nan
-    return x
+    r0, r1, r2 = (a[0], a[1], a[2]), (a[3], a[4], a[5]), (a[6], a[7], a[8])
+    v0, v1, v2 = b[0], b[1], b[2]
+    # column 0: the row of the largest |entry| (the first of equal ones) to the top
+    p = 0
+    if abs(r1[0]) > abs(r0[0]):
+        p = 1
+    if abs(r2[0]) > abs((r0 if p == 0 else r1)[0]):
+        p = 2
+    if (r0 if p == 0 else (r1 if p == 1 else r2))[0] == 0.0:
+        return _NAN3
+    if p == 1:
+        r0, r1, v0, v1 = r1, r0, v1, v0
+    elif p == 2:
+        r0, r2, v0, v2 = r2, r0, v2, v0
+    f = r1[0] / r0[0]
+    r1, v1 = (r1[0] - f * r0[0], r1[1] - f * r0[1], r1[2] - f * r0[2]), v1 - f * v0
+    f = r2[0] / r0[0]
+    r2, v2 = (r2[0] - f * r0[0], r2[1] - f * r0[1], r2[2] - f * r0[2]), v2 - f * v0
+    # column 1
+    if abs(r2[1]) > abs(r1[1]):
+        if r2[1] == 0.0:
+            return _NAN3
+        r1, r2, v1, v2 = r2, r1, v2, v1
+    elif r1[1] == 0.0:
+        return _NAN3
+    f = r2[1] / r1[1]
+    r2, v2 = (r2[0], r2[1] - f * r1[1], r2[2] - f * r1[2]), v2 - f * v1
+    if r2[2] == 0.0:
+        return _NAN3
+    x2 = v2 / r2[2]
+    x1 = (v1 - r1[2] * x2) / r1[1]
+    acc = v0 - r0[1] * x1
+    x0 = (acc - r0[2] * x2) / r0[0]
+    return (x0, x1, x2)
 
 
 @kernel
-def _inv(a: FloatArray) -> FloatArray:
+def _inv(a: M3) -> M3:
     """``np.linalg.inv`` of a 3×3, a column at a time by :func:`_solve`."""
-    out = np.empty((3, 3))
-    e = np.zeros(3)
-    for j in range(3):
-        e[:] = 0.0
-        e[j] = 1.0
-        col = _solve(a, e)
-        for i in range(3):
-            out[i, j] = col[i]
-    return out
+    c0 = _solve(a, (1.0, 0.0, 0.0))
+    c1 = _solve(a, (0.0, 1.0, 0.0))
+    c2 = _solve(a, (0.0, 0.0, 1.0))
+    return (c0[0], c1[0], c2[0], c0[1], c1[1], c2[1], c0[2], c1[2], c2[2])
 
 
 @kernel
-def _condition(a: FloatArray) -> float:
+def _condition(a: M3) -> float:
     """``np.linalg.cond`` (2-norm) of a symmetric positive semi-definite 3×3, the ratio of its
     largest eigenvalue to its smallest (closed form, trigonometric; inf where singular)."""
-    p1 = a[0, 1] ** 2 + a[0, 2] ** 2 + a[1, 2] ** 2
-    q = (a[0, 0] + a[1, 1] + a[2, 2]) / 3.0
+    p1 = a[1] ** 2 + a[2] ** 2 + a[5] ** 2
+    q = (a[0] + a[4] + a[8]) / 3.0
     if p1 == 0.0:  # diagonal
-        lo = min(a[0, 0], a[1, 1], a[2, 2])
-        hi = max(a[0, 0], a[1, 1], a[2, 2])
+        lo = min(a[0], a[4], a[8])
+        hi = max(a[0], a[4], a[8])
     else:
-        p2 = (a[0, 0] - q) ** 2 + (a[1, 1] - q) ** 2 + (a[2, 2] - q) ** 2 + 2.0 * p1
+        p2 = (a[0] - q) ** 2 + (a[4] - q) ** 2 + (a[8] - q) ** 2 + 2.0 * p1
         p = math.sqrt(p2 / 6.0)
-        b = _scaled(_sub(a, _scaled(np.eye(3), q)), 1.0 / p)
+        b = _scaled(_sub(a, _scaled(_EYE, q)), 1.0 / p)
         r = 0.5 * (
-            b[0, 0] * (b[1, 1] * b[2, 2] - b[1, 2] * b[2, 1])
-            - b[0, 1] * (b[1, 0] * b[2, 2] - b[1, 2] * b[2, 0])
-            + b[0, 2] * (b[1, 0] * b[2, 1] - b[1, 1] * b[2, 0])
+            b[0] * (b[4] * b[8] - b[5] * b[7])
+            - b[1] * (b[3] * b[8] - b[5] * b[6])
+            + b[2] * (b[3] * b[7] - b[4] * b[6])
         )
         phi = math.acos(min(max(r, -1.0), 1.0)) / 3.0
         hi = q + 2.0 * p * math.cos(phi)
@@ -116,84 +181,79 @@ def _condition(a: FloatArray) -> float:
 
 
 @kernel
-def _add(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``a + b`` of two 3×3 (loops: numba's array expressions are slow to compile)."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = a[i, j] + b[i, j]
-    return out
+def _add(a: M3, b: M3) -> M3:
+    """``a + b`` of two 3×3."""
+    return (
+        a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3], a[4] + b[4], a[5] + b[5],
+        a[6] + b[6], a[7] + b[7], a[8] + b[8],
+    )  # fmt: skip
 
 
 @kernel
-def _sub(a: FloatArray, b: FloatArray) -> FloatArray:
+def _sub(a: M3, b: M3) -> M3:
     """``a − b`` of two 3×3."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = a[i, j] - b[i, j]
-    return out
+    return (
+        a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3], a[4] - b[4], a[5] - b[5],
+        a[6] - b[6], a[7] - b[7], a[8] - b[8],
+    )  # fmt: skip
 
 
 @kernel
-def _scaled(a: FloatArray, c: float) -> FloatArray:
+def _scaled(a: M3, c: float) -> M3:
     """``c · a`` of a 3×3."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = c * a[i, j]
-    return out
+    return (
+        c * a[0], c * a[1], c * a[2], c * a[3], c * a[4], c * a[5], c * a[6], c * a[7],
+        c * a[8],
+    )  # fmt: skip
 
 
 @kernel
-def _t(a: FloatArray) -> FloatArray:
-    """``a.T`` of a 3×3, a copy."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = a[j, i]
-    return out
+def _t(a: M3) -> M3:
+    """``a.T`` of a 3×3."""
+    return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
 
 
 @kernel
-def _sym(a: FloatArray) -> FloatArray:
+def _sym(a: M3) -> M3:
     """``0.5 · (a + a.T)`` of a 3×3."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = 0.5 * (a[i, j] + a[j, i])
-    return out
+    return (
+        0.5 * (a[0] + a[0]), 0.5 * (a[1] + a[3]), 0.5 * (a[2] + a[6]),
+        0.5 * (a[3] + a[1]), 0.5 * (a[4] + a[4]), 0.5 * (a[5] + a[7]),
+        0.5 * (a[6] + a[2]), 0.5 * (a[7] + a[5]), 0.5 * (a[8] + a[8]),
+    )  # fmt: skip
 
 
 @kernel
-def _mm(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``a @ b`` of two 3×3."""
-    out = np.zeros((3, 3))
-    for i in range(3):
-        for k in range(3):
-            aik = a[i, k]
-            for j in range(3):
-                out[i, j] += aik * b[k, j]
-    return out
+def _mm(a: M3, b: M3) -> M3:
+    """``a @ b`` of two 3×3 (each entry's sum from 0.0, k = 0, 1, 2)."""
+    return (
+        0.0 + a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
+        0.0 + a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+        0.0 + a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        0.0 + a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
+        0.0 + a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+        0.0 + a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        0.0 + a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
+        0.0 + a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+        0.0 + a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+    )
 
 
 @kernel
-def _sandwich(a: FloatArray, b: FloatArray) -> FloatArray:
+def _sandwich(a: M3, b: M3) -> M3:
     """``a @ b @ a.T`` of two 3×3."""
     return _mm(_mm(a, b), _t(a))
 
 
 @kernel
-def _local(cov: FloatArray, theta: float) -> FloatArray:
+def _local(cov: M3, theta: float) -> M3:
     """``uncertainty.local``: the additive covariance as the right perturbation's."""
     c, s = math.cos(theta), math.sin(theta)
-    g = np.zeros((3, 3))
-    g[0, 0], g[0, 1], g[1, 0], g[1, 1], g[2, 2] = c, s, -s, c, 1.0
-    return _sym(_sandwich(g, cov))
+    return _sym(_sandwich((c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0), cov))
 
 
 @kernel
-def _differs(target: FloatArray, key: FloatArray) -> bool:
+def _differs(target: V3, key: V3) -> bool:
     """Whether a prior's target is not the odometry's motion from the keyframe."""
     worst = 0.0
     for i in range(3):
@@ -203,24 +263,24 @@ def _differs(target: FloatArray, key: FloatArray) -> bool:
 
 @kernel
 def _fit_parts(
-    information: FloatArray,
-    prior_information: FloatArray,
-    hold_information: FloatArray,
-    fit_prior: FloatArray,
-    hold_target: FloatArray,
-    gradient_covariance: FloatArray,
+    information: M3,
+    prior_information: M3,
+    hold_information: M3,
+    fit_prior: V3,
+    hold_target: V3,
+    gradient_covariance: M3,
     point_correlation: float,
-    key_prior: FloatArray,
-    prev: FloatArray,
-    odo: FloatArray,
-    feature: FloatArray,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
+    key_prior: V3,
+    prev: M3,
+    odo: M3,
+    feature: M3,
+) -> tuple[M3, M3, M3]:
     """``Uncertainty._fit_parts``: the covariance relative to the keyframe, the increment's
     share that is not the odometry's error, and the pull toward the odometry's motion."""
     odometric = _add(prior_information, hold_information)
     m = _add(information, odometric)
-    m_inv = _inv(_add(m, _scaled(np.eye(3), _TINY)))
-    other = np.zeros((3, 3))
+    m_inv = _inv(_add(m, _scaled(_EYE, _TINY)))
+    other = _ZERO
     if _differs(fit_prior, key_prior):
         other = _add(other, prior_information)
     if _differs(hold_target, key_prior):
@@ -230,6 +290,58 @@ def _fit_parts(
     rest = _sub(m, odometric)
     scan_part = _mm(_mm(m_inv, _add(own, _mm(_mm(rest, prev), rest))), m_inv)
     return kf, scan_part, _mm(m_inv, odometric)
+
+
+@kernel
+def assessed(
+    t_prev: V3,
+    prior: V3,
+    prior_covariance: M3,
+    previous: M3,
+    from_key: V3,
+    feature: M3,
+    floor: M3,
+    has_fit: bool,
+    information: M3,
+    prior_information: M3,
+    hold_information: M3,
+    gradient_covariance: M3,
+    fit_prior: V3,
+    hold_target: V3,
+    point_correlation: float,
+    gate_open: bool,
+) -> tuple[M3, M3, M3, float]:
+    """:func:`assess_fit` of the entries."""
+    ja, jb = _jacobians(t_prev, prior)
+    prev = _sandwich(ja, previous)
+    odo = _sandwich(jb, prior_covariance)
+    inc = _relative(t_prev, from_key)
+    jb_inv = _t(jb)
+    if has_fit:
+        key_prior = _compose(t_prev, prior)
+        kf, scan_part, pull = _fit_parts(
+            information, prior_information, hold_information, fit_prior, hold_target,
+            gradient_covariance, point_correlation, key_prior, prev, odo, feature,
+        )  # fmt: skip
+    else:
+        kf = feature
+        scan_part = _add(feature, prev)
+        pull = _ZERO
+    inc_cov = _sandwich(jb_inv, _add(scan_part, _sandwich(pull, odo)))
+    gate = math.nan
+    if gate_open:
+        k = _sub(_mm(_mm(jb_inv, pull), jb), _EYE)
+        cov_d = _add(_add(_sandwich(jb_inv, scan_part), _sandwich(k, prior_covariance)), floor)
+        d = _relative(prior, inc)
+        x = _solve(cov_d, d)
+        gate = d[0] * x[0] + d[1] * x[1] + d[2] * x[2]
+    new_previous = _sym(kf)
+    return (
+        _add(_local(inc_cov, inc[2]), floor),
+        _add(_local(new_previous, from_key[2]), floor),
+        new_previous,
+        gate,
+    )
 
 
 @kernel
@@ -257,36 +369,58 @@ def assess_fit(
     the gate's Mahalanobis distance squared (NaN where the gate is closed). The fit's
     information, prior and hold information, gradient covariance, prior and the hold's target
     (each read only where ``has_fit``)."""
-    ja, jb = _jacobians(t_prev, prior)
-    prev = _sandwich(ja, previous)
-    odo = _sandwich(jb, prior_covariance)
-    inc = _relative(t_prev, from_key)
-    jb_inv = _t(jb)
-    if has_fit:
-        key_prior = _compose(t_prev, prior)
-        kf, scan_part, pull = _fit_parts(
-            information, prior_information, hold_information, fit_prior, hold_target,
-            gradient_covariance, point_correlation, key_prior, prev, odo, feature,
-        )  # fmt: skip
-    else:
-        kf = feature.copy()
-        scan_part = _add(feature, prev)
-        pull = np.zeros((3, 3))
-    inc_cov = _sandwich(jb_inv, _add(scan_part, _sandwich(pull, odo)))
-    gate = math.nan
-    if gate_open:
-        k = _sub(_mm(_mm(jb_inv, pull), jb), np.eye(3))
-        cov_d = _add(_add(_sandwich(jb_inv, scan_part), _sandwich(k, prior_covariance)), floor)
-        d = _relative(prior, inc)
-        x = _solve(cov_d, d)
-        gate = d[0] * x[0] + d[1] * x[1] + d[2] * x[2]
-    new_previous = _sym(kf)
-    return (
-        _add(_local(inc_cov, inc[2]), floor),
-        _add(_local(new_previous, from_key[2]), floor),
-        new_previous,
-        gate,
+    inc_cov, kf, new_previous, gate = assessed(
+        _v(t_prev), _v(prior), _m(prior_covariance), _m(previous), _v(from_key), _m(feature),
+        _m(floor), has_fit, _m(information), _m(prior_information), _m(hold_information),
+        _m(gradient_covariance), _v(fit_prior), _v(hold_target), point_correlation, gate_open,
+    )  # fmt: skip
+    return _array(inc_cov), _array(kf), _array(new_previous), gate
+
+
+@kernel
+def scan_only_of(
+    information: M3,
+    prior_information: M3,
+    gradient_covariance: M3,
+    increment: V3,
+    fit_prior: V3,
+    t_prev: V3,
+    previous: M3,
+    floor: M3,
+    point_correlation: float,
+    max_condition: float,
+) -> tuple[bool, V3, M3]:
+    """:func:`scan_only` of the entries."""
+    a = information
+    for i in range(9):
+        if not math.isfinite(a[i]):
+            return False, (0.0, 0.0, 0.0), _ZERO
+    if not _condition(a) <= max_condition:
+        return False, (0.0, 0.0, 0.0), _ZERO
+    m = _add(a, prior_information)
+    d = fit_prior[2] - increment[2]
+    p = (fit_prior[0], fit_prior[1], increment[2] + (d - np.rint(d / math.tau) * math.tau))
+    rhs = (  # (each sum from 0.0, j = 0, 1, 2)
+        0.0
+        + (m[0] * increment[0] - prior_information[0] * p[0])
+        + (m[1] * increment[1] - prior_information[1] * p[1])
+        + (m[2] * increment[2] - prior_information[2] * p[2]),
+        0.0
+        + (m[3] * increment[0] - prior_information[3] * p[0])
+        + (m[4] * increment[1] - prior_information[4] * p[1])
+        + (m[5] * increment[2] - prior_information[5] * p[2]),
+        0.0
+        + (m[6] * increment[0] - prior_information[6] * p[0])
+        + (m[7] * increment[1] - prior_information[7] * p[1])
+        + (m[8] * increment[2] - prior_information[8] * p[2]),
     )
+    x_s = _solve(a, rhs)
+    a_inv = _inv(a)
+    points = _scaled(gradient_covariance, point_correlation)
+    inc = _relative(t_prev, x_s)
+    ja, jb = _jacobians(t_prev, inc)
+    cov = _mm(_mm(_t(jb), _add(_sandwich(a_inv, points), _sandwich(ja, previous))), jb)
+    return True, inc, _add(_local(cov, inc[2]), floor)
 
 
 @kernel
@@ -305,27 +439,8 @@ def scan_only(
     """``Uncertainty.scan_only`` of a fit without a hold: whether the points alone fix the
     motion (finite, condition number at most ``max_condition``), the increment they give and
     its covariance (right perturbation in the previous scan's frame, the floor added)."""
-    a = information
-    for i in range(3):
-        for j in range(3):
-            if not math.isfinite(a[i, j]):
-                return False, np.zeros(3), np.zeros((3, 3))
-    if not _condition(a) <= max_condition:
-        return False, np.zeros(3), np.zeros((3, 3))
-    m = _add(a, prior_information)
-    p = fit_prior.copy()
-    d = p[2] - increment[2]
-    p[2] = increment[2] + (d - np.rint(d / math.tau) * math.tau)  # math.remainder(d, τ)
-    rhs = np.empty(3)
-    for i in range(3):
-        acc = 0.0
-        for j in range(3):
-            acc += m[i, j] * increment[j] - prior_information[i, j] * p[j]
-        rhs[i] = acc
-    x_s = _solve(a, rhs)
-    a_inv = _inv(a)
-    points = _scaled(gradient_covariance, point_correlation)
-    inc = _relative(t_prev, x_s)
-    ja, jb = _jacobians(t_prev, inc)
-    cov = _mm(_mm(_t(jb), _add(_sandwich(a_inv, points), _sandwich(ja, previous))), jb)
-    return True, inc, _add(_local(cov, inc[2]), floor)
+    ok, inc, cov = scan_only_of(
+        _m(information), _m(prior_information), _m(gradient_covariance), _v(increment),
+        _v(fit_prior), _v(t_prev), _m(previous), _m(floor), point_correlation, max_condition,
+    )  # fmt: skip
+    return ok, _array3(inc), _array(cov)

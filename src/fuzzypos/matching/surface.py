@@ -485,6 +485,7 @@ def _refine_numpy(
     reach = _reach(cfg, spacing)
     paired = 0
     trimming = False
+    last = np.zeros(3)
     for it in range(iterations):
         gate = gates[min(it, gates.size - 1)]
         lin = _linearise(reference, points, pose, gate, reach)
@@ -520,14 +521,11 @@ def _refine_numpy(
         except np.linalg.LinAlgError:
             return None
         pose += delta
-        if (
-            it >= gates.size - 1
-            and abs(delta[0]) + abs(delta[1]) < cfg.converged_translation
-            and abs(delta[2]) < cfg.converged_rotation
-        ):
+        if it >= gates.size - 1 and _converged(delta, last if it >= gates.size else None, cfg):
             if trimming:
                 break
             trimming = True  # converged: trim the false pairs and converge again
+        last = delta
     pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
     close = int(np.count_nonzero(absr < 0.5 * residual_scale))
     return Refinement(
@@ -543,6 +541,21 @@ def _refine_numpy(
         prior=prior.copy(),
         gradient_covariance=_residual_variance(w, r, residual_scale) * (jw @ jw.T),
     )
+
+
+def _converged(delta: FloatArray, last: FloatArray | None, cfg: RefinementConfig) -> bool:
+    """Whether Gauss-Newton has converged with the step ``delta``: the step is below
+    ``converged_translation`` (|dx| + |dy|) and ``converged_rotation``, or, given the step
+    before (``last``, both at the final gate), the two steps cancel to within those (a
+    two-cycle: a point at the gate's edge paired and unpaired by turns puts the pose back
+    where it stood two steps before, and the steps would repeat to the last iteration)."""
+    conv_t, conv_r = cfg.converged_translation, cfg.converged_rotation
+    if abs(delta[0]) + abs(delta[1]) < conv_t and abs(delta[2]) < conv_r:
+        return True
+    if last is None:
+        return False
+    back = delta + last
+    return bool(abs(back[0]) + abs(back[1]) < conv_t and abs(back[2]) < conv_r)
 
 
 def _linearise(
