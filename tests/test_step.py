@@ -1,7 +1,8 @@
-"""The positioner's one compiled call for a scan's line matching, refinement and assessment
-(``fuzzypos._kernels.step.match_refine_assess``, ``Positioner._match_refine_assess``) against
-its reference, the staged calls it replaces (``Positioner._fused`` switched off:
-the line matcher, the refiner and the uncertainty stage called one after the other): the same
+"""The positioner's one compiled call for a scan's features, line matching, refinement and
+assessment (``fuzzypos._kernels.step.features_and_step``, ``match_refine_assess`` inside it;
+``Positioner._features_match_refine_assess``, ``_match_refine_assess``) against its reference,
+the staged calls it replaces (``Positioner._fused`` switched off: the feature chain, the line
+matcher, the refiner and the uncertainty stage called one after the other): the same
 estimates to the bit, scan by scan, on simulated runs that reach every stage where the call
 hands over to the staged path (the lines give no motion, neither fit counts, the assessment is
 left to Python, the gate rejects the match) and the cases around it (learned information, an
@@ -25,6 +26,7 @@ from fuzzypos.demo import DemoSettings
 from fuzzypos.geometry import Pose2D
 from fuzzypos.pipeline import Estimate, Positioner
 from fuzzypos.pipeline import positioner as positioner_module
+from fuzzypos.pipeline.warm import warm_up
 
 #: the scenarios: a config's overrides, and the metres added to the odometry's x at some scans
 #: (None: no odometry at all), on the office run unless :data:`KINDS` names another
@@ -93,6 +95,11 @@ def _estimates(name: str, fused: bool) -> tuple[list[Estimate], Positioner]:
     return estimates, positioner
 
 
+@cache
+def _compiled() -> None:
+    warm_up()
+
+
 def _bits(value: Any) -> Any:
     """``value`` as something ``==`` compares to the bit (arrays and floats by their bytes)."""
     if isinstance(value, Pose2D):
@@ -112,24 +119,35 @@ def _fields(e: Estimate) -> dict[str, Any]:
 
 class _Stages:
     """The stages the compiled call reached (its first value), and how often the gate it
-    computed rejected the match, counted while patched in."""
+    computed rejected the match, counted while patched in (every kernel compiled first: a
+    kernel compiled while a callee of it is patched would find a Python function there)."""
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        _compiled()
         self.reached: collections.Counter[int] = collections.Counter()
         self.full = 0
         step = positioner_module._step()
-        call = step.match_refine_assess
+        call, chained = step.match_refine_assess, step.features_and_step
+
+        def count(stage: int, gate: float, full: bool, gate_open: bool, threshold: float) -> None:
+            self.reached[stage] += 1
+            self.full += bool(full)
+            if stage == step.ASSESSED and gate_open and gate > threshold:
+                self.reached[-1] += 1  # (rejected)
 
         def counted(*args: Any) -> Any:
             values = call(*args)
-            self.reached[values[0]] += 1
-            self.full += bool(args[24])
-            gate_open, threshold = args[34], args[35]
-            if values[0] == step.ASSESSED and gate_open and values[6] > threshold:
-                self.reached[-1] += 1  # (rejected)
+            count(values[0], values[6], args[24], args[34], args[35])
+            return values
+
+        def counted_chained(*args: Any) -> Any:  # (the scan's features and the call in one)
+            values = chained(*args)
+            if values[7] != step.FEATURES_ONLY:
+                count(values[7], values[13], args[29], args[39], args[40])
             return values
 
         monkeypatch.setattr(step, "match_refine_assess", counted)
+        monkeypatch.setattr(step, "features_and_step", counted_chained)
 
 
 @pytest.mark.parametrize("name", SCENARIOS)

@@ -23,15 +23,16 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
+from ._features_chain import MIN_LINE_NOISE as _MIN_LINE_NOISE
+from ._features_chain import ChainOutputs, chain_inputs
+from ._features_chain import line_params as _line_params
 from ._kernels import compiled, packing
 from ._kernels.packing import Unpacks
-from .config import Config, FuzzyConfig, LineConfig, same_as_last_call
+from .config import Config, FuzzyConfig, same_as_last_call
 from .fuzzy import RuleBases
 from .geometry import stack_columns
 from .scan import LaserScan
 from .segmentation import (
-    _band_bounds_of,
-    _front_params,
     _strict_upper,
     angular_points,
     break_points,
@@ -70,9 +71,6 @@ __all__ = [
 ]
 
 BREAK_POINT = 0
-_MIN_LINE_NOISE = (
-    0.001  # m: floor of a line's residual spread, so noise-free lines keep finite weights
-)
 ANGULAR_POINT = 1
 VIRTUAL_ANGULAR_POINT = 2
 KIND_NAMES = ("break point", "angular point", "virtual angular point")
@@ -616,23 +614,20 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     )
 
 
-@same_as_last_call
-def _chain_inputs(cfg: Config, bases: RuleBases) -> FloatArray | None:
-    """``_kernels.front.scan_features``' settings of a config and its rule bases in one array
-    (``packing.chain_settings``; read-only): the no-return bands' bounds, the front's and the
-    lines' params, the sine of the least angle lines are joined at, and the point and line
-    rule bases' tables; None where a rule base is off the interpolation's path."""
-    pb, lb = bases.points, bases.lines
-    if pb._grids is None or lb._grids is None:
-        return None
-    lo, hi = _band_bounds_of(cfg.scanner)
-    front = _front_params(cfg.segmentation, cfg.angular_points, cfg.fuzzy, cfg.filtering, cfg.lines)
-    return packing.chain_settings(
-        lo, hi, front, _line_params(cfg.lines, cfg.fuzzy),
-        math.sin(cfg.virtual_points.min_intersection_angle),
-        (*pb._grids, pb._table, pb._centre_lo, pb._centre_hi),
-        (*lb._grids, lb._table, lb._centre_lo, lb._centre_hi),
+def features_of_chain(scan: LaserScan, config: Config, outputs: ChainOutputs) -> Features:
+    """The :class:`Features` of ``scan`` from the compiled chain's values where it is done
+    (:func:`extract_features`' to the bit)."""
+    scale, line_scale, sizes, fl, it, bl = outputs
+    context = {
+        "cfg": config,
+        "bases": rule_bases(config.fuzzy),
+        "angle_increment": scan.angle_increment,
+    }
+    unpacked = packing.unpacked(
+        (Features, Lines, _CornerContext), _empty_lines, scan.stamp, context, scale, line_scale,
+        sizes, fl, it, bl,
     )  # fmt: skip
+    return cast(Features, unpacked)
 
 
 def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Features | None:
@@ -640,23 +635,13 @@ def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Feature
     front, the lines and their joins at the angular points, which the staged chain computes
     in four calls with numpy between them); None for a gapless 360° ring or rule bases off
     the interpolation's path (then the staged chain runs)."""
-    settings = _chain_inputs(cfg, bases)
-    if settings is None:
+    inputs = chain_inputs(scan, cfg, bases)
+    if inputs is None:
         return None
-    sp = scan.sensor_pose
-    directions, closed = packing.scanner(scan)
-    done, scale, line_scale, sizes, fl, it, bl = packing.front().scan_features(
-        scan.ranges, directions, scan.valid, scan.angle_increment, sp.x, sp.y, sp.theta, closed,
-        settings,
-    )  # fmt: skip
+    done, *outputs = packing.front().scan_features(*inputs)
     if not done:
         return None
-    context = {"cfg": cfg, "bases": bases, "angle_increment": scan.angle_increment}
-    unpacked = packing.unpacked(
-        (Features, Lines, _CornerContext), _empty_lines, scan.stamp, context, scale, line_scale,
-        sizes, fl, it, bl,
-    )  # fmt: skip
-    return cast(Features, unpacked)
+    return features_of_chain(scan, cfg, cast(ChainOutputs, tuple(outputs)))
 
 
 def _graded_lines(
@@ -709,18 +694,6 @@ def _lines_compiled(
     if ids.size == 0:
         return _empty_lines(), line_scale
     return _lines_of_table(table, ids, firsts, f_line, cluster), line_scale
-
-
-@same_as_last_call
-@lru_cache(maxsize=16)
-def _line_params(lines: LineConfig, fz: FuzzyConfig) -> FloatArray:
-    """``_kernels.front.fit_lines``' params of a config's sections (cached; not to be written
-    to)."""
-    structure = fz.distance_scale != "fixed" and fz.line_distance_scale == "structure"
-    return np.array([
-        lines.min_points, lines.min_length, _MIN_LINE_NOISE, float(structure),
-        fz.distance_scale_reference, fz.distance_scale_quantile,
-    ], dtype=np.float64)  # fmt: skip
 
 
 def _graded_for_lines(

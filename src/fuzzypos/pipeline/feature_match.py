@@ -75,6 +75,9 @@ class FeatureMatcher:
         # the kernel's arrays of the last two scans' lines (the keyframe's among them: every
         # scan matched against it reads them), the most recently read first
         self._recent: list[tuple[Lines, _LineArrays]] = []
+        # the keyframe's lines that :meth:`lines_first_inputs` last read and their arrays (every
+        # scan matched against the keyframe reads them)
+        self._keyframe_lines: tuple[Lines, _LineArrays] | None = None
 
     def _arrays_of(self, lines: Lines) -> _LineArrays:
         """:func:`_line_arrays` of ``lines``, built once while they are among the last two
@@ -120,15 +123,35 @@ class FeatureMatcher:
         from the prior) but the prior itself: both scans' line arrays, the prior's gates,
         the params, the passes and the least pairs; None where that try is not the compiled
         one's (not configured, lines without variances, or none)."""
+        keyframe = self.keyframe_inputs(prev)
+        if keyframe is None:
+            return None
+        b = curr.lines
+        if not _has_variances(b) or len(b) == 0:
+            return None
+        of_prev, settings, params, passes, min_pairs = keyframe
+        return (*of_prev, *self._arrays_of(b), settings, params, passes, min_pairs)
+
+    def keyframe_inputs(self, prev: Features) -> _KeyframeLines | None:
+        """:meth:`lines_first_inputs` but the scan's own lines (the compiled chain's, which
+        come with variances: its lines are compiled with the scan's features, ``_kernels.step``):
+        the keyframe's line arrays, the prior's gates, the params, the passes and the least
+        pairs; None where that try is not the compiled one's."""
         m = self.matching
-        a, b = prev.lines, curr.lines
         if not (m.match_lines and m.lines_first and compiled()):
             return None
-        if not (_has_variances(a) and _has_variances(b)) or len(a) == 0 or len(b) == 0:
+        a = prev.lines
+        last = self._keyframe_lines
+        if last is not None and last[0] is a:
+            of_prev = last[1]
+        elif _has_variances(a) and len(a) > 0:
+            of_prev = self._arrays_of(a)
+            self._keyframe_lines = (a, of_prev)
+        else:
             return None
         return (
-            *self._arrays_of(a), *self._arrays_of(b), self._line_settings[True],
-            self._line_params, int(m.line_passes), int(m.line_min_pairs),
+            of_prev, self._line_settings[True], self._line_params, int(m.line_passes),
+            int(m.line_min_pairs),
         )  # fmt: skip
 
     def match_points(
@@ -220,6 +243,9 @@ _LinesFirst = tuple[FloatArray, int, int, FloatArray, int, int, FloatArray, Floa
 #: a scan's lines as the line-matching kernel reads them: a flat array of floats, the first
 #: element and the number of lines (``fuzzypos._kernels.lines.LINE_FLOATS``)
 _LineArrays = tuple[FloatArray, int, int]
+#: :meth:`FeatureMatcher.keyframe_inputs`: the keyframe's :data:`_LineArrays`, the gates, the
+#: params, the passes and the least pairs
+_KeyframeLines = tuple[_LineArrays, FloatArray, FloatArray, int, int]
 
 
 def _line_arrays(lines: Lines) -> _LineArrays:

@@ -16,12 +16,19 @@ import math
 from collections.abc import Iterable, Iterator, Sized
 from dataclasses import replace
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..config import Config
-from ..features import Features, extract_features
+from ..features import (
+    Features,
+    chain_inputs,
+    extract_features,
+    features_of_chain,
+    rule_bases,
+)
 from ..geometry import Pose2D, Pose3, compose3, relative3
 from ..matching import Refinement
 from ..scan import LaserScan
@@ -46,6 +53,15 @@ def _step() -> ModuleType:
     """The compiled match, refinement and assessment (``_kernels.step``), imported with
     numba on first use and kept."""
     return importlib.import_module("fuzzypos._kernels.step")
+
+
+@functools.cache
+def _lines_at() -> NDArray[np.int64]:
+    """Where a scan's lines begin in the compiled chain's packed floats, per size
+    (``_kernels.packing.LAYOUT``'s coefficients, as ``packing.lines_first`` reads them)."""
+    from .._kernels.packing import LAYOUT
+
+    return np.array(LAYOUT["Lines"]["normal"][1], dtype=np.int64)
 
 
 _IDENTITY = Pose2D()
@@ -126,14 +142,20 @@ class Positioner:
                 Reason.STANDING_STILL, covariance=still.covariance,
                 keyframe_covariance=still.keyframe_covariance,
             )  # fmt: skip
-        features = extract_features(scan, self.config)
         # the same prior from the keyframe: what was estimated up to the previous scan, then it
         key_prior = self.local_map.from_keyframe(self._pose, prior.increment)
         prior_cov = self._prior_covariance(prior)
         information = self._prior_information(t_prev, prior, prior_cov)
-        n_pairs, reason, refined, from_key, judged = self._match_refine_assess(
-            features, key_prior, prior, prior_cov, information, t_prev, scan.angle_increment
+        chained = self._features_match_refine_assess(
+            scan, key_prior, prior, prior_cov, information, t_prev
         )
+        if chained is None:
+            features = extract_features(scan, self.config)
+            n_pairs, reason, refined, from_key, judged = self._match_refine_assess(
+                features, key_prior, prior, prior_cov, information, t_prev, scan.angle_increment
+            )
+        else:
+            features, (n_pairs, reason, refined, from_key, judged) = chained
         # (the poses as floats once: the arrays' tolist() gives these very floats back)
         previous = self._pose.tolist()
         if from_key is None:  # fall back to the prior, and start afresh from this scan
@@ -185,29 +207,109 @@ class Positioner:
             return self._staged(match, features, key_prior, prior, prior_cov, information,
                                 t_prev, angle_increment)  # fmt: skip
         lines, points, refinement = fused
-        step = _step()
         gate_open = self._gate_open(prior)
         assessment = self.uncertainty.assessment_inputs(
             t_prev, prior.increment, prior_cov, gate_open, self._learns_from(prior, True)
         )
-        stage, n_pairs, which, paired, close, on_start, gate, ok, out = step.match_refine_assess(
+        stepped = _step().match_refine_assess(
             *lines, key_prior, *refinement, *assessment, self._is_key_prior(t_prev)
+        )
+        return self._after_step(
+            stepped, gate_open, features, key_prior, prior, prior_cov, information, t_prev,
+            angle_increment, (points, refinement),
         )  # fmt: skip
+
+    def _features_match_refine_assess(
+        self,
+        scan: LaserScan,
+        key_prior: FloatArray,
+        prior: Prior,
+        prior_cov: FloatArray,
+        information: tuple[FloatArray, FloatArray] | None,
+        t_prev: FloatArray,
+    ) -> tuple[Features, tuple[int, Reason, bool, FloatArray | None, Assessment]] | None:
+        """The scan's features and :meth:`_match_refine_assess` of them in one compiled call
+        (``_kernels.step.features_and_step``: the feature chain's and the common path's), where
+        both would be compiled calls; its values to the bit. None where they would not be
+        (then :func:`extract_features` and :meth:`_match_refine_assess` run)."""
+        if not self._fused or prior.odometry_rejected or not self.config.refinement.enabled:
+            return None
+        chain = chain_inputs(scan, self.config, rule_bases(self.config.fuzzy))
+        if chain is None:
+            return None
+        keyframe = self.feature_matcher.keyframe_inputs(self.local_map.features)
+        if keyframe is None:
+            return None
+        held = None if information is None else information[1]
+        of_surface = self.refiner.surface_inputs(self.local_map.surface(), held)
+        if of_surface is None:
+            return None
+        (prev, prev_first, prev_n), line_gates, line_params, passes, min_pairs = keyframe
+        geometry, shape, cells, table, gates, params, iterations, diag, info, full = of_surface
+        refiner = self.refiner
+        gate_open = self._gate_open(prior)
+        assessment = self.uncertainty.assessment_inputs(
+            t_prev, prior.increment, prior_cov, gate_open, self._learns_from(prior, True)
+        )
+        done, scale, line_scale, sizes, fl, it, bl, *stepped = _step().features_and_step(
+            *chain, _lines_at(), int(self.config.refinement.min_points), prev, prev_first, prev_n,
+            line_gates, line_params, passes, min_pairs, key_prior, geometry, shape, cells, table,
+            refiner.weighing_settings(scan.angle_increment), gates, params, iterations, diag,
+            info, full, bool(self.config.refinement.prior_from_features), refiner.checks(False),
+            *assessment, self._is_key_prior(t_prev),
+        )  # fmt: skip
+        if not done:  # (a gapless 360° ring: the staged chain's)
+            features = extract_features(scan, self.config)
+        else:
+            features = features_of_chain(scan, self.config, (scale, line_scale, sizes, fl, it, bl))
+        if not done or stepped[0] == _step().FEATURES_ONLY:
+            return features, self._match_refine_assess(
+                features, key_prior, prior, prior_cov, information, t_prev, scan.angle_increment
+            )
+        return features, self._after_step(
+            tuple(stepped), gate_open, features, key_prior, prior, prior_cov, information,
+            t_prev, scan.angle_increment, None,
+        )  # fmt: skip
+
+    def _after_step(
+        self,
+        stepped: tuple[Any, ...],
+        gate_open: bool,
+        features: Features,
+        key_prior: FloatArray,
+        prior: Prior,
+        prior_cov: FloatArray,
+        information: tuple[FloatArray, FloatArray] | None,
+        t_prev: FloatArray,
+        angle_increment: float,
+        inputs: tuple[ScanPoints, _FromLines] | None,
+    ) -> tuple[int, Reason, bool, FloatArray | None, Assessment]:
+        """:meth:`_match_refine_assess` from the compiled call's values (``stepped``), going
+        on with the staged calls where it left the common path; ``inputs``: the scan's points
+        and the refinement's inputs it was handed (None: made here where a stage needs them)."""
+        step = _step()
+        stage, n_pairs, which, paired, close, on_start, gate, ok, out = stepped
+        prev = self.local_map.features
         if stage == step.NO_LINES:
             match = self.feature_matcher.match_after_lines(prev, features, key_prior)
             return self._staged(match, features, key_prior, prior, prior_cov, information,
                                 t_prev, angle_increment)  # fmt: skip
         est = out[step.LINES, 0]
         match = FeatureMatch._of(est, n_pairs, Reason.MATCHED)
-        if stage == step.NOT_REFINED:  # (neither fit counts: the search, as _refine goes on)
-            starts = self._starts(match, key_prior, information)
-            fit, on_previous = self._searched(None, points, starts, prior)
-            return self._judged(match, fit, on_previous, t_prev, prior, prior_cov, key_prior)
         if stage == step.ASSESSED:
             judged = self.uncertainty.assessed(gate, ok, out, step.ASSESSMENT, gate_open)
             if judged is not None:  # (a fit's own values are read for a rejected match only)
                 self._learn(prior, t_prev, None, judged)
                 return n_pairs, Reason.MATCHED, True, out[step.FIT, 0], judged
+        if inputs is None:  # (the compiled call read them from the chain's arrays)
+            made = self._fused_inputs(prev, features, prior, information, angle_increment)
+            assert made is not None  # (the call ran: they are there)
+            inputs = made[1], made[2]
+        points, refinement = inputs
+        if stage == step.NOT_REFINED:  # (neither fit counts: the search, as _refine goes on)
+            starts = self._starts(match, key_prior, information)
+            fit, on_previous = self._searched(None, points, starts, prior)
+            return self._judged(match, fit, on_previous, t_prev, prior, prior_cov, key_prior)
         starts = self._starts(match, key_prior, information)
         fit = self.refiner.from_lines(
             which == step.FROM_START, paired, close, on_start, out[step.FIT : step.FIT + 4],

@@ -40,6 +40,13 @@ _FromLines = tuple[
     FloatArray, IntArray, IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray,
     FloatArray, FloatArray, int, FloatArray, FloatArray, bool, bool, FloatArray,
 ]  # fmt: skip
+#: :func:`~fuzzypos.matching.refine_both_settings`' values: the surface's grid and table, the
+#: pairing distances, the params, the iterations, the prior's diagonal, both fits'
+#: information and whether it is the full 3×3
+_SurfaceSettings = tuple[
+    FloatArray, IntArray, IntArray, FloatArray, FloatArray, FloatArray, int, FloatArray,
+    FloatArray, bool,
+]  # fmt: skip
 
 
 @functools.cache
@@ -160,6 +167,10 @@ class Refiner:
         # the weight kernel's settings with the last scan's angle increment, as one array
         # (``_kernels.refine.WEIGHING``)
         self._weighing: tuple[float, FloatArray] | None = None
+        # the last surface and what the fused refinement reads of it and the section without
+        # a learned information (``refine_both_settings``): the same for every scan against
+        # one keyframe
+        self._surface_settings: tuple[SurfacePoints, _SurfaceSettings] | None = None
         # the checks of the fused refinement (``_kernels.refine.CHECKS``), after an odometry
         # jump (True: no fit from the odometry's motion) or not
         self._checks = {
@@ -180,13 +191,25 @@ class Refiner:
             return None
         ranges = features.ranges
         if compiled():  # (weighed in the fused refinement's call, or on first use)
-            last = self._weighing
-            if last is None or last[0] != angle_increment:  # (one scanner: once a log)
-                settings = np.array([float(angle_increment), *self._weight_settings])
-                last = self._weighing = (angle_increment, settings)
-            return _WeighedOnUse._lazy(pts, (ranges, features.uncertainty, last[1]))
+            weighing = self.weighing_settings(angle_increment)
+            return _WeighedOnUse._lazy(pts, (ranges, features.uncertainty, weighing))
         spacing = ranges * abs(float(angle_increment))
         return ScanPoints._of(pts, self._weights_numpy(features, angle_increment), spacing)
+
+    def checks(self, wide: bool) -> FloatArray:
+        """The fused refinement's checks (``_kernels.refine.CHECKS``), after an odometry jump
+        (``wide``) or not."""
+        return self._checks[wide]
+
+    def weighing_settings(self, angle_increment: float) -> FloatArray:
+        """The weight kernel's settings (``_kernels.refine.WEIGHING``) with the scans' angle
+        increment, one array (made again only where the increment changes: one scanner, once
+        a log)."""
+        last = self._weighing
+        if last is None or last[0] != angle_increment:
+            settings = np.array([float(angle_increment), *self._weight_settings])
+            last = self._weighing = (angle_increment, settings)
+        return last[1]
 
     def _weights_numpy(self, features: Features, angle_increment: float) -> FloatArray:
         """The points' weights in numpy (the compiled kernel's reference)."""
@@ -242,17 +265,36 @@ class Refiner:
         call is not the one :meth:`refine` would make (points already weighed, or too few
         on either side)."""
         weighing = points.__dict__.get("weighing")
-        if weighing is None or len(surface) < 3 or points.xy.shape[0] == 0:
+        if weighing is None or points.xy.shape[0] == 0:
             return None
-        geometry, shape, cells, table, gates, params, iterations, diag, info, full = (
-            refine_both_settings(surface, self.refinement, information)
-        )
+        of_surface = self.surface_inputs(surface, information)
+        if of_surface is None:
+            return None
+        geometry, shape, cells, table, gates, params, iterations, diag, info, full = of_surface
         ranges, uncertainty, settings = weighing
         return (
             geometry, shape, cells, table, f64(points.xy), f64(ranges), f64(uncertainty),
             settings, gates, params, iterations, diag, info, full,
             bool(self.refinement.prior_from_features), self._checks[False],
         )  # fmt: skip
+
+    def surface_inputs(
+        self, surface: SurfacePoints, information: FloatArray | None
+    ) -> _SurfaceSettings | None:
+        """:meth:`lines_start_inputs`' values of the surface and the section
+        (``refine_both_settings``; the last surface's kept, the same for every scan against
+        one keyframe, where no learned ``information`` is given); None with fewer than three
+        surface points."""
+        if len(surface) < 3:
+            return None
+        if information is not None:
+            return refine_both_settings(surface, self.refinement, information)
+        last = self._surface_settings
+        if last is not None and last[0] is surface:
+            return last[1]
+        of_surface = refine_both_settings(surface, self.refinement, None)
+        self._surface_settings = (surface, of_surface)
+        return of_surface
 
     @staticmethod
     def from_lines(
