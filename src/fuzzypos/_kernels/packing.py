@@ -235,21 +235,18 @@ def unpacked(
     """The ``Features`` (``classes``: it, ``Lines`` and the corners' context) of
     :func:`~fuzzypos._kernels.front.scan_features`' packed arrays, views of them where
     :data:`LAYOUT` has them (``context``: the corners' context's other fields, but its lines
-    and scales; ``empty_lines()`` where there is no line). What the positioner reads of every
-    scan (the points, their ranges and uncertainty, the lines' arrays line matching reads:
-    not their ends, since their lengths come with them) is taken out here, the rest on first
-    use (:class:`Unpacks`)."""
+    and scales; ``empty_lines()`` where there is no line), each taken out on first use
+    (:class:`Unpacks`): the positioner's compiled call reads the packed arrays themselves.
+    Put in here: the lines' variances (fields with a default, which an instance without them
+    would read) and lengths, which come with them (``Lines.length`` would compute them)."""
     features_cls, lines_cls, context_cls = classes
-    n, nl = sizes[0], sizes[2]
+    nl = sizes[2]
     packed = Packed(sizes, fl, it, bl)
     if nl == 0:
         lines = empty_lines()
     else:
         o = lines_first(sizes)
         lines = new(lines_cls, {
-            "normal": fl[o : o + 2 * nl].reshape(nl, 2),
-            "distance": fl[o + 2 * nl : o + 3 * nl],
-            "centre": fl[o + 7 * nl : o + 9 * nl].reshape(nl, 2),
             "angle_variance": fl[o + 12 * nl : o + 13 * nl],
             "distance_variance": fl[o + 13 * nl : o + 14 * nl],
             "length": fl[o + 14 * nl : o + 15 * nl],
@@ -259,11 +256,5 @@ def unpacked(
     context["distance_scale"], context["line_distance_scale"] = scale, line_scale
     context["_packed"] = packed
     return new(features_cls, {
-        "stamp": stamp,
-        "points": fl[: 2 * n].reshape(n, 2),
-        "ranges": fl[2 * n : 3 * n],
-        "uncertainty": fl[4 * n : 5 * n],
-        "lines": lines,
-        "_corners": new(context_cls, context),
-        "_packed": packed,
+        "stamp": stamp, "lines": lines, "_corners": new(context_cls, context), "_packed": packed,
     })  # fmt: skip
