@@ -39,7 +39,7 @@ from .noise import OdometryNoise
 from .prior import OdometryPrior, Prior
 from .refine import Refiner, ScanPoints, Starts, _FromLines
 from .search import Relocaliser
-from .uncertainty import Assessment, Uncertainty
+from .uncertainty import Assessment, Uncertainty, _AssessmentInputs
 
 __all__ = ["Positioner"]
 
@@ -207,10 +207,7 @@ class Positioner:
             return self._staged(match, features, key_prior, prior, prior_cov, information,
                                 t_prev, angle_increment)  # fmt: skip
         lines, points, refinement = fused
-        gate_open = self._gate_open(prior)
-        assessment = self.uncertainty.assessment_inputs(
-            t_prev, prior.increment, prior_cov, gate_open, self._learns_from(prior, True)
-        )
+        gate_open, assessment = self._assessment_inputs(prior, prior_cov, t_prev)
         stepped = _step().match_refine_assess(
             *lines, key_prior, *refinement, *assessment, self._is_key_prior(t_prev)
         )
@@ -247,10 +244,7 @@ class Positioner:
         (prev, prev_first, prev_n), line_gates, line_params, passes, min_pairs = keyframe
         geometry, shape, cells, table, gates, params, iterations, diag, info, full = of_surface
         refiner = self.refiner
-        gate_open = self._gate_open(prior)
-        assessment = self.uncertainty.assessment_inputs(
-            t_prev, prior.increment, prior_cov, gate_open, self._learns_from(prior, True)
-        )
+        gate_open, assessment = self._assessment_inputs(prior, prior_cov, t_prev)
         done, scale, line_scale, sizes, fl, it, bl, *stepped = _step().features_and_step(
             *chain, _lines_at(), int(self.config.refinement.min_points), prev, prev_first, prev_n,
             line_gates, line_params, passes, min_pairs, key_prior, geometry, shape, cells, table,
@@ -270,6 +264,18 @@ class Positioner:
             tuple(stepped), gate_open, features, key_prior, prior, prior_cov, information,
             t_prev, scan.angle_increment, None,
         )  # fmt: skip
+
+    def _assessment_inputs(
+        self, prior: Prior, prior_cov: FloatArray, t_prev: FloatArray
+    ) -> tuple[bool, _AssessmentInputs]:
+        """Whether the gate is open and what the compiled call reads for the assessment of a
+        refined match (``Uncertainty.assessment_inputs``, with the scan's own motion where it
+        would teach the odometry's noise)."""
+        gate_open = self._gate_open(prior)
+        assessment = self.uncertainty.assessment_inputs(
+            t_prev, prior.increment, prior_cov, gate_open, self._learns_from(prior, True)
+        )
+        return gate_open, assessment
 
     def _after_step(
         self,
