@@ -221,6 +221,13 @@ def new(cls: type[_T], values: dict[str, Any]) -> _T:
     return obj
 
 
+@lru_cache(maxsize=1)
+def lines_at() -> IntArray:
+    """:func:`lines_first`'s coefficients of the sizes, as an array for a kernel that finds
+    the lines in the packed floats itself (``_kernels.step.features_and_step``)."""
+    return np.array(LAYOUT["Lines"]["normal"][1], dtype=np.int64)
+
+
 def lines_first(sizes: ChainSizes) -> int:
     """Where the lines' floats begin in :func:`~fuzzypos._kernels.front.scan_features`' packed
     floats (:data:`LAYOUT`'s ``Lines``, after the points' ``5n + 4m``)."""

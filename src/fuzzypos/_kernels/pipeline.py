@@ -63,7 +63,7 @@ def assess_and_scan_only(
     increment: FloatArray,
     max_condition: float,
 ) -> tuple[float, bool, FloatArray]:
-    """``uncertainty.assess_fit`` and, where ``wanted``, the fit holds nothing (its
+    """``uncertainty.assessed`` and, where ``wanted``, the fit holds nothing (its
     ``hold_information`` zero) and the gate (at ``threshold``) lets the match stand,
     ``uncertainty.scan_only`` of the fit (its ``increment``) from the previous covariance the
     assessment leaves: the two kernels the positioner calls one after the

@@ -256,16 +256,11 @@ def _hold(
     return on_start
 
 
-@kernel
-def solve3(A: FloatArray, b: FloatArray, x: FloatArray) -> bool:
-    """``x = A⁻¹ b`` for a 3×3 ``A`` by Gaussian elimination with partial pivoting (as LAPACK's
-    dgesv); False where a pivot is exactly zero (numpy's LinAlgError)."""
-    return _solve_in_place(A.copy(), b.copy(), x)
-
-
 @inlined
 def _solve_in_place(M: FloatArray, v: FloatArray, x: FloatArray) -> bool:
-    """:func:`solve3` on ``M`` and ``v`` themselves (left eliminated: no copies)."""
+    """``x = M⁻¹ v`` for a 3×3 ``M`` by Gaussian elimination with partial pivoting (as
+    LAPACK's dgesv), on ``M`` and ``v`` themselves (left eliminated: no copies); False where
+    a pivot is exactly zero (numpy's LinAlgError)."""
     for col in range(3):
         p = col
         for r in range(col + 1, 3):

@@ -106,7 +106,7 @@ def _jacobians(a: V3, b: V3) -> tuple[M3, M3]:
 @kernel
 def _solve(a: M3, b: V3) -> V3:
     """``np.linalg.solve`` of a 3×3 (Gaussian elimination with partial pivoting, as LAPACK's
-    dgesv and ``refine.solve3``, the same operations; NaN where a pivot is exactly zero):
+    dgesv and ``refine``'s solve, the same operations; NaN where a pivot is exactly zero):
     numba's own LAPACK bindings take seconds to compile."""
     r0, r1, r2 = (a[0], a[1], a[2]), (a[3], a[4], a[5]), (a[6], a[7], a[8])
     v0, v1, v2 = b[0], b[1], b[2]
@@ -311,7 +311,12 @@ def assessed(
     point_correlation: float,
     gate_open: bool,
 ) -> tuple[M3, M3, M3, float]:
-    """:func:`assess_fit` of the entries."""
+    """``Uncertainty.assess`` of a match ``from_key`` (by a fit where ``has_fit``, else the
+    features alone; each 3×3 and pose as its entries): the increment's covariance, the
+    covariance relative to the keyframe (both right perturbations, the floor added), the new
+    previous scan's additive covariance and the gate's Mahalanobis distance squared (NaN
+    where the gate is closed). The fit's information, prior and hold information, gradient
+    covariance, prior and the hold's target (each read only where ``has_fit``)."""
     ja, jb = _jacobians(t_prev, prior)
     prev = _sandwich(ja, previous)
     odo = _sandwich(jb, prior_covariance)
@@ -342,39 +347,6 @@ def assessed(
         new_previous,
         gate,
     )
-
-
-@kernel
-def assess_fit(
-    t_prev: FloatArray,
-    prior: FloatArray,
-    prior_covariance: FloatArray,
-    previous: FloatArray,
-    from_key: FloatArray,
-    feature: FloatArray,
-    floor: FloatArray,
-    has_fit: bool,
-    information: FloatArray,
-    prior_information: FloatArray,
-    hold_information: FloatArray,
-    gradient_covariance: FloatArray,
-    fit_prior: FloatArray,
-    hold_target: FloatArray,
-    point_correlation: float,
-    gate_open: bool,
-) -> tuple[FloatArray, FloatArray, FloatArray, float]:
-    """``Uncertainty.assess`` of a match ``from_key`` (by a fit where ``has_fit``, else the
-    features alone): the increment's covariance, the covariance relative to the keyframe (both
-    right perturbations, the floor added), the new previous scan's additive covariance and
-    the gate's Mahalanobis distance squared (NaN where the gate is closed). The fit's
-    information, prior and hold information, gradient covariance, prior and the hold's target
-    (each read only where ``has_fit``)."""
-    inc_cov, kf, new_previous, gate = assessed(
-        _v(t_prev), _v(prior), _m(prior_covariance), _m(previous), _v(from_key), _m(feature),
-        _m(floor), has_fit, _m(information), _m(prior_information), _m(hold_information),
-        _m(gradient_covariance), _v(fit_prior), _v(hold_target), point_correlation, gate_open,
-    )  # fmt: skip
-    return _array(inc_cov), _array(kf), _array(new_previous), gate
 
 
 @kernel

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._kernels import packing
 from ..config import Config
 from ..features import (
     Features,
@@ -53,15 +54,6 @@ def _step() -> ModuleType:
     """The compiled match, refinement and assessment (``_kernels.step``), imported with
     numba on first use and kept."""
     return importlib.import_module("fuzzypos._kernels.step")
-
-
-@functools.cache
-def _lines_at() -> NDArray[np.int64]:
-    """Where a scan's lines begin in the compiled chain's packed floats, per size
-    (``_kernels.packing.LAYOUT``'s coefficients, as ``packing.lines_first`` reads them)."""
-    from .._kernels.packing import LAYOUT
-
-    return np.array(LAYOUT["Lines"]["normal"][1], dtype=np.int64)
 
 
 _IDENTITY = Pose2D()
@@ -229,7 +221,7 @@ class Positioner:
         (``_kernels.step.features_and_step``: the feature chain's and the common path's), where
         both would be compiled calls; its values to the bit. None where they would not be
         (then :func:`extract_features` and :meth:`_match_refine_assess` run)."""
-        if not self._fused or prior.odometry_rejected or not self.config.refinement.enabled:
+        if not self._fuses(prior):
             return None
         chain = chain_inputs(scan, self.config, rule_bases(self.config.fuzzy))
         if chain is None:
@@ -246,8 +238,9 @@ class Positioner:
         refiner = self.refiner
         gate_open, assessment = self._assessment_inputs(prior, prior_cov, t_prev)
         done, scale, line_scale, sizes, fl, it, bl, *stepped = _step().features_and_step(
-            *chain, _lines_at(), int(self.config.refinement.min_points), prev, prev_first, prev_n,
-            line_gates, line_params, passes, min_pairs, key_prior, geometry, shape, cells, table,
+            *chain, packing.lines_at(), int(self.config.refinement.min_points), prev,
+            prev_first, prev_n, line_gates, line_params, passes, min_pairs, key_prior, geometry,
+            shape, cells, table,
             refiner.weighing_settings(scan.angle_increment), gates, params, iterations, diag,
             info, full, bool(self.config.refinement.prior_from_features), refiner.checks(False),
             *assessment, self._is_key_prior(t_prev),
@@ -264,6 +257,11 @@ class Positioner:
             tuple(stepped), gate_open, features, key_prior, prior, prior_cov, information,
             t_prev, scan.angle_increment, None,
         )  # fmt: skip
+
+    def _fuses(self, prior: Prior) -> bool:
+        """Whether the staged calls would be the ones a compiled call fuses: it is switched on
+        (``_fused``), the refinement too, and the prior is no odometry jump's."""
+        return self._fused and not prior.odometry_rejected and self.config.refinement.enabled
 
     def _assessment_inputs(
         self, prior: Prior, prior_cov: FloatArray, t_prev: FloatArray
@@ -352,7 +350,7 @@ class Positioner:
         refiner's: None where the staged calls would not make those very calls (no
         refinement, an odometry jump, the lines not matched first in the compiled way, too
         few points), and where the fused call is switched off (``_fused``)."""
-        if not self._fused or prior.odometry_rejected or not self.config.refinement.enabled:
+        if not self._fuses(prior):
             return None
         lines = self.feature_matcher.lines_first_inputs(prev, features)
         if lines is None:
