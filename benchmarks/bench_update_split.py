@@ -2,7 +2,7 @@
 between them, on the same scans in one process.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_update_split.py [--data ../shared/data]
-        [--logs intel,aces,sim180,sim360] [--max-scans N] [--repeat R]
+        [--logs intel,aces,sim180,sim360] [--max-scans N] [--repeat R] [--gicp]
 
 Each log is read once (``fuzzypos.logs.open_log(path).records()``) and run through a fresh
 ``Positioner()`` (the default) ``R`` times (default 3), alternately without and with a timer
@@ -12,8 +12,12 @@ runs without timers give ``update``'s time per scan; the runs with them, each ke
 per scan and time per call, and ``update``'s time with the timers on. "Python between the
 kernels" is that time less the kernels' and less the timers' own cost (measured here on an
 empty call). Medians of the R runs. ``sim180`` and ``sim360`` are ``bench_peers.py``'s
-simulated logs. A machine shared with others moves every figure by tens of percent from one
-run to the next; the shares move less.
+simulated logs. With ``--gicp``, small_gicp GICP's ``align`` (``bench_peers.py``'s peer, against
+1 m / 30° keyframes; ``pip install -e '.[bench]'``) is timed on the same scans too, a run after
+each pair of fuzzypos's, and update's, the kernels' and the Python's times are printed over
+its: issue 12's proxy (update at most 0.3 times GICP's time on 180 beams) beside what the
+kernels alone take. A machine shared with others moves every figure by tens of percent from
+one run to the next; the shares move less.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from fuzzypos.logs import open_log  # noqa: E402
 from fuzzypos.pipeline.warm import warm_up  # noqa: E402
 
 sys.path.insert(0, os.fspath(Path(__file__).resolve().parent))
+import bench_peers  # noqa: E402
 from bench_peers import LOGS, SIMULATED, simulated_log  # noqa: E402
 
 _CLOCK = time.perf_counter
@@ -127,11 +132,22 @@ def run(records: list[tuple[Any, Any]]) -> float:
     return total
 
 
-def split(records: list[tuple[Any, Any]], repeat: int) -> dict[str, Any]:
+def run_gicp(records: list[tuple[Any, Any]]) -> float:
+    """Seconds of small_gicp GICP's ``align`` over the records (``bench_peers.SmallGicp``
+    against 1 m / 30° keyframes, as ``bench_peers.run_method`` runs it)."""
+    method = bench_peers.SmallGicp("GICP")
+    method.start(bench_peers.pose_tuple(records[0][1]) if records else None)
+    for scan, odom in records:
+        method.step(scan, odom)
+    return method.matcher_seconds
+
+
+def split(records: list[tuple[Any, Any]], repeat: int, gicp: bool = False) -> dict[str, Any]:
     """``update``'s time per scan, with the timers and without, and each kernel's calls and
-    time (medians of ``repeat`` runs each)."""
+    time (medians of ``repeat`` runs each); with ``gicp``, small_gicp GICP's ``align`` time too
+    (:func:`run_gicp`, a run after each pair; the median)."""
     found = kernels()
-    plain, with_timers = [], []
+    plain, with_timers, peer = [], [], []
     per_run: list[tuple[Counter, Counter]] = []
     for _ in range(repeat):
         plain.append(run(records))
@@ -139,6 +155,8 @@ def split(records: list[tuple[Any, Any]], repeat: int) -> dict[str, Any]:
         with timed(found, seconds, calls):
             with_timers.append(run(records))
         per_run.append((seconds, calls))
+        if gicp:
+            peer.append(run_gicp(records))
     labels = sorted({k for s, _ in per_run for k in s})
     kernel_rows = {
         label: (
@@ -151,6 +169,7 @@ def split(records: list[tuple[Any, Any]], repeat: int) -> dict[str, Any]:
         "update": statistics.median(plain),
         "with_timers": statistics.median(with_timers),
         "kernels": kernel_rows,
+        "gicp": statistics.median(peer) if peer else None,
     }
 
 
@@ -167,6 +186,11 @@ def main() -> None:
     )
     ap.add_argument("--max-scans", type=int, default=None, help="the first N scans of each log")
     ap.add_argument("--repeat", type=int, default=3, help="runs of each log, each way (3)")
+    ap.add_argument(
+        "--gicp",
+        action="store_true",
+        help="also time small_gicp GICP's align on the same scans and print the times over it",
+    )
     args = ap.parse_args()
     names = [s.strip() for s in args.logs.split(",") if s.strip()]
     unknown = [n for n in names if n not in LOGS and n not in SIMULATED]
@@ -175,6 +199,8 @@ def main() -> None:
         sys.exit(f"--logs: unknown log(s) {', '.join(unknown)} (known: {known})")
     if args.repeat < 1:
         sys.exit("--repeat: at least 1")
+    if args.gicp and bench_peers.small_gicp is None:
+        sys.exit(f"--gicp: small_gicp is not installed ({bench_peers.INSTALL_HINT})")
     print(f"every compiled kernel ready in {warm_up():.2f} s", file=sys.stderr)
     cost = timer_cost()
     scratch = tempfile.TemporaryDirectory(prefix="bench_split_")
@@ -188,7 +214,7 @@ def main() -> None:
         records = [(r.scan, r.odometry) for r in open_log(path).records()]
         records = records[: args.max_scans] if args.max_scans else records
         n = len(records)
-        out = split(records, args.repeat)
+        out = split(records, args.repeat, args.gicp)
         rows = sorted(out["kernels"].items(), key=lambda kv: -kv[1][0])
         in_kernels = sum(s for s, _ in out["kernels"].values())
         n_calls = sum(c for _, c in out["kernels"].values())
@@ -218,7 +244,22 @@ def main() -> None:
             f"| Python between the kernels | | | {python * us:.1f} | "
             f"{python / out['with_timers']:.0%} |"
         )
+        if out["gicp"] is not None:
+            print_over_gicp(out["update"], in_kernels, python, out["gicp"], us)
     scratch.cleanup()
+
+
+def print_over_gicp(
+    update: float, in_kernels: float, python: float, gicp: float, us: float
+) -> None:
+    """The times over small_gicp GICP's ``align`` on the same scans (seconds; ``us``: µs a scan
+    per second of the run)."""
+    print("\n| on the same scans | µs a scan | ÷ small_gicp GICP's align |")
+    print("|---|---:|---:|")
+    print(f"| Positioner.update | {update * us:.1f} | {update / gicp:.2f} |")
+    print(f"| all the kernels | {in_kernels * us:.1f} | {in_kernels / gicp:.2f} |")
+    print(f"| Python between the kernels | {python * us:.1f} | {python / gicp:.2f} |")
+    print(f"| small_gicp GICP, 1 m / 30° keyframes: align | {gicp * us:.1f} | 1.00 |")
 
 
 if __name__ == "__main__":
