@@ -3,18 +3,22 @@
 (:data:`DATA`), a small simulated CARMEN log (:func:`write_sim_log`), a relations file
 (:func:`write_relations`), the compiled kernels against their numpy references
 (:func:`numpy_kernels`, :func:`both`, :func:`compiled_and_staged`), ROS1/ROS2 bags written
-with rosbags' writers (:func:`make_bag` with :func:`standard`'s scans and odometry), and
-pipes a thread fills (:func:`fifo_with`, :func:`pipe_with`)."""
+with rosbags' writers (:func:`make_bag` with :func:`standard`'s scans and odometry),
+pipes a thread fills (:func:`fifo_with`, :func:`pipe_with`), and a benchmark script as a
+module (:func:`load_benchmark`)."""
 
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import math
 import os
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -34,6 +38,26 @@ from fuzzypos.io import CarmenRecord, write_carmen
 #: (where CI and the workplace keep them); tests that need them skip where absent
 _BESIDE = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 DATA = Path(os.environ.get("FUZZYPOS_DATA") or _BESIDE)
+
+# -- the benchmarks ----------------------------------------------------------------------------
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def load_benchmark(name: str) -> ModuleType:
+    """``benchmarks/NAME.py`` as a module (not in ``sys.modules``), with the environment and
+    ``sys.path`` its import may change (one thread for numpy; its own folder, for another
+    benchmark it imports) put back afterwards."""
+    saved_env, saved_path = dict(os.environ), list(sys.path)
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        os.environ.clear()
+        os.environ.update(saved_env)
+        sys.path[:] = saved_path
+    return module
 
 
 # -- a simulated CARMEN log and relations ------------------------------------------------------

@@ -3,8 +3,6 @@ as CARMEN logs that read back with the scanner's beams, and relations that are t
 
 from __future__ import annotations
 
-import importlib.util
-import os
 from pathlib import Path
 from types import ModuleType
 
@@ -16,23 +14,13 @@ from fuzzypos.demo import DemoSettings
 from fuzzypos.evaluation import relations_errors
 from fuzzypos.io import read_relations
 from fuzzypos.logs import open_log
-
-BENCH = Path(__file__).resolve().parent.parent / "benchmarks" / "bench_peers.py"
+from helpers import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bench() -> ModuleType:
     """The benchmark as a module (its import pins the thread counts: put back afterwards)."""
-    saved = dict(os.environ)
-    spec = importlib.util.spec_from_file_location("bench_peers", BENCH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    try:
-        spec.loader.exec_module(module)
-    finally:
-        os.environ.clear()
-        os.environ.update(saved)
-    return module
+    return load_benchmark("bench_peers")
 
 
 def test_the_simulated_log_reads_back_and_its_relations_are_the_truth(bench, tmp_path) -> None:

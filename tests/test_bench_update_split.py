@@ -4,37 +4,18 @@ what the kernels alone take)."""
 
 from __future__ import annotations
 
-import importlib.util
-import os
-import sys
-from pathlib import Path
 from types import ModuleType
 
 import pytest
 
 from fuzzypos import sim
 from fuzzypos.demo import DemoSettings
-
-BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
+from helpers import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bench() -> ModuleType:
-    """The benchmark as a module (its import pins the thread counts and puts the benchmarks'
-    folder on the path for ``bench_peers``: both put back afterwards)."""
-    saved_env, saved_path = dict(os.environ), list(sys.path)
-    spec = importlib.util.spec_from_file_location(
-        "bench_update_split", BENCH / "bench_update_split.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    try:
-        spec.loader.exec_module(module)
-    finally:
-        os.environ.clear()
-        os.environ.update(saved_env)
-        sys.path[:] = saved_path
-    return module
+    return load_benchmark("bench_update_split")
 
 
 def test_the_times_over_gicp_are_each_part_over_its_time(bench, capsys) -> None:
