@@ -254,6 +254,17 @@ class LoopClosureConfig:
         "batch with the robust kernel instead)",
         ge=0,
     )
+    isam_factorization: str = _field(
+        "qr",
+        "online, ISAM2 factors each clique by QR of its square-root information, not by "
+        "Cholesky of the information (gtsam's default): along a chain without a closure the "
+        "newest keyframe's position grows uncertain by metres while its heading stays within "
+        "degrees, and Cholesky, working on the information (the condition number squared), "
+        "then declares the system indeterminate (gtsam issue #406) where QR solves it; on a "
+        "chain of a thousand keyframes both cost the same ('cholesky': gtsam's default, for "
+        "comparison; a failure is recovered from either way, summary isam_recoveries)",
+        choices=("qr", "cholesky"),
+    )
     realign: bool = _field(
         True,
         "after the last optimisation every scan is fitted once more (the front end's "

@@ -22,7 +22,15 @@ relations instead of 0.030 m, and took longer.) The front end never hears of the
 corrections: its local map and its poses stay its own; :meth:`OnlineMapper.online_poses` are
 each scan's corrected pose as it was first output. The mapper keeps every scan's points
 (:class:`~.realign.ScanStore`, where ``realign`` is on) so that :meth:`OnlineMapper.finish`
-fits each scan once more to the map the loops closed (:mod:`.realign`)."""
+fits each scan once more to the map the loops closed (:mod:`.realign`).
+
+ISAM2 factors by QR (``isam_factorization``): by Cholesky, a chain of about a thousand
+keyframes without a closure (fr-clinic's) was declared indeterminate, its newest pose
+metres uncertain in position and degrees in heading. Whatever ISAM2 raises is recovered
+from, never lost: ISAM2 is rebuilt over the whole graph from its last estimate, and where
+that fails too the graph is solved in batch (Levenberg-Marquardt) and ISAM2 rebuilt at the
+next update; every keyframe is kept, the poses stay finite, and the failures are counted
+(``isam_recoveries`` in ``summary.json``'s ``loop_closure``)."""
 
 from __future__ import annotations
 
@@ -90,6 +98,10 @@ class OnlineMapper:
         #: every scan's points, for the realignment after the last optimisation
         self._scans = ScanStore(self.config) if self.settings.realign else None
         self.batch_optimisations = 0
+        #: ISAM2's failures recovered from: (the newest keyframe then, gtsam's message)
+        self.isam_failures: list[tuple[int, str]] = []
+        #: the batch solves standing in for ISAM2 where its rebuild failed too
+        self.isam_batch_solves = 0
         #: seconds spent in the graph (ISAM2, candidates, verification, batch optimisations)
         self.seconds = 0.0
 
@@ -161,8 +173,13 @@ class OnlineMapper:
     def _restart(self) -> None:
         """ISAM2 afresh over the graph at its current poses: the anchor, the front end's edges
         and the closures the last optimisation kept (weight ≥ ½; those since, all)."""
+        self._rebuild(self.graph.poses)
+
+    def _whole_graph(self, initial: FloatArray) -> tuple[Any, Any]:
+        """What ISAM2 holds, as one factor graph (the anchor, the front end's edges and the
+        closures the last optimisation kept, weight ≥ ½; those since, all), and ``initial``
+        (a row per keyframe) as its values."""
         g = self._g
-        self._isam = g.ISAM2(g.ISAM2Params())
         weights = self.graph.closure_weights
         kept, closure = [], 0
         for e in self.graph.edges:
@@ -175,9 +192,15 @@ class OnlineMapper:
         anchor = g.noiseModel.Diagonal.Sigmas(np.array(_ANCHOR_SIGMAS))
         graph.add(g.PriorFactorPose2(0, g.Pose2(*map(float, self.graph.poses[0])), anchor))
         values = g.Values()
-        for k, pose in enumerate(self.graph.poses):
+        for k, pose in enumerate(initial):
             values.insert(k, g.Pose2(*map(float, pose)))
-        self._isam_update(graph, values)
+        return graph, values
+
+    def _new_isam(self) -> Any:
+        g = self._g
+        params = g.ISAM2Params()
+        params.setFactorization(self.settings.isam_factorization.upper())
+        return g.ISAM2(params)
 
     def _factor_graph(self, edges: list[Edge]) -> Any:
         """The between factors of ``edges``; closures with a Cauchy kernel where ``robust`` is
@@ -193,9 +216,78 @@ class OnlineMapper:
         return graph
 
     def _isam_update(self, factors: Any, values: Any) -> None:
-        self._isam.update(factors, values)
-        estimate = self._isam.calculateEstimate()
-        self._estimate = np.asarray(self._g.utilities.extractPose2(estimate), dtype=float)
+        """``factors`` and the new ``values`` into ISAM2, and its estimate. Where ISAM2 fails
+        (gtsam raises an indeterminate or ill-conditioned system, or the estimate is not
+        finite) the failure is counted and ISAM2 rebuilt over the whole graph
+        (:meth:`_rebuild`); after a rebuild that failed too, the next update rebuilds it."""
+        if self._isam is None:
+            self._rebuild(self._initial(values))
+            return
+        try:
+            self._isam.update(factors, values)
+            self._estimate = self._solution(self._isam.calculateEstimate())
+        except RuntimeError as exc:
+            self._failed(exc)
+            self._rebuild(self._initial(values))
+
+    def _rebuild(self, initial: FloatArray) -> None:
+        """ISAM2 afresh over the whole graph from ``initial`` (a row per keyframe). Where that
+        fails too, the whole graph is solved in batch by Levenberg-Marquardt, whose damping
+        solves what ISAM2's undamped Gauss-Newton step cannot (else the estimate is
+        ``initial``, finite), and ISAM2 waits for the next update to be rebuilt."""
+        graph, values = self._whole_graph(initial)
+        self._isam = self._new_isam()
+        try:
+            self._isam.update(graph, values)
+            self._estimate = self._solution(self._isam.calculateEstimate())
+            return
+        except RuntimeError as exc:
+            self._failed(exc)
+        self._isam = None
+        self.isam_batch_solves += 1
+        g = self._g
+        try:
+            solved = g.LevenbergMarquardtOptimizer(graph, values, g.LevenbergMarquardtParams())
+            self._estimate = self._solution(solved.optimize())
+        except RuntimeError as exc:
+            self._failed(exc)
+            self._estimate = np.array(initial, dtype=float)
+
+    def _initial(self, values: Any) -> FloatArray:
+        """A row per keyframe to rebuild from: ISAM2's last estimate, the new ``values``, and
+        the graph's poses for any other keyframe."""
+        initial = np.array(self.graph.poses, dtype=float)
+        m = min(len(self._estimate), len(initial))
+        initial[:m] = self._estimate[:m]
+        keys = values.keys()  # gtsam's Values: keys(), not iterable
+        for key in keys:
+            p = values.atPose2(key)
+            initial[int(key)] = (p.x(), p.y(), p.theta())
+        return initial
+
+    def _solution(self, values: Any) -> FloatArray:
+        """The keyframes' poses in gtsam ``values``; a RuntimeError where one is not finite."""
+        out = np.asarray(self._g.utilities.extractPose2(values), dtype=float).reshape(-1, 3)
+        if not np.all(np.isfinite(out)):
+            raise RuntimeError("ISAM2's estimate is not finite")
+        return out
+
+    def _failed(self, exc: RuntimeError) -> None:
+        """Count an ISAM2 failure (and the batch solve's, where that failed too)."""
+        self.isam_failures.append((len(self.graph) - 1, " ".join(str(exc).split())))
+
+    @property
+    def isam_recoveries(self) -> dict[str, Any]:
+        """The failures recovered from (``count``; gtsam's exceptions, an estimate not finite),
+        the batch solves they needed, the first's keyframe and message: for ``summary.json``."""
+        first = self.isam_failures[0] if self.isam_failures else (None, None)
+        return {
+            "count": len(self.isam_failures),
+            "batch_solves": self.isam_batch_solves,
+            "first_keyframe": first[0],
+            "first_message": first[1],
+            "factorization": self.settings.isam_factorization,
+        }
 
     def _keep_for_map(self, k: int, est: Estimate, front: FloatArray) -> None:
         """Keep the scan's points for the map where its front-end pose moved
@@ -243,5 +335,9 @@ class OnlineMapper:
             self.graph, self.closer, self.config, self.seconds,
             online=self.online_poses(), map_scans=self._map_scans, scans=self._scans,
         )  # fmt: skip
-        result.summary.update(mode="online", batch_optimisations=self.batch_optimisations)
+        result.summary.update(
+            mode="online",
+            batch_optimisations=self.batch_optimisations,
+            isam_recoveries=self.isam_recoveries,
+        )
         return result
