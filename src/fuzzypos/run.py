@@ -31,7 +31,11 @@ Ctrl-C after some scans keeps them: the files below (but ``path.png``) for the s
                     frame, as the bag's (below); the :class:`~fuzzypos.pipeline.Reason`
                     (``reason``, its value, quoted where it has a comma) and ``degraded``
                     (0/1). Left out with a note where the positioner gives no covariance
-``summary.json``    what ran on what, how fast, how well, and why (:func:`run_log`)
+``summary.json``    what ran on what, how fast, how well (:func:`run_log`), and why:
+                    ``reasons``, the scans per :class:`~fuzzypos.pipeline.Reason` (by its
+                    value, each that occurred); ``odometry_noise``, the odometry's noise as
+                    learned by the end of the run
+                    (:meth:`~fuzzypos.pipeline.OdometryNoise.as_dict`)
 ================  ==========================================================================
 
 With ``bag_out=`` the estimate also goes into a bag as it runs (:class:`_CovarianceOut`,
@@ -76,7 +80,7 @@ from .geometry import Cov3Upper, Pose2D, covariance_to_parent3, propagate3
 from .graph import OnlineMapper, require_gtsam
 from .io import CarmenWriter, LogRecord, OdometryBagWriter, Relations, write_tum
 from .logs import OpenLog, open_log, select_records, select_stamps
-from .pipeline import Estimate, OdometryNoise, Positioner, Reason
+from .pipeline import Estimate, Positioner, Reason
 from .provenance import file_sha256, git_hash, write_json
 from .scan import LaserScan
 
@@ -604,8 +608,7 @@ def _finish(
     clf: CarmenWriter,
     outputs: _CovarianceOut,
     *,
-    jumps: int,
-    noise: OdometryNoise,
+    positioner: Positioner,
     labels: dict[str, Any],
     out_tum: str | os.PathLike[str] | None,
     relations: Relations | None,
@@ -614,6 +617,7 @@ def _finish(
     hash_input: bool,
 ) -> RunSummary:
     """After the loop: write the results folder (``summary.json`` last) and sum the run up."""
+    jumps = int(positioner.odometry_jumps)
     notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
     a = _Arrays.of(track)
     loop = None
@@ -656,7 +660,7 @@ def _finish(
         relations=rel,
         notes=notes,
         files=files,
-        odometry_noise=noise.as_dict(),
+        odometry_noise=positioner.odometry_noise.as_dict(),
     )
     if loop is not None:
         summary["loop_closure"] = loop.summary
@@ -724,19 +728,16 @@ def run_log(
     ``summary.json`` holds: ``fuzzypos_version``, ``git_hash``
     (:func:`~fuzzypos.provenance.git_hash`), ``input`` (``path``, ``sha256``
     (:func:`~fuzzypos.provenance.file_sha256`; None with ``hash_input=False``), ``kind``, reader
-    ``options``), ``selection``, ``scans``, ``scans_degraded``, ``reasons`` (the scans per
-    :class:`~fuzzypos.pipeline.Reason`, by its value, for every reason that occurred),
-    ``odometry_noise`` (the odometry noise learned by the end of the run,
-    :meth:`~fuzzypos.pipeline.OdometryNoise.as_dict`), ``odometry_jumps_rejected``, ``seconds``
-    (the whole loop: reading, positioning, writing), ``scans_per_second`` (``scans / seconds``),
-    ``positioner_seconds`` and ``positioner_ms_per_scan`` (inside :meth:`Positioner.update`
-    only), ``config`` (``preset``, ``file``), ``bad_lines_skipped``,
-    ``first_stamp``/``last_stamp``, ``has_odometry``, ``truth_errors``
-    (:func:`~fuzzypos.evaluation.trajectory_errors` of the estimate and of the odometry against
-    the log's ``TRUEPOS``, where every scan has one; else None), ``relations`` (or None),
-    ``notes``, ``files``, and ``partial`` (False) with ``partial_reason`` (None). Loop closure
-    (online, :class:`~fuzzypos.graph.OnlineMapper`): the optimised poses, ``loop_closure`` with
-    ``relations_frontend`` and ``relations_online``.
+    ``options``), ``selection``, ``scans``, ``scans_degraded``, ``reasons``, ``odometry_noise``
+    (module docstring), ``odometry_jumps_rejected``, ``seconds`` (the whole loop: reading,
+    positioning, writing), ``scans_per_second`` (``scans / seconds``), ``positioner_seconds``
+    and ``positioner_ms_per_scan`` (inside :meth:`Positioner.update` only), ``config``
+    (``preset``, ``file``), ``bad_lines_skipped``, ``first_stamp``/``last_stamp``,
+    ``has_odometry``, ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the
+    estimate and of the odometry against the log's ``TRUEPOS``, where every scan has one; else
+    None), ``relations`` (or None), ``notes``, ``files``, and ``partial`` (False) with
+    ``partial_reason`` (None). Loop closure (online, :class:`~fuzzypos.graph.OnlineMapper`): the
+    optimised poses, ``loop_closure`` with ``relations_frontend`` and ``relations_online``.
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
     log) or ``OSError``. An error or ``KeyboardInterrupt`` after some scans is raised once
@@ -777,8 +778,7 @@ def run_log(
         track,
         clf,
         outputs,
-        jumps=int(positioner.odometry_jumps),
-        noise=positioner.odometry_noise,
+        positioner=positioner,
         labels=labels,
         out_tum=out_tum,
         relations=relations,
