@@ -17,7 +17,7 @@ the pose itself (the robot's frame); its covariance is the 3×3 ``E[ε εᵀ]``,
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import TypeGuard
 
@@ -373,6 +373,24 @@ class Pose2D:
         if a.shape != (3,):
             raise ValueError(f"a pose array needs 3 values (x, y, theta), got {a.shape[0]}")
         return cls(float(a[0]), float(a[1]), float(a[2]))
+
+    @classmethod
+    def of(cls, pose: Pose2D | Sequence[float], name: str = "pose") -> Pose2D:
+        """``pose`` as a Pose2D: itself, or a sequence ``(x, y, theta)`` of three finite
+        numbers (a tuple, a list, a 1-D array). A ``TypeError`` for anything else, a
+        ``ValueError`` for another length or a value that is no finite number, each naming
+        ``name``."""
+        if isinstance(pose, Pose2D):
+            return pose
+        is_1d = isinstance(pose, Sequence) or (isinstance(pose, np.ndarray) and pose.ndim == 1)
+        if isinstance(pose, (str, bytes)) or not is_1d:
+            raise TypeError(f"{name} must be a Pose2D or (x, y, theta), got {type(pose).__name__}")
+        if len(pose) != 3:
+            raise ValueError(f"{name} must be (x, y, theta), got {len(pose)} values")
+        try:
+            return cls(*pose)  # (its checks: each a finite number)
+        except ValueError as exc:
+            raise ValueError(f"{name}: {exc}") from None
 
     @classmethod
     def identity(cls) -> Pose2D:
