@@ -602,8 +602,9 @@ def run(
     scan, stamped as in the log, in file order), trajectory.clf (the log with the estimate
     as FLASER's or ROBOTLASER1's pose and the odometry kept), config.toml, path.png (path,
     odometry and map) and summary.json (versions, input hash, scans, degraded scans,
-    odometry jumps, speed, errors against the log's truth where it has some), and
-    covariance.csv (each increment's covariance).
+    odometry jumps, speed, errors against the log's truth where it has some, the scans per
+    reason, the learned odometry noise), and covariance.csv (each scan's step and pose
+    covariance, reason and whether degraded).
     --bag-out also writes the estimate with its covariance into a bag. Prints the scan rate
     and where the results are. A run stopped by an error or Ctrl-C keeps the scans done,
     marked "partial" in summary.json.
