@@ -53,7 +53,6 @@ and the points of every ``map_every``-th scan are kept, never the scans.
 from __future__ import annotations
 
 import contextlib
-import csv
 import functools
 import math
 import os
@@ -272,52 +271,58 @@ class _CovarianceOut:
         self.path, self.source = out / "covariance.csv", source
         self._tmp = out / ".covariance.csv.part"
         self._csv: Any = None
-        self._rows: Any = None  # the csv writer over it
+        self._reasons: dict[object, str] = {}  # reason → its CSV field
         self.has_covariance = True
         self.notes: list[str] = []
         self.bag = None if bag_out is None else OdometryBagWriter(bag_out, storage)
         self._pose_cov: Cov3Upper = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # in the pose's frame
         self._stamp = math.nan
 
-    def _covariance(self, k: int, est: Estimate) -> np.ndarray | None:
-        """The estimate's covariance, checked; None where the run has none."""
-        where = f"{self.source}: scan {k + 1} (stamp {est.stamp!r})"
+    def _covariance(self, k: int, est: Estimate) -> tuple[np.ndarray, list[list[float]]] | None:
+        """The estimate's covariance, checked, and as floats; None where the run has none."""
         if est.covariance is None:
             if k == 0 and self.bag is None:
                 self.has_covariance = False
                 self.notes.append("no covariance.csv: the positioner gave no covariance")
             if not self.has_covariance:
                 return None
-            raise ValueError(f"{where}: the estimate has no covariance (Estimate.covariance)")
+            what = "the estimate has no covariance (Estimate.covariance)"
+            raise ValueError(f"{self._where(k, est)}: {what}")
         cov = np.asarray(est.covariance, dtype=np.float64)
-        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
-            raise ValueError(f"{where}: the covariance must be a finite 3x3 array")
-        return cov
+        c = cov.tolist()  # Python floats: the same repr, without a numpy scalar per entry
+        if cov.shape != (3, 3) or not all(math.isfinite(v) for row in c for v in row):
+            raise ValueError(f"{self._where(k, est)}: the covariance must be a finite 3x3 array")
+        return cov, c
+
+    def _where(self, k: int, est: Estimate) -> str:
+        return f"{self.source}: scan {k + 1} (stamp {est.stamp!r})"
+
+    def _reason(self, reason: object) -> str:
+        """``reason``'s value as a CSV field (quoted where it has a comma or a quote)."""
+        field = self._reasons.get(reason)
+        if field is None:
+            text = str(reason)
+            quote = any(ch in text for ch in ',"\r\n')
+            field = '"' + text.replace('"', '""') + '"' if quote else text
+            self._reasons[reason] = field
+        return field
 
     def write(self, k: int, est: Estimate) -> None:
-        cov = self._covariance(k, est)
-        if cov is None:
+        checked = self._covariance(k, est)
+        if checked is None:
             return
+        cov, c = checked
         if self._csv is None:
-            # (closed by close)
-            self._csv = open(self._tmp, "w", encoding="utf-8", newline="")  # noqa: SIM115
-            self._rows = csv.writer(self._csv, lineterminator="\n")
-            self._rows.writerow(COVARIANCE_COLUMNS)
-        c = cov.tolist()  # Python floats: the same repr, without a numpy scalar per entry
+            self._csv = open(self._tmp, "w", encoding="utf-8")  # noqa: SIM115 (closed by close)
+            self._csv.write(",".join(COVARIANCE_COLUMNS) + "\n")
         step = (c[0][0], c[0][1], c[0][2], c[1][1], c[1][2], c[2][2])
         inc = est.increment
         pose_cov = step if k == 0 else propagate3(self._pose_cov, (inc.x, inc.y, inc.theta), step)
         self._pose_cov = pose_cov
         in_trajectory = covariance_to_parent3(est.pose.theta, pose_cov)
-        self._rows.writerow(
-            [
-                repr(float(est.stamp)),
-                *map(repr, step),
-                *map(repr, in_trajectory),
-                str(est.reason),
-                "1" if est.degraded else "0",
-            ]
-        )
+        numbers = ",".join(map(repr, (float(est.stamp), *step, *in_trajectory)))
+        why = self._reason(est.reason)
+        self._csv.write(f"{numbers},{why},{1 if est.degraded else 0}\n")
         if self.bag is not None:
             self._write_bag(k, est, cov, in_trajectory)
 
