@@ -17,8 +17,10 @@ from fuzzypos.geometry import (
     compose,
     compose_jacobians,
     covariance_to_parent,
+    covariance_to_parent3,
     inverse,
     propagate,
+    propagate3,
     wrap_angle,
 )
 
@@ -197,3 +199,41 @@ def test_covariance_to_parent_is_a_rotation(p, c):
 def test_bad_shapes_and_values_raise(call):
     with pytest.raises(ValueError, match=r"covariance|pose|finite|one"):
         call()
+
+
+# -- the float versions (the run job's, once a scan) ---------------------------------------------
+def _upper(c: np.ndarray) -> tuple[float, ...]:
+    return tuple(float(c[i, j]) for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)))
+
+
+@settings(max_examples=200, deadline=None)
+@given(spd, pose, spd)
+def test_propagate3_is_propagate_in_floats(p, u, c):
+    P, C = _cov(p), _cov(c)
+    # a correlated heading too, which the diagonal-free _cov leaves out
+    P[0, 2] = P[2, 0] = 0.3 * math.sqrt(P[0, 0] * P[2, 2])
+    C[1, 2] = C[2, 1] = -0.2 * math.sqrt(C[1, 1] * C[2, 2])
+    got = propagate3(_upper(P), tuple(u.tolist()), _upper(C))
+    want = _upper(propagate(P, u, C))
+    scale = float(np.abs(want).max())
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * scale)
+
+
+@settings(max_examples=200, deadline=None)
+@given(spd, pose)
+def test_covariance_to_parent3_is_covariance_to_parent_in_floats(p, where):
+    P = _cov(p)
+    P[1, 2] = P[2, 1] = 0.4 * math.sqrt(P[1, 1] * P[2, 2])
+    got = covariance_to_parent3(float(where[2]), _upper(P))
+    want = _upper(covariance_to_parent(where, P))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-14 * float(np.abs(want).max()))
+
+
+def test_the_float_versions_known_geometry():
+    """The heading's error carried 2 m ahead (a lateral error 2σ); seen from a pose turned by
+    90°, x and y swap."""
+    s2, d = 0.01**2, 2.0
+    got = propagate3((0.0, 0.0, 0.0, 0.0, 0.0, s2), (d, 0.0, 0.0), (0.0,) * 6)
+    np.testing.assert_allclose(got, (0, 0, 0, d * d * s2, d * s2, s2), atol=1e-18)
+    got = covariance_to_parent3(math.pi / 2, (4e-4, 0.0, 0.0, 1e-4, 0.0, 1e-6))
+    np.testing.assert_allclose(got, (1e-4, 0.0, 0.0, 4e-4, 0.0, 1e-6), atol=1e-18)

@@ -434,8 +434,9 @@ def test_update_rejects_a_non_scan() -> None:
         with pytest.raises(TypeError):
             pos.update(bad)  # type: ignore[arg-type]
     assert pos.pose is None  # nothing was consumed
-    with pytest.raises(TypeError):
-        pos.update(scan, (0.0, 0.0, 0.0))  # type: ignore[arg-type]
+    with pytest.raises(TypeError):  # ((x, y, θ) is odometry: the test below)
+        pos.update(scan, {"x": 0.0, "y": 0.0, "theta": 0.0})  # type: ignore[arg-type]
+    assert pos.pose is None
     pos.update(scan)
     assert pos.pose == Pose2D()
 
@@ -533,3 +534,31 @@ def test_the_positioners_fast_estimate_is_the_constructors() -> None:
     with pytest.raises(dataclasses.FrozenInstanceError):
         fast.n_pairs = 3  # type: ignore[misc]
     assert dataclasses.replace(fast, features=None).n_pairs == 7
+
+
+def test_update_takes_the_odometry_as_x_y_theta() -> None:
+    """Issue 35: ``update(scan, (x, y, θ))`` (a tuple, a list or a 1-D array) positions as a
+    Pose2D does; anything else is refused, naming ``odom``."""
+    room = sim.rectangular_room(8.0, 6.0)
+    scanner = sim.ScannerModel(
+        n_beams=360, field_of_view_deg=360.0, angle_min_deg=-180.0, range_max=20.0
+    )
+    poses = [Pose2D(0.0, 0.0, 0.0), Pose2D(0.1, 0.02, 0.05), Pose2D(0.2, 0.03, 0.1)]
+    scans = [sim.simulate_scan(room, p, scanner, stamp=0.1 * k) for k, p in enumerate(poses)]
+    want = [e.pose for e in Positioner().run(scans, poses)]
+    for as_odometry in (tuple, list, np.array):
+        pos = Positioner()
+        got = [pos.update(s, as_odometry([p.x, p.y, p.theta])) for s, p in zip(scans, poses)]
+        assert [e.pose for e in got] == want, as_odometry
+        assert [e.reason for e in got] == [Reason.FIRST_SCAN, Reason.MATCHED, Reason.MATCHED]
+    bad = [
+        ("0.1", TypeError, r"odom must be a Pose2D or \(x, y, theta\), got str"),
+        ({"x": 0.1}, TypeError, "got dict"),
+        (np.zeros((3, 1)), TypeError, "got ndarray"),
+        ((0.1, 0.2), ValueError, r"odom must be \(x, y, theta\), got 2 values"),
+        ((0.1, math.nan, 0.0), ValueError, "odom: Pose2D.y must be finite"),
+        ([0.1, "y", 0.0], ValueError, "odom: Pose2D.y must be a number"),
+    ]
+    for odom, error, message in bad:
+        with pytest.raises(error, match=message):
+            Positioner().update(scans[0], odom)  # type: ignore[arg-type]

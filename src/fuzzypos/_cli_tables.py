@@ -9,7 +9,7 @@ from typing import Any
 from rich.table import Table
 from rich.text import Text
 
-__all__ = ["benchmark_table", "loop_closure_lines", "pm"]
+__all__ = ["benchmark_table", "loop_closure_lines", "pm", "relations_line"]
 
 _BENCHMARK_COLUMNS = (
     "log",
@@ -85,10 +85,15 @@ def loop_closure_lines(summary: dict[str, Any]) -> list[str]:
         )
         if rel
     ]
-    for name, rel in scored:
-        lines.append(
-            f"  relations, {name}: all {rel['all_trans_mean_m']:.3f} m / "
-            f"{rel['all_rot_mean_deg']:.2f}°, local {rel['local_trans_mean_m']:.4f} m / "
-            f"{rel['local_rot_mean_deg']:.3f}°"
-        )
+    lines.extend(f"  {relations_line(rel, name)}" for name, rel in scored)
     return lines
+
+
+def relations_line(rel: dict[str, Any], name: str = "") -> str:
+    """The relations metric of a run (``summary.json``'s ``relations``) in one line: all and
+    local relations' mean translation (m) and rotation (°) errors."""
+    return (
+        f"relations{f', {name}' if name else ''}: all {rel['all_trans_mean_m']:.3f} m / "
+        f"{rel['all_rot_mean_deg']:.2f}°, local {rel['local_trans_mean_m']:.4f} m / "
+        f"{rel['local_rot_mean_deg']:.3f}°"
+    )

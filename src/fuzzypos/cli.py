@@ -12,15 +12,16 @@ import re
 import time
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, NoReturn
+from typing import TYPE_CHECKING, Annotated, NoReturn
 
 import typer
 from rich.console import Console
 from rich.progress import Progress, TaskID
 from rich.table import Table
-from typer.core import TyperArgument, TyperCommand, TyperGroup
+from typer.core import TyperCommand
 
-from ._cli_tables import benchmark_table, loop_closure_lines
+from ._cli_help import VERSION, Command, Group
+from ._cli_tables import benchmark_table, loop_closure_lines, relations_line
 from ._version import __version__
 from .config import Config, ConfigError
 
@@ -28,42 +29,18 @@ if TYPE_CHECKING:
     from .logs import NoReturnCount, OpenLog
 
 
-class _Plain:
-    """Flags in the help without typer's ``<bool>`` (it shows a metavar in place of the type)."""
-
-    def get_params(self, ctx: Any) -> list[Any]:
-        params: list[Any] = super().get_params(ctx)  # type: ignore[misc]
-        for p in params:
-            if getattr(p, "is_flag", False) and p.metavar is None:
-                p.metavar = ""
-        return params
-
-
-class _Group(_Plain, TyperGroup):
-    pass
-
-
-class _Command(_Plain, TyperCommand):
-    """A command whose usage line names its arguments ``LOG``, not typer's ``{log}``."""
-
-    def collect_usage_pieces(self, ctx: Any) -> list[str]:
-        pieces = [self.options_metavar] if self.options_metavar else []
-        for p in self.get_params(ctx):
-            if isinstance(p, TyperArgument):
-                name = (p.metavar or p.name or "").upper() + ("..." if p.nargs != 1 else "")
-                pieces.append(name if p.required else f"[{name}]")
-            else:
-                pieces.extend(p.get_usage_pieces(ctx))
-        return pieces
-
-
 app = typer.Typer(
-    cls=_Group,
+    cls=Group,
     add_completion=False,
     no_args_is_help=True,
     help="Fuzzy-based positioning from 2D laser scans and odometry.",
 )
 console = Console()
+
+
+@app.callback()
+def _main(version: Annotated[bool, VERSION] = False) -> None:
+    pass
 
 
 def _fail(message: str, code: int = 2) -> NoReturn:
@@ -612,8 +589,9 @@ def run(
         Path | None,
         typer.Option(
             "--relations",
-            help="score the trajectory against this relations file (summary.json's "
-            "relations; with --loop-closure the front end's and the online poses' too)",
+            help="score the trajectory against this relations file (printed, and "
+            "summary.json's relations; with --loop-closure the front end's and the online "
+            "poses' too)",
             readable=False,
         ),
     ] = None,
@@ -624,8 +602,9 @@ def run(
     scan, stamped as in the log, in file order), trajectory.clf (the log with the estimate
     as FLASER's or ROBOTLASER1's pose and the odometry kept), config.toml, path.png (path,
     odometry and map) and summary.json (versions, input hash, scans, degraded scans,
-    odometry jumps, speed, errors against the log's truth where it has some), and
-    covariance.csv (each increment's covariance).
+    odometry jumps, speed, errors against the log's truth where it has some, the scans per
+    reason, the learned odometry noise), and covariance.csv (each scan's step and pose
+    covariance, reason and whether degraded).
     --bag-out also writes the estimate with its covariance into a bag. Prints the scan rate
     and where the results are. A run stopped by an error or Ctrl-C keeps the scans done,
     marked "partial" in summary.json.
@@ -695,6 +674,8 @@ def run(
         )
     for line in loop_closure_lines(s):
         typer.echo(line)
+    if s["relations"] and not s.get("loop_closure"):  # (loop closure's lines have them)
+        typer.echo(relations_line(s["relations"]))
     for note in summary.notes:
         typer.echo(f"note: {note}")
     typer.echo(
@@ -881,7 +862,7 @@ for _command in app.registered_commands:  # every command's help from its docstr
     if _command.help is None and _command.callback is not None and _command.callback.__doc__:
         _command.help = _unwrap(_command.callback.__doc__)
     if _command.cls in (None, TyperCommand):
-        _command.cls = _Command
+        _command.cls = Command
 
 
 def main() -> None:  # pragma: no cover - console entry point

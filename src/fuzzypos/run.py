@@ -22,12 +22,20 @@ Ctrl-C after some scans keeps them: the files below (but ``path.png``) for the s
                     loads back with :meth:`~fuzzypos.config.Config.from_toml`)
 ``path.png``        the estimated path and the odometry over a map of every
                     ``map_every``-th scan's points placed by the estimate
-``covariance.csv``  a header line, then one row per scan: the stamp (``repr``, as in
-                    ``trajectory.tum``) and the six entries ``xx xy xθ yy yθ θθ`` of the
-                    increment's covariance (:attr:`~fuzzypos.pipeline.Estimate.covariance`),
-                    comma-separated (:data:`COVARIANCE_COLUMNS`); left out with a note where
-                    the positioner gives no covariance
-``summary.json``    what ran on what, how fast, and how well (:func:`run_log`)
+``covariance.csv``  a header line, then one row per scan (:data:`COVARIANCE_COLUMNS`,
+                    comma-separated): the stamp (``repr``, as in ``trajectory.tum``); the six
+                    entries ``xx xy xθ yy yθ θθ`` of the step's (the increment's) covariance
+                    (:attr:`~fuzzypos.pipeline.Estimate.covariance`, in the previous scan's
+                    frame); the same six of the pose's covariance ``pose_xx … pose_θθ``, the
+                    steps' propagated from the first scan and turned into the trajectory
+                    frame, as the bag's (below); the :class:`~fuzzypos.pipeline.Reason`
+                    (``reason``, its value, quoted where it has a comma) and ``degraded``
+                    (0/1). Left out with a note where the positioner gives no covariance
+``summary.json``    what ran on what, how fast, how well (:func:`run_log`), and why:
+                    ``reasons``, the scans per :class:`~fuzzypos.pipeline.Reason` (by its
+                    value, each that occurred); ``odometry_noise``, the odometry's noise as
+                    learned by the end of the run
+                    (:meth:`~fuzzypos.pipeline.OdometryNoise.as_dict`)
 ================  ==========================================================================
 
 With ``bag_out=`` the estimate also goes into a bag as it runs (:class:`_CovarianceOut`,
@@ -67,11 +75,11 @@ from .folders import (
     default_results_dir,
     log_label,
 )
-from .geometry import Pose2D, covariance_to_parent, propagate
+from .geometry import Cov3Upper, Pose2D, covariance_to_parent3, propagate3
 from .graph import OnlineMapper, require_gtsam
 from .io import CarmenWriter, LogRecord, OdometryBagWriter, Relations, write_tum
 from .logs import OpenLog, open_log, select_records, select_stamps
-from .pipeline import Estimate, Positioner
+from .pipeline import Estimate, Positioner, Reason
 from .provenance import file_sha256, git_hash, write_json
 from .scan import LaserScan
 
@@ -96,9 +104,13 @@ _LOG_SUFFIXES = (".gz", ".clf", ".log", ".bag", ".carmen")
 #: where :func:`partial_results` finds what a stopped run kept
 _PARTIAL = "fuzzypos_partial_results"
 
-#: ``covariance.csv``'s columns: the stamp, then the increment covariance's upper triangle
-COVARIANCE_COLUMNS = ("stamp", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
-_UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+#: ``covariance.csv``'s first columns, as they always were: the stamp, then the step's (the
+#: increment's) covariance's upper triangle
+STEP_COVARIANCE_COLUMNS = ("stamp", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
+#: then the pose's covariance in the trajectory frame, likewise
+POSE_COVARIANCE_COLUMNS = tuple(f"pose_{c}" for c in STEP_COVARIANCE_COLUMNS[1:])
+#: ``covariance.csv``'s columns (module docstring)
+COVARIANCE_COLUMNS = (*STEP_COVARIANCE_COLUMNS, *POSE_COVARIANCE_COLUMNS, "reason", "degraded")
 
 #: how often (in scans) :func:`run_log` reports its progress
 _PROGRESS_EVERY = 25
@@ -229,6 +241,8 @@ class _Track:
     truths: list[Row | None] = field(default_factory=list)
     map_points: list[np.ndarray | None] = field(default_factory=list)
     degraded: int = 0
+    #: the scans per reason (:class:`~fuzzypos.pipeline.Reason`'s value)
+    reasons: dict[str, int] = field(default_factory=dict)
     positioner_seconds: float = 0.0
     seconds: float = 0.0
     #: what stopped the run before the end of the stretch (an error, Ctrl-C), and why
@@ -244,9 +258,12 @@ class _Track:
 
 class _CovarianceOut:
     """``covariance.csv`` (written to a temporary name, renamed by :meth:`close`) and, with
-    ``bag_out``, the bag, streamed scan by scan (module docstring). A scan without a
-    covariance is a ``ValueError`` naming it, but where the first has none and no bag is
-    asked for: then there is no ``covariance.csv`` (a note says so)."""
+    ``bag_out``, the bag, streamed scan by scan (module docstring). The pose's covariance is
+    carried in floats (:func:`~fuzzypos.geometry.propagate3`,
+    :func:`~fuzzypos.geometry.covariance_to_parent3`: :func:`~fuzzypos.geometry.propagate`'s
+    and :func:`~fuzzypos.geometry.covariance_to_parent`'s to rounding, a tenth of their time).
+    A scan without a covariance is a ``ValueError`` naming it, but where the first has none
+    and no bag is asked for: then there is no ``covariance.csv`` (a note says so)."""
 
     def __init__(
         self, out: Path, source: str, bag_out: str | os.PathLike[str] | None, storage: str | None
@@ -254,49 +271,70 @@ class _CovarianceOut:
         self.path, self.source = out / "covariance.csv", source
         self._tmp = out / ".covariance.csv.part"
         self._csv: Any = None
+        self._reasons: dict[object, str] = {}  # reason → its CSV field
         self.has_covariance = True
         self.notes: list[str] = []
         self.bag = None if bag_out is None else OdometryBagWriter(bag_out, storage)
-        self._pose_cov = np.zeros((3, 3))
+        self._pose_cov: Cov3Upper = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # in the pose's frame
         self._stamp = math.nan
 
-    def _covariance(self, k: int, est: Estimate) -> np.ndarray | None:
-        """The estimate's covariance, checked; None where the run has none."""
-        where = f"{self.source}: scan {k + 1} (stamp {est.stamp!r})"
+    def _covariance(self, k: int, est: Estimate) -> tuple[np.ndarray, list[list[float]]] | None:
+        """The estimate's covariance, checked, and as floats; None where the run has none."""
         if est.covariance is None:
             if k == 0 and self.bag is None:
                 self.has_covariance = False
                 self.notes.append("no covariance.csv: the positioner gave no covariance")
             if not self.has_covariance:
                 return None
-            raise ValueError(f"{where}: the estimate has no covariance (Estimate.covariance)")
+            what = "the estimate has no covariance (Estimate.covariance)"
+            raise ValueError(f"{self._where(k, est)}: {what}")
         cov = np.asarray(est.covariance, dtype=np.float64)
-        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
-            raise ValueError(f"{where}: the covariance must be a finite 3x3 array")
-        return cov
+        c = cov.tolist()  # Python floats: the same repr, without a numpy scalar per entry
+        if cov.shape != (3, 3) or not all(math.isfinite(v) for row in c for v in row):
+            raise ValueError(f"{self._where(k, est)}: the covariance must be a finite 3x3 array")
+        return cov, c
+
+    def _where(self, k: int, est: Estimate) -> str:
+        return f"{self.source}: scan {k + 1} (stamp {est.stamp!r})"
+
+    def _reason(self, reason: object) -> str:
+        """``reason``'s value as a CSV field (quoted where it has a comma or a quote)."""
+        field = self._reasons.get(reason)
+        if field is None:
+            text = str(reason)
+            quote = any(ch in text for ch in ',"\r\n')
+            field = '"' + text.replace('"', '""') + '"' if quote else text
+            self._reasons[reason] = field
+        return field
 
     def write(self, k: int, est: Estimate) -> None:
-        cov = self._covariance(k, est)
-        if cov is None:
+        checked = self._covariance(k, est)
+        if checked is None:
             return
+        cov, c = checked
         if self._csv is None:
             self._csv = open(self._tmp, "w", encoding="utf-8")  # noqa: SIM115 (closed by close)
             self._csv.write(",".join(COVARIANCE_COLUMNS) + "\n")
-        c = cov.tolist()  # Python floats: the same repr, without a numpy scalar per entry
-        row = [repr(float(est.stamp)), *(repr(c[i][j]) for i, j in _UPPER)]
-        self._csv.write(",".join(row) + "\n")
-        if self.bag is not None:
-            self._write_bag(k, est, cov)
-
-    def _write_bag(self, k: int, est: Estimate, cov: np.ndarray) -> None:
+        step = (c[0][0], c[0][1], c[0][2], c[1][1], c[1][2], c[2][2])
         inc = est.increment
-        self._pose_cov = cov if k == 0 else propagate(self._pose_cov, inc.as_array(), cov)
+        pose_cov = step if k == 0 else propagate3(self._pose_cov, (inc.x, inc.y, inc.theta), step)
+        self._pose_cov = pose_cov
+        in_trajectory = covariance_to_parent3(est.pose.theta, pose_cov)
+        numbers = ",".join(map(repr, (float(est.stamp), *step, *in_trajectory)))
+        why = self._reason(est.reason)
+        self._csv.write(f"{numbers},{why},{1 if est.degraded else 0}\n")
+        if self.bag is not None:
+            self._write_bag(k, est, cov, in_trajectory)
+
+    def _write_bag(self, k: int, est: Estimate, cov: np.ndarray, pose_cov: Cov3Upper) -> None:
+        inc = est.increment
         dt = est.stamp - self._stamp
         twist, twist_cov = (0.0, 0.0, 0.0), None
         if k > 0 and dt > 0.0:
             twist, twist_cov = (inc.x / dt, inc.y / dt, inc.theta / dt), cov / (dt * dt)
         self._stamp = est.stamp
-        world_cov = covariance_to_parent(est.pose.as_array(), self._pose_cov)
+        xx, xy, xt, yy, yt, tt = pose_cov
+        world_cov = np.array([[xx, xy, xt], [xy, yy, yt], [xt, yt, tt]])
         assert self.bag is not None
         self.bag.write(est.stamp, est.pose, world_cov, twist, twist_cov)
 
@@ -362,6 +400,8 @@ def _position_along(
             track.odoms.append(_row(odom))
             track.truths.append(_row(rec.truth))
             track.degraded += bool(est.degraded)
+            why = str(est.reason)
+            track.reasons[why] = track.reasons.get(why, 0) + 1
             if plot:
                 track.map_points.append(scan.points_robot(bands) if k % map_every == 0 else None)
             if progress is not None and (k + 1) % _PROGRESS_EVERY == 0:
@@ -520,6 +560,7 @@ def _summary(
     relations: dict[str, Any] | None,
     notes: list[str],
     files: dict[str, Path],
+    odometry_noise: dict[str, Any],
 ) -> dict[str, Any]:
     """The content of ``summary.json`` (:func:`run_log`)."""
     n, seconds = len(track), track.seconds
@@ -537,6 +578,8 @@ def _summary(
         "partial_reason": track.partial_reason,
         "scans": n,
         "scans_degraded": track.degraded,
+        "reasons": _reason_counts(track.reasons),
+        "odometry_noise": odometry_noise,
         "odometry_jumps_rejected": jumps,
         "seconds": seconds,
         "scans_per_second": n / seconds if seconds > 0 else None,
@@ -556,6 +599,12 @@ def _summary(
     }
 
 
+def _reason_counts(counts: dict[str, int]) -> dict[str, int]:
+    """The scans per reason, in :class:`~fuzzypos.pipeline.Reason`'s order (any other after)."""
+    order = [r.value for r in Reason if r.value in counts]
+    return {why: counts[why] for why in [*order, *(w for w in counts if w not in order)]}
+
+
 def _finish(
     out: Path,
     log: OpenLog,
@@ -564,7 +613,7 @@ def _finish(
     clf: CarmenWriter,
     outputs: _CovarianceOut,
     *,
-    jumps: int,
+    positioner: Positioner,
     labels: dict[str, Any],
     out_tum: str | os.PathLike[str] | None,
     relations: Relations | None,
@@ -573,6 +622,7 @@ def _finish(
     hash_input: bool,
 ) -> RunSummary:
     """After the loop: write the results folder (``summary.json`` last) and sum the run up."""
+    jumps = int(positioner.odometry_jumps)
     notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
     a = _Arrays.of(track)
     loop = None
@@ -615,6 +665,7 @@ def _finish(
         relations=rel,
         notes=notes,
         files=files,
+        odometry_noise=positioner.odometry_noise.as_dict(),
     )
     if loop is not None:
         summary["loop_closure"] = loop.summary
@@ -681,17 +732,17 @@ def run_log(
 
     ``summary.json`` holds: ``fuzzypos_version``, ``git_hash``
     (:func:`~fuzzypos.provenance.git_hash`), ``input`` (``path``, ``sha256``
-    (:func:`~fuzzypos.provenance.file_sha256`; None with ``hash_input=False``), ``kind``,
-    reader ``options``), ``selection``, ``scans``, ``scans_degraded``,
-    ``odometry_jumps_rejected``, ``seconds`` (the whole loop: reading, positioning,
-    writing), ``scans_per_second`` (``scans / seconds``), ``positioner_seconds`` and
-    ``positioner_ms_per_scan`` (inside :meth:`Positioner.update` only), ``config`` (``preset``,
-    ``file``), ``bad_lines_skipped``, ``first_stamp``/``last_stamp``, ``has_odometry``,
-    ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the estimate and of the
-    odometry against the log's ``TRUEPOS``, where every scan has one; else None),
-    ``relations`` (or None), ``notes``, ``files``, and ``partial`` (False) with
-    ``partial_reason`` (None). Loop closure (online, :class:`~fuzzypos.graph.OnlineMapper`):
-    the optimised poses, ``loop_closure`` with ``relations_frontend`` and ``relations_online``.
+    (:func:`~fuzzypos.provenance.file_sha256`; None with ``hash_input=False``), ``kind``, reader
+    ``options``), ``selection``, ``scans``, ``scans_degraded``, ``reasons``, ``odometry_noise``
+    (module docstring), ``odometry_jumps_rejected``, ``seconds`` (the whole loop: reading,
+    positioning, writing), ``scans_per_second`` (``scans / seconds``), ``positioner_seconds``
+    and ``positioner_ms_per_scan`` (inside :meth:`Positioner.update` only), ``config``
+    (``preset``, ``file``), ``bad_lines_skipped``, ``first_stamp``/``last_stamp``,
+    ``has_odometry``, ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the
+    estimate and of the odometry against the log's ``TRUEPOS``, where every scan has one; else
+    None), ``relations`` (or None), ``notes``, ``files``, and ``partial`` (False) with
+    ``partial_reason`` (None). Loop closure (online, :class:`~fuzzypos.graph.OnlineMapper`): the
+    optimised poses, ``loop_closure`` with ``relations_frontend`` and ``relations_online``.
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
     log) or ``OSError``. An error or ``KeyboardInterrupt`` after some scans is raised once
@@ -732,7 +783,7 @@ def run_log(
         track,
         clf,
         outputs,
-        jumps=int(positioner.odometry_jumps),
+        positioner=positioner,
         labels=labels,
         out_tum=out_tum,
         relations=relations,

@@ -6,6 +6,7 @@ calibration of the odometry's scale and rotation factor."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -94,6 +95,31 @@ class OdometryNoise:
         applied: everywhere with ``in_refinement``/``calibrate``, else with
         ``trust_where_better`` where the learned odometry is the more precise."""
         return self.settings.trust_where_better and self.warm and self.better_than_matching
+
+    def as_dict(self) -> dict[str, Any]:
+        """What the noise is now, as plain values (``summary.json``'s ``odometry_noise``):
+        ``translation_per_sqrt_m`` and ``rotation_per_sqrt_m`` (α_t in m/√m, α_r in rad/√m,
+        learned or configured), ``stale_speed`` (m/s) and ``stale_turn_rate`` (rad/s),
+        ``samples`` and ``stale_samples`` (the matches learned from, within the window),
+        :attr:`warm`, :attr:`better_than_matching`, :attr:`trusted`, ``calibrated`` (whether
+        the calibration is applied) with :attr:`scale` and :attr:`rotation_factor` (1 where it
+        is not)."""
+        s = self.settings
+        scale, rotation_factor = self._calibration()
+        return {
+            "translation_per_sqrt_m": self.alpha_translation,
+            "rotation_per_sqrt_m": self.alpha_rotation,
+            "stale_speed": self.stale.speed,
+            "stale_turn_rate": self.stale.turn_rate,
+            "samples": min(len(self._translation), len(self._rotation)),
+            "stale_samples": self.stale.samples,
+            "warm": self.warm,
+            "better_than_matching": self.better_than_matching,
+            "trusted": self.trusted,
+            "calibrated": bool(s.calibrate or self.trusted),
+            "scale": scale,
+            "rotation_factor": rotation_factor,
+        }
 
     def _calibration(self) -> tuple[float, float]:
         """(:attr:`scale`, :attr:`rotation_factor`), computed once per sample."""

@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 import importlib
 import math
-from collections.abc import Iterable, Iterator, Sized
+from collections.abc import Iterable, Iterator, Sequence, Sized
 from dataclasses import replace
 from types import ModuleType
 from typing import Any
@@ -116,12 +116,12 @@ class Positioner:
         """Odometry increments rejected as jumps so far."""
         return self.odometry_prior.jumps
 
-    def update(self, scan: LaserScan, odom: Pose2D | None = None) -> Estimate:
+    def update(self, scan: LaserScan, odom: Pose2D | Sequence[float] | None = None) -> Estimate:
         """Process the next scan; ``odom`` is the odometry pose at this scan, if any."""
         if not isinstance(scan, LaserScan):
             raise TypeError(f"update() needs a LaserScan, got {type(scan).__name__}")
         if odom is not None and not isinstance(odom, Pose2D):
-            raise TypeError(f"odom must be a Pose2D or None, got {type(odom).__name__}")
+            odom = Pose2D.of(odom, "odom")  # (x, y, theta) too
         if self._pose is None:
             return self._first(scan, odom)
         prior = self._prior(scan.stamp, odom)

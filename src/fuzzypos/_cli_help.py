@@ -1,0 +1,80 @@
+"""Part of the command line (:mod:`fuzzypos.cli`): its help as it is shown (the commands'
+classes), and ``--version``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import typer
+from rich.markup import escape
+from typer.core import TyperArgument, TyperCommand, TyperGroup
+
+from ._version import __version__
+
+__all__ = ["VERSION", "Command", "Group", "escape_markup"]
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(f"fuzzypos {__version__}")
+        raise typer.Exit()
+
+
+#: ``fuzzypos --version``
+VERSION = typer.Option(
+    "--version", callback=_print_version, is_eager=True, help="print the version and exit"
+)
+
+
+def escape_markup(command: Any) -> None:
+    """Escape a click command's help and its options' and arguments' (a group's commands'
+    too) for rich's markup, in which typer shows them: ``[graph]`` in ``pip install
+    'fuzzypos[graph]'`` would be taken for a style and dropped. Once per command object
+    (typer builds them afresh for each invocation, from the same texts)."""
+    if getattr(command, "_markup_escaped", False):
+        return
+    command._markup_escaped = True
+    for name in ("help", "short_help"):
+        text = getattr(command, name, None)
+        if text:
+            setattr(command, name, escape(text))
+    for param in getattr(command, "params", ()):
+        if getattr(param, "help", None):
+            param.help = escape(param.help)
+    for sub in getattr(command, "commands", {}).values():
+        escape_markup(sub)
+
+
+class _Plain:
+    """Flags in the help without typer's ``<bool>`` (it shows a metavar in place of the type);
+    ``[...]`` in the help shown, not taken for rich's markup."""
+
+    def format_help(self, ctx: Any, formatter: Any) -> None:
+        if getattr(self, "rich_markup_mode", None) == "rich":
+            escape_markup(self)
+        super().format_help(ctx, formatter)  # type: ignore[misc]
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        params: list[Any] = super().get_params(ctx)  # type: ignore[misc]
+        for p in params:
+            if getattr(p, "is_flag", False) and p.metavar is None:
+                p.metavar = ""
+        return params
+
+
+class Group(_Plain, TyperGroup):
+    pass
+
+
+class Command(_Plain, TyperCommand):
+    """A command whose usage line names its arguments ``LOG``, not typer's ``{log}``."""
+
+    def collect_usage_pieces(self, ctx: Any) -> list[str]:
+        pieces = [self.options_metavar] if self.options_metavar else []
+        for p in self.get_params(ctx):
+            if isinstance(p, TyperArgument):
+                name = (p.metavar or p.name or "").upper() + ("..." if p.nargs != 1 else "")
+                pieces.append(name if p.required else f"[{name}]")
+            else:
+                pieces.extend(p.get_usage_pieces(ctx))
+        return pieces

@@ -1,0 +1,133 @@
+"""Small defects of the command line (issue 35): ``run --relations`` prints the score without
+``--loop-closure``; ``fuzzypos --version``; help text keeps its ``[...]`` (rich took
+``[graph]`` in ``pip install 'fuzzypos[graph]'`` for markup and dropped it)."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+import typing
+
+import numpy as np
+import pytest
+import typer
+from typer.models import ParameterInfo
+from typer.testing import CliRunner
+
+from fuzzypos import __version__
+from fuzzypos._cli_help import escape_markup
+from fuzzypos.cli import app
+from helpers import write_relations, write_sim_log
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def scored_log(tmp_path_factory):
+    d = tmp_path_factory.mktemp("small")
+    path = d / "sim.clf"
+    run = write_sim_log(path)
+    st, truth = np.asarray(run.stamps), np.asarray(run.true_poses)
+    rel = d / "sim.relations"
+    write_relations(rel, st, truth, [(k, k + 3) for k in range(len(st) - 3)] + [(0, len(st) - 1)])
+    return path, rel
+
+
+# -- run --relations ---------------------------------------------------------------------------
+def test_run_with_relations_prints_the_score_without_loop_closure(scored_log, tmp_path):
+    path, rel = scored_log
+    out = tmp_path / "res"
+    res = runner.invoke(app, ["run", str(path), "--relations", str(rel), "--results", str(out)])
+    assert res.exit_code == 0, res.output
+    r = json.loads((out / "summary.json").read_text())["relations"]
+    line = next(ln for ln in res.output.splitlines() if ln.startswith("relations: "))
+    assert line == (
+        f"relations: all {r['all_trans_mean_m']:.3f} m / {r['all_rot_mean_deg']:.2f}°, "
+        f"local {r['local_trans_mean_m']:.4f} m / {r['local_rot_mean_deg']:.3f}°"
+    )
+    assert r["all_matched"] > 0 and r["local_matched"] > 0
+    # without --relations, no score
+    res = runner.invoke(app, ["run", str(path), "--results", str(tmp_path / "plain")])
+    assert res.exit_code == 0, res.output
+    assert not [ln for ln in res.output.splitlines() if ln.startswith("relations")], res.output
+
+
+# -- --version ----------------------------------------------------------------------------------
+def test_version_prints_the_version():
+    res = runner.invoke(app, ["--version"])
+    assert res.exit_code == 0, res.output
+    assert res.output == f"fuzzypos {__version__}\n"
+
+
+def test_version_from_the_console_entry_point():
+    """``python -m fuzzypos --version``, or the ``fuzzypos`` script's ``main``."""
+    code = "import sys; from fuzzypos.cli import main; sys.argv = ['fuzzypos', '--version']; main()"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == f"fuzzypos {__version__}"
+
+
+def test_the_commands_still_run_and_no_arguments_still_show_the_help():
+    res = runner.invoke(app, [])
+    assert "Usage:" in res.output and "run" in res.output
+    assert runner.invoke(app, ["config"]).exit_code == 0
+
+
+# -- [...] in help ------------------------------------------------------------------------------
+_BRACKETS = re.compile(r"\[[a-z#/@][^\[\]]*\]")
+
+
+def _bracketed_help() -> dict[str, list[str]]:
+    """command → the ``[...]`` that rich would take for markup in its help, as written."""
+    out: dict[str, list[str]] = {}
+    for command in app.registered_commands:
+        assert command.callback is not None
+        name = command.name or command.callback.__name__.replace("_", "-")
+        texts = [command.help or command.callback.__doc__ or ""]
+        for hint in typing.get_type_hints(command.callback, include_extras=True).values():
+            texts += [
+                info.help for info in getattr(hint, "__metadata__", ()) if
+                isinstance(info, ParameterInfo) and info.help
+            ]  # fmt: skip
+        found = [m for t in texts for m in _BRACKETS.findall(t.replace("\\[", "["))]
+        if found:
+            out[name] = found
+    return out
+
+
+def _plain(output: str) -> str:
+    """The help's words, its box drawing and line breaks gone."""
+    return " ".join(re.sub(r"[│╭╮╰╯─]", " ", output).split())
+
+
+def test_help_shows_every_bracket_it_has():
+    bracketed = _bracketed_help()
+    assert "[graph]" in bracketed["run"] and "[loop_closure]" in bracketed["run"], bracketed
+    for name, found in bracketed.items():
+        res = runner.invoke(app, [name, "--help"], env={"COLUMNS": "200"})
+        assert res.exit_code == 0, res.output
+        shown = _plain(res.output)
+        for text in found:
+            assert text in shown, (name, text, shown)
+        assert "\\[" not in shown, (name, shown)
+
+
+def test_run_help_names_the_extra_to_install():
+    res = runner.invoke(app, ["run", "--help"], env={"COLUMNS": "200"})
+    shown = _plain(res.output)
+    assert "needs pip install 'fuzzypos[graph]'" in shown, shown
+    assert "keyframes ([loop_closure], needs" in shown, shown
+
+
+def test_help_texts_are_escaped_once():
+    """However often a command's help is shown, each text is escaped once."""
+    group = typer.main.get_command(app)
+    run = group.commands["run"]  # type: ignore[attr-defined]
+    escape_markup(group)
+    once = [p.help for p in run.params]
+    assert any("fuzzypos\\[graph]" in (h or "") for h in once), once
+    escape_markup(group)
+    escape_markup(run)
+    assert [p.help for p in run.params] == once
