@@ -494,6 +494,24 @@ def test_codes_below_range_max_are_found_and_dropped(tmp_path: Path) -> None:
     assert find_no_return_values(log, with_scanner(find_no_return_values=False)) == []
 
 
+def test_a_code_below_the_inferred_maximum_is_found(tmp_path: Path) -> None:
+    # without the PARAM line the reader infers range_max from the repeated top code (51.14 m),
+    # which leaves the other (50.0 m) valid: found, and the only one that needs a band
+    run, scans = coded_run()
+    path = write_run(tmp_path / "coded.clf", run, scans)
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(ln for ln in lines if not ln.startswith("PARAM robot_front_laser_max")))
+    log = open_log(path)
+    assert {rec.scan.range_max for rec in log.records()} == {51.14}
+    counts = coded_counts(scans)
+    found = find_no_return_values(log, ScannerConfig())
+    assert [(f.value_m, f.readings, f.invalid_at_range_max) for f in found] == [
+        (51.14, counts[51.14], counts[51.14]),
+        (50.0, counts[50.0], 0),
+    ]
+    assert with_found_bands(Config(), found).scanner.no_return_bands == (SICK, found[1].band)
+
+
 def test_info_lists_the_codes_found(tmp_path: Path) -> None:
     run, scans = coded_run()
     path = write_run(tmp_path / "coded.clf", run, scans)
