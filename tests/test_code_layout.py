@@ -21,7 +21,7 @@ LAYERS = (
     ("matching",),
     ("pipeline",),
     ("io", "sim"),
-    ("evaluation", "plot", "graph"),
+    ("evaluation", "plot", "graph", "no_returns"),
     ("logs", "provenance", "folders", "tasks"),
     ("scoring", "run"),
     ("benchmark", "batch", "demo"),

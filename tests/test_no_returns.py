@@ -28,7 +28,10 @@ from fuzzypos.cli import app
 from fuzzypos.config import Config, ConfigError, ScannerConfig
 from fuzzypos.features import Features, extract_features
 from fuzzypos.geometry import Pose2D
-from fuzzypos.logs import describe_log, open_log
+from fuzzypos.io import CarmenRecord, write_carmen
+from fuzzypos.logs import describe_log, find_no_return_values, open_log
+from fuzzypos.no_returns import FoundNoReturn, RangeTally, with_found_bands
+from fuzzypos.run import run_log
 from fuzzypos.scan import (
     NO_RETURN_SLACK,
     LaserScan,
@@ -37,7 +40,7 @@ from fuzzypos.scan import (
     no_return_mask,
     usable,
 )
-from helpers import make_bag
+from helpers import DATA, EXACT_SCANNER, make_bag
 
 SICK = (81.83, 81.91)
 #: the beams whose readings the tests replace by SICK codes, and the codes
@@ -416,3 +419,268 @@ def test_bad_bands_from_a_file_name_the_file_and_key(
 def test_bad_bands_in_code_are_config_errors(bands: Any, needle: str) -> None:
     with pytest.raises(ConfigError, match=needle):
         Config().with_overrides({"scanner": {"no_return_bands": bands}})
+
+
+# -- codes found in the data (``[scanner] find_no_return_values``) ------------------------------
+#: the held-back logs' scanner: "no return" read as 50.0 m or 51.14 m, below a 51.16 m maximum
+HELD_BACK_CODES = (50.0, 51.14)
+HELD_BACK_MAX = 51.16
+
+
+def coded_run(seed: int = 3) -> tuple[sim.SimulatedRun, list[LaserScan]]:
+    """A lap in the furnished room whose scanner reads "no return" (8 % of the beams drop out)
+    as 50.0 m or 51.14 m at random, below its range_max of 51.16 m; the room's walls are all
+    within 8 m. Ranges noisy (1 cm), so a wall's readings rarely repeat exactly."""
+    scanner = sim.ScannerModel(
+        range_max=HELD_BACK_MAX,
+        no_return_value=HELD_BACK_CODES[0],
+        dropout_probability=0.08,
+        range_noise_std=0.01,
+        rate_hz=5.0,
+    )
+    path = sim.CommandedPath.circle(1.0, laps=1.0, speed=0.3)
+    run = sim.simulate_run(sim.furnished_room(), path, scanner, sim.SlipModel(), seed)
+    rng = np.random.default_rng(seed)
+    scans = []
+    for s in run.scans:
+        r = s.ranges.copy()
+        r[(r == HELD_BACK_CODES[0]) & (rng.random(r.size) < 0.5)] = HELD_BACK_CODES[1]
+        scans.append(s.with_ranges(r))
+    return run, scans
+
+
+def write_run(path: Path, run: sim.SimulatedRun, scans: list[LaserScan]) -> Path:
+    records = (CarmenRecord(s, run.odometry_pose(k), run.true_pose(k)) for k, s in enumerate(scans))
+    write_carmen(path, records)
+    return path
+
+
+def coded_counts(scans: list[LaserScan]) -> dict[float, int]:
+    return {v: sum(int((s.ranges == v).sum()) for s in scans) for v in HELD_BACK_CODES}
+
+
+def with_scanner(**fields: Any) -> ScannerConfig:
+    return dataclasses.replace(ScannerConfig(), **fields)
+
+
+def test_codes_below_range_max_are_found_and_dropped(tmp_path: Path) -> None:
+    run, scans = coded_run()
+    path = write_run(tmp_path / "coded.clf", run, scans)
+    counts = coded_counts(scans)
+    log = open_log(path)
+    read = [rec.scan for rec in log.records()]
+    # below the log's range_max the codes are valid readings: without the feature, walls
+    assert all(s.range_max == HELD_BACK_MAX for s in read)
+    assert sum(int((s.valid & (s.ranges >= 50.0)).sum()) for s in read) == sum(counts.values())
+    found = find_no_return_values(log, ScannerConfig())
+    assert [(f.value_m, f.readings) for f in found] == [
+        (v, counts[v]) for v in sorted(HELD_BACK_CODES, reverse=True)
+    ]
+    assert all(f.invalid_at_range_max == 0 and not f.in_configured_band for f in found)
+    # the run's configuration drops them, and the features are those of invalid readings
+    cfg = with_found_bands(Config(), found)
+    assert cfg.scanner.no_return_bands[0] == SICK and len(cfg.scanner.no_return_bands) == 3
+    for scan in read[:20]:
+        coded = np.isin(np.round(scan.ranges, 4), HELD_BACK_CODES)
+        f = extract_features(scan, cfg)
+        assert set(f.beam_index.tolist()).isdisjoint(np.flatnonzero(coded).tolist())
+        assert np.hypot(*f.points.T).max() < 20.0
+        assert_same_features(
+            f, extract_features(scan.with_ranges(np.where(coded, 0.0, scan.ranges)), cfg)
+        )
+    # not vacuous: the configured bands alone keep them as points 50 m away
+    assert max(np.hypot(*extract_features(s).points.T).max() for s in read[:20]) > 49.0
+    # switched off, nothing is looked for
+    assert find_no_return_values(log, with_scanner(find_no_return_values=False)) == []
+
+
+def test_a_code_below_the_inferred_maximum_is_found(tmp_path: Path) -> None:
+    # without the PARAM line the reader infers range_max from the repeated top code (51.14 m),
+    # which leaves the other (50.0 m) valid: found, and the only one that needs a band
+    run, scans = coded_run()
+    path = write_run(tmp_path / "coded.clf", run, scans)
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(ln for ln in lines if not ln.startswith("PARAM robot_front_laser_max")))
+    log = open_log(path)
+    assert {rec.scan.range_max for rec in log.records()} == {51.14}
+    counts = coded_counts(scans)
+    found = find_no_return_values(log, ScannerConfig())
+    assert [(f.value_m, f.readings, f.invalid_at_range_max) for f in found] == [
+        (51.14, counts[51.14], counts[51.14]),
+        (50.0, counts[50.0], 0),
+    ]
+    assert with_found_bands(Config(), found).scanner.no_return_bands == (SICK, found[1].band)
+
+
+def test_info_lists_the_codes_found(tmp_path: Path) -> None:
+    run, scans = coded_run()
+    path = write_run(tmp_path / "coded.clf", run, scans)
+    counts = coded_counts(scans)
+    data = json.loads(_info(str(path), "--json").output)
+    assert [(f["value_m"], f["readings"]) for f in data["no_return_values_found"]] == [
+        (51.14, counts[51.14]),
+        (50.0, counts[50.0]),
+    ]
+    text = _info(str(path)).output
+    for v in HELD_BACK_CODES:
+        assert f"no-return {v:g} m (found in the data)" in text
+        assert f"{counts[v]:,} readings" in text
+    cfg = tmp_path / "off.toml"
+    cfg.write_text("[scanner]\nfind_no_return_values = false\n")
+    data = json.loads(_info(str(path), "--json", "--config", str(cfg)).output)
+    assert data["no_return_values_found"] == []
+    assert "not looked for" in _info(str(path), "--config", str(cfg)).output
+
+
+def test_a_run_adds_the_codes_to_its_bands(tmp_path: Path) -> None:
+    run, scans = coded_run()
+    path = write_run(tmp_path / "coded.clf", run, scans)
+    res = run_log(path, results_dir=tmp_path / "out", max_scans=8, plot=False, hash_input=False)
+    found = res.summary["no_return_values_found"]
+    assert [f["value_m"] for f in found] == [51.14, 50.0]  # from the whole log, not the 8 scans
+    assert [f["readings"] for f in found] == [coded_counts(scans)[v] for v in (51.14, 50.0)]
+    back = Config.from_toml(res.files["config.toml"])
+    bands = back.scanner.no_return_bands
+    assert bands[0] == SICK and len(bands) == 3
+    assert no_return_mask(list(HELD_BACK_CODES), bands).all()
+    assert not no_return_mask([49.999, 50.001, 51.139, 51.141], bands).any()
+    # the configuration written finds them again, already in its bands: nothing is added twice
+    log = open_log(path)
+    again = find_no_return_values(log, back.scanner)
+    assert all(f.in_configured_band for f in again) and len(again) == 2
+    assert with_found_bands(back, again) is back
+    # nor is a band added for a code range_max already makes invalid (a ROS-style maximum)
+    at_max = FoundNoReturn(30.0, readings=500, invalid_at_range_max=500)
+    assert with_found_bands(Config(), [at_max]) == Config()
+    assert with_found_bands(Config(), [dataclasses.replace(at_max, invalid_at_range_max=499)]) != (
+        Config()
+    )
+
+
+def still_run() -> sim.SimulatedRun:
+    """Half a lap, then standing still three times as long, with a noise-free scanner: every
+    beam repeats its exact range scan after scan, walls up to 7.5 m away."""
+    scanner = sim.ScannerModel(**EXACT_SCANNER, range_max=30.0, rate_hz=5.0)
+    path = sim.CommandedPath.circle(1.0, laps=0.5, speed=0.3)
+    return sim.simulate_run(
+        sim.furnished_room(), path, scanner, sim.SlipModel(), 1, duration=4 * path.duration
+    )
+
+
+def test_a_wall_seen_while_standing_still_is_no_code(tmp_path: Path) -> None:
+    run = still_run()
+    path = write_run(tmp_path / "still.clf", run, run.scans)
+    still = run.scans[-1].ranges
+    assert all(np.array_equal(s.ranges, still) for s in run.scans[-100:])
+    log = open_log(path)
+    assert find_no_return_values(log, ScannerConfig()) == []
+    # not vacuous: it is the moving share that tells (the far walls' exact values lie at the
+    # top, with no neighbours within 5 cm, repeated in hundreds of readings)
+    taken = find_no_return_values(log, with_scanner(find_moving_share=0.0))
+    assert taken and all(f.readings >= 100 for f in taken)
+    assert set(np.round([f.value_m for f in taken], 3)) <= set(np.round(still, 3))
+    assert describe_log(log).no_return_values_found == []
+
+
+def test_an_ordinary_repeated_range_is_no_spike() -> None:
+    """Ranges quantised to 1 cm over 0.5-8 m repeat each in hundreds of readings while the robot
+    moves; a code above them stands out, a value in their midst does not, however often."""
+    rng = np.random.default_rng(5)
+
+    def tally(extra: dict[float, int]) -> RangeTally:
+        t = RangeTally()
+        for k in range(1000):
+            r = np.round(rng.uniform(0.5, 8.0, 180), 2)
+            beams = iter(rng.permutation(180))
+            for v, n in extra.items():
+                r[[next(beams) for _ in range(n)]] = v
+            t.add(LaserScan(r, -1.5, 0.0167, range_max=100.0), odometry=k)
+        return t
+
+    plain = tally({})
+    assert plain.readings == 180_000
+    assert (plain.total >= 200).sum() > 100  # every value repeats in hundreds of readings
+    assert plain.find(ScannerConfig()) == []
+    found = tally({60.0: 2, 5.0: 4}).find(ScannerConfig())
+    assert [(f.value_m, f.readings) for f in found] == [(60.0, 2000)]
+    # 5.0 m in 4,000 readings more than its neighbours: the top test (b) rejects it ...
+    spiked = tally({5.0: 4})
+    at_top = spiked.find(with_scanner(find_top_fraction=1.0))
+    assert [f.value_m for f in at_top] == [5.0] and at_top[0].readings > 4000
+    # ... and at 1,000 more the neighbourhood (c) too, the top test dropped
+    assert tally({5.0: 1}).find(with_scanner(find_top_fraction=1.0)) == []
+
+
+def test_explicit_bands_still_apply(tmp_path: Path) -> None:
+    run, scans = coded_run()
+    path = write_run(tmp_path / "coded.clf", run, scans)
+    counts = coded_counts(scans)
+    # a configured band that holds 50.0 m: found, but not added again
+    scanner = with_scanner(no_return_bands=((50.0, 50.0),))
+    found = find_no_return_values(open_log(path), scanner)
+    assert [(f.value_m, f.in_configured_band) for f in found] == [(51.14, False), (50.0, True)]
+    cfg = with_found_bands(
+        Config().with_overrides({"scanner": {"no_return_bands": ((50.0, 50.0),)}}), found
+    )
+    assert cfg.scanner.no_return_bands[0] == (50.0, 50.0) and len(cfg.scanner.no_return_bands) == 2
+    # with the finding off, the bands given are all there is
+    info = describe_log(
+        open_log(path),
+        scanner=with_scanner(no_return_bands=((50.0, 50.0),), find_no_return_values=False),
+    )
+    assert info.no_return_values_found == []
+    assert [(c.removed) for c in info.no_returns] == [counts[50.0]]
+
+
+def test_a_bag_input_too(tmp_path: Path) -> None:
+    run, scans = coded_run()
+    counts = coded_counts(scans)
+
+    def build(b: Any) -> list[tuple[str, float, Any]]:
+        msgs = []
+        for k, s in enumerate(scans):
+            a0, inc = s.angle_min, s.angle_increment
+            geometry = {
+                "angle_min": a0,
+                "angle_max": a0 + (s.n_beams - 1) * inc,
+                "angle_increment": inc,
+                "range_max": HELD_BACK_MAX,
+            }
+            msgs.append(("/scan", s.stamp + 0.005, b.scan(s.stamp, s.ranges, **geometry)))
+            msgs.append(("/odom", s.stamp + 0.004, b.odom(s.stamp, run.odometry_poses[k])))
+        msgs.sort(key=lambda m: m[1])
+        return msgs
+
+    path = make_bag(tmp_path, "ros1", build)
+    log = open_log(path)
+    found = find_no_return_values(log, ScannerConfig())
+    # float32 in the bag: 51.14 is 51.1399994, still one value repeated, found to 0.1 mm
+    assert [(f.value_m, f.readings) for f in found] == [
+        (51.14, counts[51.14]),
+        (50.0, counts[50.0]),
+    ]
+    scan = next(iter(log.records())).scan
+    bands = with_found_bands(Config(), found).scanner.no_return_bands
+    coded = np.isin(np.round(scan.ranges, 4), HELD_BACK_CODES)
+    assert coded.any()
+    np.testing.assert_array_equal(no_return_mask(scan.ranges, bands), coded)
+
+
+#: the shared logs' "no return" codes as their README gives them: value (m) -> readings
+KNOWN_CODES = {
+    "intel/intel.clf.gz": {81.83: 68_313},
+    "aces/aces.clf.gz": {50.0: 11_139},
+    "aces/aces.bag": {50.0: 11_139},
+    "fr-clinic/fr-clinic.clf.gz": {81.83: 5_849},
+}
+
+
+@pytest.mark.parametrize("name", sorted(KNOWN_CODES))
+def test_the_shared_logs_known_codes_and_nothing_near_the_walls(name: str) -> None:
+    path = DATA / name
+    if not path.exists():
+        pytest.skip(f"the shared logs are not in {DATA} (see its README.md; CI has them)")
+    found = {f.value_m: f.readings for f in find_no_return_values(open_log(path), ScannerConfig())}
+    assert KNOWN_CODES[name].items() <= found.items()
+    # anything else found is a SICK code too (fr-clinic's 81.91 m, at its range_max)
+    assert all(v >= 50.0 for v in found), found

@@ -4,12 +4,23 @@ library's results, kept apart so the commands stay short."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.table import Table
 from rich.text import Text
 
-__all__ = ["benchmark_table", "loop_closure_lines", "pm", "relations_line"]
+if TYPE_CHECKING:
+    from .logs import NoReturnCount
+    from .no_returns import FoundNoReturn
+
+__all__ = [
+    "benchmark_table",
+    "found_rows",
+    "loop_closure_lines",
+    "no_return_rows",
+    "pm",
+    "relations_line",
+]
 
 _BENCHMARK_COLUMNS = (
     "log",
@@ -97,3 +108,32 @@ def relations_line(rel: dict[str, Any], name: str = "") -> str:
         f"{rel['all_rot_mean_deg']:.2f}°, local {rel['local_trans_mean_m']:.4f} m / "
         f"{rel['local_rot_mean_deg']:.3f}°"
     )
+
+
+def no_return_rows(counts: list[NoReturnCount]) -> list[tuple[str, str]]:
+    """``("no-return 81.83–81.91 m", "5,849 readings")`` per band, with those in the band that
+    ``range_max`` had already made invalid."""
+    rows = []
+    for c in counts:
+        band = f"{c.low_m:g} m" if c.low_m == c.high_m else f"{c.low_m:g}–{c.high_m:g} m"
+        text = f"{c.removed:,} readings removed"
+        if c.in_band > c.removed:
+            text += f" ({c.in_band - c.removed:,} more in the band already invalid at range_max)"
+        rows.append((f"no-return {band}", text))
+    return rows or [("no-return bands", "none")]
+
+
+def found_rows(found: list[FoundNoReturn], looked: bool) -> list[tuple[str, str]]:
+    """``("no-return 50 m (found in the data)", "863 readings")`` per code found, saying
+    which of them ``range_max`` or a configured band already made invalid."""
+    if not looked:
+        return [("no-return values found", "not looked for (find_no_return_values = false)")]
+    rows = []
+    for f in found:
+        text = f"{f.readings:,} readings"
+        if f.in_configured_band:
+            text += " (in a configured band)"
+        elif f.invalid_at_range_max:
+            text += f" ({f.invalid_at_range_max:,} already invalid at range_max)"
+        rows.append((f"no-return {f.value_m:g} m (found in the data)", text))
+    return rows or [("no-return values found", "none")]

@@ -21,12 +21,18 @@ from rich.table import Table
 from typer.core import TyperCommand
 
 from ._cli_help import VERSION, Command, Group
-from ._cli_tables import benchmark_table, loop_closure_lines, relations_line
+from ._cli_tables import (
+    benchmark_table,
+    found_rows,
+    loop_closure_lines,
+    no_return_rows,
+    relations_line,
+)
 from ._version import __version__
 from .config import Config, ConfigError
 
 if TYPE_CHECKING:
-    from .logs import NoReturnCount, OpenLog
+    from .logs import OpenLog
 
 
 app = typer.Typer(
@@ -425,12 +431,13 @@ def info(
 
     Reads the log once and prints its kind, scans, beam counts and angles, field of view,
     duration (first and last stamp, and how often stamps go backwards), whether it has
-    odometry and truth (TRUEPOS), the malformed lines skipped, and how many readings each
-    "no return" band of the configuration's scanner section (from --config) removes.
+    odometry and truth (TRUEPOS), the malformed lines skipped, how many readings each
+    "no return" band of the configuration's scanner section (from --config) removes, and the
+    "no return" codes found in the readings (which a run adds to those bands).
     """
     from .logs import describe_log
 
-    bands = _load_config("default", config_file).scanner.no_return_bands
+    scanner = _load_config("default", config_file).scanner
 
     opened = _open(
         log,
@@ -444,14 +451,14 @@ def info(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             if json_out:
-                result = describe_log(opened, no_return_bands=bands)
+                result = describe_log(opened, scanner=scanner)
             else:
                 with _progress() as progress:
                     task = progress.add_task("reading", total=opened.scan_count_hint())
                     result = describe_log(
                         opened,
                         progress=lambda k: progress.update(task, completed=k),
-                        no_return_bands=bands,
+                        scanner=scanner,
                     )
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
@@ -490,26 +497,14 @@ def info(
         ("odometry", f"yes ({result.scans_with_odometry} scans)" if result.has_odometry else "no"),
         ("truth (TRUEPOS)", f"yes ({result.scans_with_truth} scans)" if result.has_truth else "no"),
         ("bad lines skipped", str(result.bad_lines) + (" (truncated)" if result.truncated else "")),
-        *_no_return_rows(result.no_returns),
+        *no_return_rows(result.no_returns),
+        *found_rows(result.no_return_values_found, scanner.find_no_return_values),
     ]
     for k, v in rows:
         table.add_row(k, v)
     _wide().print(table)
     for note in result.notes:
         typer.echo(f"note: {note}")
-
-
-def _no_return_rows(counts: list[NoReturnCount]) -> list[tuple[str, str]]:
-    """``("no-return 81.83–81.91 m", "5,849 readings")`` per band, with those in the band that
-    ``range_max`` had already made invalid."""
-    rows = []
-    for c in counts:
-        band = f"{c.low_m:g} m" if c.low_m == c.high_m else f"{c.low_m:g}–{c.high_m:g} m"
-        text = f"{c.removed:,} readings removed"
-        if c.in_band > c.removed:
-            text += f" ({c.in_band - c.removed:,} more in the band already invalid at range_max)"
-        rows.append((f"no-return {band}", text))
-    return rows or [("no-return bands", "none")]
 
 
 @app.command()

@@ -24,6 +24,8 @@
   refuses a log whose stamps cannot give the time between its scans (:class:`StampError`)
   before anything is positioned.
 - :func:`describe_log` reads a whole log once and summarises it (:class:`LogInfo`).
+- :func:`find_no_return_values` reads a whole log once for the values its scanner uses as
+  "no return" codes (:mod:`fuzzypos.no_returns`); :func:`describe_log` finds them too.
 - :func:`parse_laser_offset` reads the command line's ``x,y,θdeg``.
 
 Every error here is a :class:`ValueError` subclass naming what is wrong (or an
@@ -39,7 +41,7 @@ import os
 import warnings
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, TypeVar, Union
 
@@ -50,6 +52,7 @@ from .geometry import Pose2D
 from .io import GZIP_MAGIC, BagReader, CarmenReader, LogFormatError, LogRecord
 from .io._common import display_name, spool_if_stream
 from .io.rosbag import ROS1_MAGIC
+from .no_returns import FoundNoReturn, RangeTally
 from .scan import LaserScan, no_return_counts
 
 __all__ = [
@@ -62,6 +65,7 @@ __all__ = [
     "StampError",
     "UnknownLogError",
     "describe_log",
+    "find_no_return_values",
     "log_kind",
     "open_log",
     "parse_laser_offset",
@@ -585,7 +589,9 @@ class LogInfo:
     ``scans_without_ranges``: scans of no beam (not in the beam angles);
     ``scans_with_odometry`` / ``scans_with_truth``;
     ``range_max``: the distinct finite ``range_max`` of the scans (at most 10 kept);
-    ``no_returns``: per "no return" band, the readings it removes (:class:`NoReturnCount`).
+    ``no_returns``: per "no return" band, the readings it removes (:class:`NoReturnCount`);
+    ``no_return_values_found``: the codes found in the readings (:func:`find_no_return_values`;
+    empty when ``find_no_return_values`` is off).
     """
 
     path: str
@@ -608,6 +614,7 @@ class LogInfo:
     scans_with_truth: int = 0
     range_max: list[float] = field(default_factory=list)
     no_returns: list[NoReturnCount] = field(default_factory=list)
+    no_return_values_found: list[FoundNoReturn] = field(default_factory=list)
     bad_lines: int = 0
     truncated: bool = False
     notes: list[str] = field(default_factory=list)
@@ -631,12 +638,20 @@ def describe_log(
     log: OpenLog,
     progress: Callable[[int], None] | None = None,
     no_return_bands: Sequence[tuple[float, float]] | None = None,
+    scanner: ScannerConfig | None = None,
 ) -> LogInfo:
     """Read ``log`` once (streaming) and summarise it; ``progress(scans_so_far)`` is called
-    every 100 scans. ``no_return_bands`` (default ``ScannerConfig()``'s) are counted in
-    :attr:`LogInfo.no_returns`. Corrupt or repeated stamps are reported in
-    :attr:`LogInfo.stamp_problem` and warned (:class:`RuntimeWarning`, naming the log)."""
-    bands = ScannerConfig().no_return_bands if no_return_bands is None else no_return_bands
+    every 100 scans. ``no_return_bands`` (default ``scanner``'s, itself by default
+    ``ScannerConfig()``) are counted in :attr:`LogInfo.no_returns`; the codes ``scanner``'s
+    ``find_*`` settings find are :attr:`LogInfo.no_return_values_found`. Corrupt or repeated
+    stamps are reported in :attr:`LogInfo.stamp_problem` and warned (:class:`RuntimeWarning`,
+    naming the log)."""
+    scanner = ScannerConfig() if scanner is None else scanner
+    if no_return_bands is not None:
+        bands_given = tuple((float(lo), float(hi)) for lo, hi in no_return_bands)
+        scanner = replace(scanner, no_return_bands=bands_given)
+    bands = scanner.no_return_bands
+    tally = RangeTally() if scanner.find_no_return_values else None
     info = LogInfo(path=log.name, kind=log.kind)
     info.no_returns = [NoReturnCount(float(lo), float(hi)) for lo, hi in bands]
     beams: set[int] = set()
@@ -669,10 +684,14 @@ def describe_log(
             rmax.add(scan.range_max)
         if bands:
             _count_no_returns(info.no_returns, scan, bands)
+        if tally is not None:
+            tally.add(scan, rec.odometry)
         if progress is not None and info.scans % 100 == 0:
             progress(info.scans)
     info.beams = sorted(beams)
     info.range_max = sorted(rmax)
+    if tally is not None:
+        info.no_return_values_found = tally.find(scanner)
     if amin is not None:
         info.angle_min_deg = math.degrees(amin)
         info.angle_max_deg = math.degrees(amax)  # type: ignore[arg-type]
@@ -707,3 +726,22 @@ def _count_no_returns(
     for c, r, b in zip(counts, removed, in_band):
         c.removed += r
         c.in_band += b
+
+
+def find_no_return_values(log: OpenLog, scanner: ScannerConfig) -> list[FoundNoReturn]:
+    """Read the whole of ``log`` once and return the values its scanner uses as "no return"
+    codes by ``scanner``'s ``find_*`` settings (:mod:`fuzzypos.no_returns`), highest first;
+    none when ``scanner.find_no_return_values`` is off (then the log is not read). A log that
+    cannot be read to its end is judged on the readings before the error, silently: reporting
+    it (and the reader's warnings) is the next pass's job, which keeps the scans before it."""
+    if not scanner.find_no_return_values:
+        return []
+    tally = RangeTally()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            for rec in log.records():
+                tally.add(rec.scan, rec.odometry)
+        except (ValueError, OSError):
+            pass
+    return tally.find(scanner)

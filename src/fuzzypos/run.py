@@ -35,7 +35,8 @@ Ctrl-C after some scans keeps them: the files below (but ``path.png``) for the s
                     ``reasons``, the scans per :class:`~fuzzypos.pipeline.Reason` (by its
                     value, each that occurred); ``odometry_noise``, the odometry's noise as
                     learned by the end of the run
-                    (:meth:`~fuzzypos.pipeline.OdometryNoise.as_dict`)
+                    (:meth:`~fuzzypos.pipeline.OdometryNoise.as_dict`); the "no return"
+                    codes found in the log's readings (:func:`_no_returns`)
 ================  ==========================================================================
 
 With ``bag_out=`` the estimate also goes into a bag as it runs (:class:`_CovarianceOut`,
@@ -78,7 +79,8 @@ from .folders import (
 from .geometry import Cov3Upper, Pose2D, covariance_to_parent3, propagate3
 from .graph import OnlineMapper, require_gtsam
 from .io import CarmenWriter, LogRecord, OdometryBagWriter, Relations, write_tum
-from .logs import OpenLog, open_log, select_records, select_stamps
+from .logs import OpenLog, find_no_return_values, open_log, select_records, select_stamps
+from .no_returns import with_found_bands
 from .pipeline import Estimate, Positioner, Reason
 from .provenance import file_sha256, git_hash, write_json
 from .scan import LaserScan
@@ -667,6 +669,7 @@ def _finish(
         files=files,
         odometry_noise=positioner.odometry_noise.as_dict(),
     )
+    summary["no_return_values_found"] = labels["no_return_values_found"]
     if loop is not None:
         summary["loop_closure"] = loop.summary
         if relations is not None and loop.online is not None:
@@ -740,9 +743,9 @@ def run_log(
     (``preset``, ``file``), ``bad_lines_skipped``, ``first_stamp``/``last_stamp``,
     ``has_odometry``, ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the
     estimate and of the odometry against the log's ``TRUEPOS``, where every scan has one; else
-    None), ``relations`` (or None), ``notes``, ``files``, and ``partial`` (False) with
-    ``partial_reason`` (None). Loop closure (online, :class:`~fuzzypos.graph.OnlineMapper`): the
-    optimised poses, ``loop_closure`` with ``relations_frontend`` and ``relations_online``.
+    None), ``relations`` (or None), ``no_return_values_found``, ``notes``, ``files``, and
+    ``partial`` (False) with ``partial_reason`` (None). Loop closure (online, ``OnlineMapper``):
+    the optimised poses, ``loop_closure`` with ``relations_frontend`` and ``relations_online``.
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
     log) or ``OSError``. An error or ``KeyboardInterrupt`` after some scans is raised once
@@ -752,7 +755,7 @@ def run_log(
     """
     if not isinstance(log, OpenLog):
         log = open_log(log)
-    cfg = config if config is not None else Config()
+    cfg, found = _no_returns(log, config if config is not None else Config())
     if isinstance(map_every, bool) or not isinstance(map_every, int) or map_every < 1:
         raise ValueError(f"map_every must be a whole number >= 1, got {map_every!r}")
     records = select_records(log.records(), start=start, end=end, max_scans=max_scans)
@@ -774,6 +777,7 @@ def run_log(
     labels = {
         "selection": {"start_s": start, "end_s": end, "max_scans": max_scans},
         "config": {"preset": preset, "file": None if config_file is None else str(config_file)},
+        "no_return_values_found": found,
     }
     finish = functools.partial(
         _finish,
@@ -792,6 +796,16 @@ def run_log(
         hash_input=hash_input,
     )
     return _keep(finish, folder, track, clf, outputs, progress)
+
+
+def _no_returns(log: OpenLog, cfg: Config) -> tuple[Config, list[dict[str, Any]]]:
+    """``cfg`` with the "no return" codes found in the whole log's readings (a first pass,
+    :func:`~fuzzypos.logs.find_no_return_values`) that no configured band holds added to
+    ``scanner.no_return_bands`` (so the positioner and ``config.toml`` have them), and every
+    code found (``value_m``, ``readings``, ``invalid_at_range_max``, ``in_configured_band``)
+    for ``summary.json``'s ``no_return_values_found``."""
+    found = find_no_return_values(log, cfg.scanner)
+    return with_found_bands(cfg, found), [f.as_dict() for f in found]
 
 
 def _open_outputs(
