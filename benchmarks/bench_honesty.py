@@ -309,7 +309,7 @@ def run_front_end(log: Path, results: Path, extra: list[str]) -> None:
         "--overwrite",
         *extra,
     ]
-    print(f"running: fuzzypos {shlex.join(cmd[4:])}", file=sys.stderr, flush=True)
+    print(f"running: fuzzypos {shlex.join(cmd[3:])}", file=sys.stderr, flush=True)
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
 
 
@@ -369,6 +369,7 @@ def markdown(rows: list[tuple[str, Honesty]], meta: dict[str, str]) -> str:
         f"- commit: {meta['commit']}\n"
         f"- machine: {meta['machine']}\n"
         f"- command: `{meta['command']}`\n"
+        f"- data: {meta['data']}\n"
         f"- runs: {meta['runs']}\n\n"
         "Relations at most 10 s or 10 scans long, ends matched within 2 ms; the step "
         "covariances composed along each (right perturbations); error e = ⊖ref ⊕ est. "
@@ -436,7 +437,7 @@ def main(argv: list[str] | None = None) -> None:
     runs_note = ", ".join(os.fspath(p) for _, p, _ in jobs) or ""
     if args.run or args.runs is not None:
         if args.run and args.runs is None:
-            scratch = tempfile.TemporaryDirectory(prefix="bench_honesty_")
+            scratch = tempfile.TemporaryDirectory(prefix="bench-honesty-")
         runs = args.runs if args.runs is not None else Path(scratch.name)  # type: ignore[union-attr]
         for name in names:
             log, rel = (data / part for part in LOGS[name])
@@ -468,6 +469,7 @@ def main(argv: list[str] | None = None) -> None:
         if argv is None
         else shlex.join(["python", "benchmarks/bench_honesty.py", *argv]),
         "runs": runs_note,
+        "data": os.path.abspath(data),
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(markdown(rows, meta), encoding="utf-8")
