@@ -1,0 +1,385 @@
+"""Large steps between scans: the default front end on the shared logs thinned to a scan every
+0.5 m or 10° (and every 1 m or 20°) of odometry, against the same on the full logs, scored on
+the same relations (issue 34, item 5).
+
+    OMP_NUM_THREADS=1 python benchmarks/bench_thinned.py [--data ../shared/data]
+        [--logs intel,aces,fr079,fr-clinic] [--thinnings 0.5,1] [--keep DIR] [--out PATH]
+
+Thinning (:func:`thin_indices`), in file order: every relation's two end scans are kept (the
+scans whose stamps are the relation's, as the metric matches them), and the first scan; any
+other scan is kept when its odometry pose has moved at least the distance (straight, from
+pose to pose) or turned at least the angle since the last scan kept (for whatever reason). A
+scan without odometry is kept only as a relation's end. The kept records (read with
+``fuzzypos.logs.open_log(path).records()``) are written as a CARMEN log
+(:func:`write_thinned`): FLASER lines (``fuzzypos.io.write_carmen``) where the scans fit
+FLASER's beam geometry, with one maximum range above every valid reading and each scan's
+invalid readings written as it (:func:`one_range_max`: the reader learns a FLASER log's "no
+return" value from the scans it streams, which thinning changes); else (fr-clinic: 180 and
+181 beams, interlaced start angles, a laser 0.22 m ahead) ``ROBOTLASER1`` lines with their
+own angles and mount (``CarmenWriter``), the odometry as the robot pose (which a reader
+takes as the odometry) and in an ``ODOM`` line before each. Each thinned log is read back
+and checked scan by scan against the kept records (stamps, odometry, beams, ranges, mount)
+before it is run.
+
+Both logs go through ``Positioner()`` (the default front end) as ``bench_peers.py`` runs it,
+one thread, and are scored with ``fuzzypos.evaluation.relations_errors`` on the log's
+relations: all relations and local ones (t2 − t1 <= 10 s), mean translational (m) and
+rotational (degrees) errors, and each thinned figure over the full log's (the issue's target:
+at most 1.15). The table is printed and written as markdown to ``--out`` (default
+``docs/benchmarks/thinned.md``) with the date, commit, machine and command, and as JSON
+beside it. ``bench_peers.py --logs intel-thin-0.5,…`` runs the peers on the same thinned logs
+(:func:`thinned_log`).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS"):
+    os.environ[_var] = "1"  # one thread, set before numpy loads
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import datetime  # noqa: E402
+import math  # noqa: E402
+import shlex  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from fuzzypos.evaluation import DEFAULT_RELATIONS_GAP, nearest_stamps  # noqa: E402
+from fuzzypos.geometry import relative  # noqa: E402
+from fuzzypos.io import CarmenWriter, LogRecord, read_relations, write_carmen  # noqa: E402
+from fuzzypos.io.carmen_write import flaser_geometry  # noqa: E402
+from fuzzypos.logs import open_log  # noqa: E402
+from fuzzypos.provenance import write_json  # noqa: E402
+
+sys.path.insert(0, os.fspath(Path(__file__).resolve().parent))
+import bench_peers  # noqa: E402
+from bench_honesty import commit, machine  # noqa: E402
+
+#: the shared logs, by name: the log and its relations under the data folder
+LOGS = {
+    name: (f"{name}/{name}.clf.gz", f"{name}/{name}.relations")
+    for name in ("intel", "aces", "fr079", "fr-clinic")
+}
+#: the thinnings, by name: a scan kept every this many metres or degrees of odometry
+THINNINGS = {"0.5": (0.5, 10.0), "1": (1.0, 20.0)}
+#: the issue's target: a thinned figure at most this many times the full log's
+TARGET_RATIO = 1.15
+#: the figures compared (relations_errors().as_dict() keys) and their headings
+FIGURES = {
+    "all_trans_mean_m": "all trans m",
+    "all_rot_mean_deg": "all rot °",
+    "local_trans_mean_m": "local trans m",
+    "local_rot_mean_deg": "local rot °",
+}
+
+
+# -- thinning --------------------------------------------------------------------------------
+def thin_indices(
+    stamps: Sequence[float] | np.ndarray,
+    odometry: Sequence[Any],
+    relation_stamps: np.ndarray,
+    distance: float,
+    angle_deg: float,
+    *,
+    max_stamp_gap: float = DEFAULT_RELATIONS_GAP,
+) -> list[int]:
+    """The scans (indices in file order) a thinned log keeps (module docstring): the first,
+    every relation end (the scan of the nearest stamp within ``max_stamp_gap`` of each of
+    ``relation_stamps``; ends without one are ignored), and a scan whenever its odometry pose
+    (``odometry[k]``: ``(x, y, θ)`` or None) is at least ``distance`` m or ``angle_deg``
+    degrees from the last scan kept's."""
+    t = np.asarray(stamps, dtype=float)
+    n = t.shape[0]
+    if n == 0:
+        return []
+    ends: set[int] = set()
+    rs = np.asarray(relation_stamps, dtype=float).reshape(-1)
+    if rs.size:
+        idx, gap = nearest_stamps(t, rs)
+        ends = {int(i) for i in idx[gap <= max_stamp_gap]}
+    angle = math.radians(angle_deg)
+    kept: list[int] = []
+    last: np.ndarray | None = None
+    for k in range(n):
+        odo = None if odometry[k] is None else np.asarray(odometry[k], dtype=float)
+        keep = k == 0 or k in ends
+        if not keep and odo is not None and last is not None:
+            dx, dy, dth = relative(last, odo).tolist()
+            keep = math.hypot(dx, dy) >= distance or abs(dth) >= angle
+        if keep:
+            kept.append(k)
+            if odo is not None:
+                last = odo
+    return kept
+
+
+def one_range_max(records: Sequence[LogRecord]) -> list[LogRecord]:
+    """The records with one ``range_max`` for every scan, far above every valid reading, and
+    each scan's invalid readings NaN (written as that maximum): what FLASER can carry (one
+    ``PARAM robot_front_laser_max``), read back with each scan's own valid readings. (The
+    reader learns a FLASER log's "no return" value as it streams, so a thinned log read as
+    the full one was would learn it from other scans; a scan's ``range_max`` decides only
+    which readings are valid.)"""
+    top = max(
+        (float(np.max(r.scan.ranges[r.scan.valid])) for r in records if r.scan.valid.any()),
+        default=0.0,
+    )
+    common = max(100.0, 2.0 * top)
+    out = []
+    for r in records:
+        ranges = np.where(r.scan.valid, r.scan.ranges, np.nan)
+        scan = dataclasses.replace(r.scan, ranges=ranges, range_max=common)
+        out.append(LogRecord(scan, r.odometry, r.truth))
+    return out
+
+
+def write_thinned(path: Path, records: Sequence[LogRecord], source: str) -> str:
+    """Write the records as a CARMEN log (module docstring); the line kind used."""
+    if not records:
+        raise ValueError(f"{path}: no scans to write")
+    geometry = flaser_geometry(records[0].scan)
+    if geometry is not None:
+        fov, convention = geometry
+        write_carmen(
+            path,
+            one_range_max(records),
+            field_of_view_deg=fov,
+            convention=convention,
+            header_comment=f"thinned from {source} (benchmarks/bench_thinned.py)",
+        )
+        return "FLASER"
+    with CarmenWriter(path, estimate_of=f"{source}, thinned") as writer:
+        for rec in records:
+            if rec.odometry is None:
+                raise ValueError(f"{path}: a ROBOTLASER1 scan needs a robot pose (odometry)")
+            writer.write(rec.scan, rec.odometry, rec.truth, pose=rec.odometry)
+    return "ROBOTLASER1"
+
+
+def check_read_back(path: Path, records: Sequence[LogRecord], tol: float = 1e-4) -> None:
+    """Raise ``ValueError`` unless ``path`` reads back as ``records``: the same stamps,
+    odometry, beam angles, valid readings and their ranges (to ``tol`` m), the mount to 1e-9
+    (a ROBOTLASER1 line gives it as the laser's pose in the world, composed anew)."""
+    back = list(open_log(path).records())
+    if len(back) != len(records):
+        raise ValueError(f"{path}: {len(back)} scans read back, {len(records)} written")
+    for k, (a, b) in enumerate(zip(records, back)):
+        sa, sb = a.scan, b.scan
+        what = None
+        if sa.stamp != sb.stamp:
+            what = f"stamp {sb.stamp!r} for {sa.stamp!r}"
+        elif a.odometry != b.odometry:
+            what = f"odometry {b.odometry} for {a.odometry}"
+        elif sa.n_beams != sb.n_beams:
+            what = "beam count"
+        elif not np.allclose(
+            sa.sensor_pose.as_array(), sb.sensor_pose.as_array(), rtol=0.0, atol=1e-9
+        ):
+            what = f"mount {sb.sensor_pose} for {sa.sensor_pose}"
+        elif not np.allclose(sa.angles, sb.angles, rtol=0.0, atol=1e-9):
+            what = "beam angles"
+        elif not np.array_equal(sa.valid, sb.valid):
+            what = f"{int(np.sum(sa.valid != sb.valid))} readings' validity"
+        elif not np.allclose(sa.ranges[sa.valid], sb.ranges[sb.valid], rtol=0.0, atol=tol):
+            what = "ranges"
+        if what is not None:
+            raise ValueError(f"{path}: scan {k} reads back with another {what}")
+
+
+def thin_log(
+    log_path: Path, relations_path: Path, out: Path, distance: float, angle_deg: float
+) -> dict[str, Any]:
+    """Thin one log into ``out`` (written, read back and checked); its figures."""
+    records = list(open_log(log_path).records())
+    rel = read_relations(relations_path)
+    stamps = [r.scan.stamp for r in records]
+    odometry = [None if r.odometry is None else r.odometry.as_array() for r in records]
+    ends = np.concatenate([rel.t1, rel.t2])
+    keep = thin_indices(stamps, odometry, ends, distance, angle_deg)
+    kept = [records[k] for k in keep]
+    kind = write_thinned(out, kept, log_path.name)
+    check_read_back(out, kept)
+    idx, gap = nearest_stamps(np.asarray(stamps), ends)
+    return {
+        "scans_full": len(records),
+        "scans_kept": len(kept),
+        "relation_end_scans": len(set(idx[gap <= DEFAULT_RELATIONS_GAP].tolist())),
+        "lines": kind,
+    }
+
+
+def thinned_log(folder: Path, data: Path, name: str) -> tuple[Path, Path]:
+    """``bench_peers.py``'s thinned choices: ``LOG-thin-KEY`` (LOG of :data:`LOGS`, KEY of
+    :data:`THINNINGS`) written into ``folder``; the log's and its relations' paths."""
+    log, _, key = name.partition("-thin-")
+    if log not in LOGS or key not in THINNINGS:
+        raise KeyError(name)
+    log_path, rel_path = (data / part for part in LOGS[log])
+    out = folder / f"{name}.clf"
+    info = thin_log(log_path, rel_path, out, *THINNINGS[key])
+    print(
+        f"{name}: {info['scans_kept']} of {info['scans_full']} scans ({info['lines']})",
+        file=sys.stderr,
+    )
+    return out, rel_path
+
+
+def thinned_names() -> list[str]:
+    return [f"{log}-thin-{key}" for log in LOGS for key in THINNINGS]
+
+
+# -- running and the report ------------------------------------------------------------------
+def run_default(log_path: Path, relations: Any) -> dict[str, Any]:
+    """The default front end along the log (``bench_peers.run_method``), scored."""
+    run = bench_peers.run_method(bench_peers.FuzzyposDefault(), log_path, None)
+    row = bench_peers.score(run["stamps"], run["poses"], relations)
+    row.update(
+        scans=run["scans"], update_ms_per_scan=1000.0 * run["matcher_seconds"] / run["scans"]
+    )
+    return row
+
+
+def ratios(row: dict[str, Any], full: dict[str, Any]) -> dict[str, float]:
+    return {k: row[k] / full[k] for k in FIGURES if k in row and k in full and full[k] > 0}
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    heads = " | ".join(FIGURES.values())
+    ratio_heads = " | ".join(f"{h} ÷ full" for h in FIGURES.values())
+    lines = [
+        f"| log | scans | {heads} | {ratio_heads} |",
+        "|---|---:|" + "---:|" * (2 * len(FIGURES)),
+    ]
+    for r in rows:
+        if "not_scored" in r:
+            lines.append(f"| {r['label']} | {r['scans']} | not scored: {r['not_scored']} |")
+            continue
+        figs = " | ".join(f"{r[k]:.4f}" if k.endswith("_m") else f"{r[k]:.3f}" for k in FIGURES)
+        rat = r.get("ratios")
+        if rat is None:
+            rats = " | ".join("" for _ in FIGURES)
+        else:
+            rats = " | ".join(
+                "–" if k not in rat else f"{rat[k]:.2f}" + (" ✗" if rat[k] > TARGET_RATIO else "")
+                for k in FIGURES
+            )
+        scans = f"{r['scans']}"
+        if "relation_end_scans" in r:
+            scans += f" ({r['relation_end_scans']} relation ends)"
+        lines.append(f"| {r['label']} | {scans} | {figs} | {rats} |")
+    return "\n".join(lines)
+
+
+def markdown(rows: list[dict[str, Any]], meta: dict[str, str]) -> str:
+    return (
+        "# The default front end on thinned logs (issue 34, item 5)\n\n"
+        f"- date: {meta['date']}\n"
+        f"- commit: {meta['commit']}\n"
+        f"- machine: {meta['machine']}\n"
+        f"- command: `{meta['command']}`\n"
+        f"- data: {meta['data']}\n\n"
+        "Each shared log thinned to every relation's end scans plus a scan each time the "
+        "odometry moved 0.5 m or 10° (`thin 0.5`), or 1 m or 20° (`thin 1`), since the last "
+        "scan kept; `Positioner()` (the default) on the full and the thinned logs, scored on "
+        "the same relations: mean errors over all relations and the local ones (t2 − t1 ≤ "
+        f"10 s), and the thinned over the full figure (✗: above the target {TARGET_RATIO}). "
+        "`benchmarks/bench_thinned.py`'s docstring has the details.\n\n" + table(rows) + "\n"
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    here = Path(__file__).resolve().parent
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument(
+        "--data",
+        default=os.environ.get("FUZZYPOS_DATA", os.fspath(here.parent.parent / "shared" / "data")),
+        help="the shared data folder (default: $FUZZYPOS_DATA, else ../shared/data)",
+    )
+    ap.add_argument("--logs", default=",".join(LOGS), help=f"of {', '.join(LOGS)}")
+    ap.add_argument("--thinnings", default=",".join(THINNINGS), help=f"of {', '.join(THINNINGS)}")
+    ap.add_argument("--keep", type=Path, default=None, help="write the thinned logs here")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=here.parent / "docs" / "benchmarks" / "thinned.md",
+        help="the markdown to write (a JSON beside it); default docs/benchmarks/thinned.md",
+    )
+    ap.add_argument("--no-write", action="store_true", help="print only")
+    args = ap.parse_args(argv)
+    names = [s.strip() for s in args.logs.split(",") if s.strip()]
+    keys = [s.strip() for s in args.thinnings.split(",") if s.strip()]
+    if [n for n in names if n not in LOGS] or [k for k in keys if k not in THINNINGS]:
+        ap.error(f"--logs of {', '.join(LOGS)}; --thinnings of {', '.join(THINNINGS)}")
+    data = Path(args.data)
+    scratch = None
+    if args.keep is None:
+        scratch = tempfile.TemporaryDirectory(prefix="bench-thinned-")
+        folder = Path(scratch.name)
+    else:
+        folder = args.keep
+        folder.mkdir(parents=True, exist_ok=True)
+
+    print(f"fuzzypos: kernels ready in {bench_peers.warm_up():.1f} s", file=sys.stderr)
+    rows: list[dict[str, Any]] = []
+    for name in names:
+        log_path, rel_path = (data / part for part in LOGS[name])
+        if not log_path.exists() or not rel_path.exists():
+            sys.exit(f"{log_path}: missing (or its relations); see --data")
+        relations = read_relations(rel_path)
+        t0 = time.perf_counter()
+        full = {"label": f"{name} full", "log": name, "thinning": None}
+        full.update(run_default(log_path, relations))
+        rows.append(full)
+        print(f"{name}: full in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+        for key in keys:
+            t0 = time.perf_counter()
+            out = folder / f"{name}-thin-{key}.clf"
+            info = thin_log(log_path, rel_path, out, *THINNINGS[key])
+            row: dict[str, Any] = {"label": f"{name} thin {key}", "log": name, "thinning": key}
+            row.update(info)
+            row.update(run_default(out, relations))
+            row["ratios"] = ratios(row, full)
+            rows.append(row)
+            print(
+                f"{name}: thin {key}: {info['scans_kept']} of {info['scans_full']} scans in "
+                f"{time.perf_counter() - t0:.0f} s",
+                file=sys.stderr,
+            )
+    if scratch is not None:
+        scratch.cleanup()
+    print(table(rows))
+    if args.no_write:
+        return
+    meta = {
+        "date": datetime.datetime.now().isoformat(timespec="seconds"),
+        "commit": commit(),
+        "machine": machine(),
+        "command": shlex.join(
+            ["python", "benchmarks/bench_thinned.py", *(sys.argv[1:] if argv is None else argv)]
+        ),
+        "data": os.path.abspath(data),
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(markdown(rows, meta), encoding="utf-8")
+    write_json(
+        args.out.with_suffix(".json"),
+        {
+            **meta,
+            "thinnings": {k: {"distance_m": d, "angle_deg": a} for k, (d, a) in THINNINGS.items()},
+            "target_ratio": TARGET_RATIO,
+            "rows": rows,
+        },
+    )
+    print(f"\nwritten: {args.out} and {args.out.with_suffix('.json').name}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
