@@ -27,8 +27,10 @@ relations: all relations and local ones (t2 − t1 <= 10 s), mean translational 
 rotational (degrees) errors, and each thinned figure over the full log's (the issue's target:
 at most 1.15). The table is printed and written as markdown to ``--out`` (default
 ``docs/benchmarks/thinned.md``) with the date, commit, machine and command, and as JSON
-beside it. ``bench_peers.py --logs intel-thin-0.5,…`` runs the peers on the same thinned logs
-(:func:`thinned_log`).
+beside it. With ``--peers``, ``bench_peers.py``'s small_gicp variants run on the same full and
+thinned logs too, and fuzzypos's local rotational error is compared with the better
+variant's (the issue's target: at most 1.2 times it); ``bench_peers.py --logs
+intel-thin-0.5,…`` runs every peer on the same thinned logs (:func:`thinned_log`).
 """
 
 from __future__ import annotations
@@ -72,6 +74,9 @@ LOGS = {
 THINNINGS = {"0.5": (0.5, 10.0), "1": (1.0, 20.0)}
 #: the issue's target: a thinned figure at most this many times the full log's
 TARGET_RATIO = 1.15
+#: the issue's target on the thinned logs: fuzzypos's local rotation at most this many times
+#: the better small_gicp variant's
+PEER_TARGET_RATIO = 1.2
 #: the figures compared (relations_errors().as_dict() keys) and their headings
 FIGURES = {
     "all_trans_mean_m": "all trans m",
@@ -142,11 +147,18 @@ def one_range_max(records: Sequence[LogRecord]) -> list[LogRecord]:
 
 
 def write_thinned(path: Path, records: Sequence[LogRecord], source: str) -> str:
-    """Write the records as a CARMEN log (module docstring); the line kind used."""
+    """Write the records as a CARMEN log (module docstring): FLASER lines when every scan
+    has the first's FLASER beam geometry and mount, else ``CarmenWriter``'s ROBOTLASER1 lines
+    where the first scan's FLASER geometry does not describe a scan (every scan of
+    fr-clinic, whose angles fit no FLASER convention); the kinds of line written."""
     if not records:
         raise ValueError(f"{path}: no scans to write")
-    geometry = flaser_geometry(records[0].scan)
-    if geometry is not None:
+    first = records[0].scan
+    geometry = flaser_geometry(first)
+    if geometry is not None and all(
+        flaser_geometry(r.scan) == geometry and r.scan.sensor_pose == first.sensor_pose
+        for r in records
+    ):
         fov, convention = geometry
         write_carmen(
             path,
@@ -161,7 +173,7 @@ def write_thinned(path: Path, records: Sequence[LogRecord], source: str) -> str:
             if rec.odometry is None:
                 raise ValueError(f"{path}: a ROBOTLASER1 scan needs a robot pose (odometry)")
             writer.write(rec.scan, rec.odometry, rec.truth, pose=rec.odometry)
-    return "ROBOTLASER1"
+    return "ROBOTLASER1" if writer.robotlaser1 == writer.written else "FLASER and ROBOTLASER1"
 
 
 def check_read_back(path: Path, records: Sequence[LogRecord], tol: float = 1e-4) -> None:
@@ -237,14 +249,74 @@ def thinned_names() -> list[str]:
 
 
 # -- running and the report ------------------------------------------------------------------
-def run_default(log_path: Path, relations: Any) -> dict[str, Any]:
-    """The default front end along the log (``bench_peers.run_method``), scored."""
-    run = bench_peers.run_method(bench_peers.FuzzyposDefault(), log_path, None)
+def run_default(log_path: Path, relations: Any, method: Any = None) -> dict[str, Any]:
+    """The default front end (or ``method``, a ``bench_peers.Method``) along the log
+    (``bench_peers.run_method``), scored; ``degraded``: its degraded estimates (fallbacks)."""
+    method = bench_peers.FuzzyposDefault() if method is None else method
+    run = bench_peers.run_method(method, log_path, None)
     row = bench_peers.score(run["stamps"], run["poses"], relations)
     row.update(
-        scans=run["scans"], update_ms_per_scan=1000.0 * run["matcher_seconds"] / run["scans"]
+        scans=run["scans"],
+        matcher_ms_per_scan=1000.0 * run["matcher_seconds"] / max(run["scans"], 1),
+        degraded=method.fallbacks,
     )
     return row
+
+
+def small_gicp_methods() -> list[Any]:
+    """``bench_peers.py``'s small_gicp variants (empty where small_gicp is not installed)."""
+    if bench_peers.small_gicp is None:
+        return []
+    return [
+        bench_peers.SmallGicp("GICP"),
+        bench_peers.SmallGicp("PLANE_ICP"),
+        bench_peers.SmallGicp("GICP", scan_to_scan=True),
+    ]
+
+
+def peer_row(label: str, fuzzypos_row: dict[str, Any], log_path: Path, relations: Any) -> dict:
+    """small_gicp's variants on a log; the better local rotation and fuzzypos's over it."""
+    out: dict[str, Any] = {"label": label, "fuzzypos_local_rot_mean_deg": None, "variants": {}}
+    out["fuzzypos_local_rot_mean_deg"] = fuzzypos_row.get("local_rot_mean_deg")
+    for method in small_gicp_methods():
+        r = run_default(log_path, relations, method)
+        out["variants"][method.name] = {k: r.get(k) for k in (*FIGURES, "degraded")}
+    rots = {
+        name: v["local_rot_mean_deg"]
+        for name, v in out["variants"].items()
+        if v.get("local_rot_mean_deg") is not None
+    }
+    if rots and out["fuzzypos_local_rot_mean_deg"] is not None:
+        best = min(rots, key=lambda name: rots[name])
+        out.update(
+            best=best,
+            best_local_rot_mean_deg=rots[best],
+            ratio=out["fuzzypos_local_rot_mean_deg"] / rots[best],
+        )
+    return out
+
+
+def peer_table(rows: list[dict[str, Any]]) -> str:
+    names = list(dict.fromkeys(n for r in rows for n in r["variants"]))
+    lines = [
+        "| log | fuzzypos local rot ° | "
+        + " | ".join(f"{n} local rot °" for n in names)
+        + " | fuzzypos ÷ the better |",
+        "|---|---:|" + "---:|" * (len(names) + 1),
+    ]
+    for r in rows:
+        cells = []
+        for n in names:
+            v = r["variants"].get(n, {}).get("local_rot_mean_deg")
+            cells.append("–" if v is None else f"{v:.3f}")
+        ratio = "–"
+        if "ratio" in r:
+            ratio = f"{r['ratio']:.2f}" + (" ✗" if r["ratio"] > PEER_TARGET_RATIO else "")
+        f = r["fuzzypos_local_rot_mean_deg"]
+        lines.append(
+            f"| {r['label']} | {'–' if f is None else f'{f:.3f}'} | {' | '.join(cells)} | {ratio} |"
+        )
+    return "\n".join(lines)
 
 
 def ratios(row: dict[str, Any], full: dict[str, Any]) -> dict[str, float]:
@@ -255,12 +327,12 @@ def table(rows: list[dict[str, Any]]) -> str:
     heads = " | ".join(FIGURES.values())
     ratio_heads = " | ".join(f"{h} ÷ full" for h in FIGURES.values())
     lines = [
-        f"| log | scans | {heads} | {ratio_heads} |",
-        "|---|---:|" + "---:|" * (2 * len(FIGURES)),
+        f"| log | scans | degraded | {heads} | {ratio_heads} |",
+        "|---|---:|---:|" + "---:|" * (2 * len(FIGURES)),
     ]
     for r in rows:
         if "not_scored" in r:
-            lines.append(f"| {r['label']} | {r['scans']} | not scored: {r['not_scored']} |")
+            lines.append(f"| {r['label']} | {r['scans']} | | not scored: {r['not_scored']} |")
             continue
         figs = " | ".join(f"{r[k]:.4f}" if k.endswith("_m") else f"{r[k]:.3f}" for k in FIGURES)
         rat = r.get("ratios")
@@ -274,12 +346,14 @@ def table(rows: list[dict[str, Any]]) -> str:
         scans = f"{r['scans']}"
         if "relation_end_scans" in r:
             scans += f" ({r['relation_end_scans']} relation ends)"
-        lines.append(f"| {r['label']} | {scans} | {figs} | {rats} |")
+        lines.append(f"| {r['label']} | {scans} | {r.get('degraded', '–')} | {figs} | {rats} |")
     return "\n".join(lines)
 
 
-def markdown(rows: list[dict[str, Any]], meta: dict[str, str]) -> str:
-    return (
+def markdown(
+    rows: list[dict[str, Any]], meta: dict[str, str], peers: list[dict[str, Any]] | None = None
+) -> str:
+    text = (
         "# The default front end on thinned logs (issue 34, item 5)\n\n"
         f"- date: {meta['date']}\n"
         f"- commit: {meta['commit']}\n"
@@ -293,6 +367,15 @@ def markdown(rows: list[dict[str, Any]], meta: dict[str, str]) -> str:
         f"10 s), and the thinned over the full figure (✗: above the target {TARGET_RATIO}). "
         "`benchmarks/bench_thinned.py`'s docstring has the details.\n\n" + table(rows) + "\n"
     )
+    if peers:
+        text += (
+            "\n## Local rotation against small_gicp on the same logs\n\n"
+            "`bench_peers.py`'s small_gicp variants (points extruded into three layers, the "
+            "odometry increment as the guess) on the same thinned and full logs; fuzzypos's "
+            "local rotational error over the better variant's (✗: above the issue's target "
+            f"{PEER_TARGET_RATIO}).\n\n" + peer_table(peers) + "\n"
+        )
+    return text
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -313,7 +396,15 @@ def main(argv: list[str] | None = None) -> None:
         help="the markdown to write (a JSON beside it); default docs/benchmarks/thinned.md",
     )
     ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument(
+        "--peers",
+        action="store_true",
+        help="also run bench_peers.py's small_gicp variants on the same full and thinned logs "
+        "and compare the local rotation (pip install -e '.[bench]')",
+    )
     args = ap.parse_args(argv)
+    if args.peers and not small_gicp_methods():
+        sys.exit(f"--peers: small_gicp is not installed ({bench_peers.INSTALL_HINT})")
     names = [s.strip() for s in args.logs.split(",") if s.strip()]
     keys = [s.strip() for s in args.thinnings.split(",") if s.strip()]
     if [n for n in names if n not in LOGS] or [k for k in keys if k not in THINNINGS]:
@@ -329,6 +420,7 @@ def main(argv: list[str] | None = None) -> None:
 
     print(f"fuzzypos: kernels ready in {bench_peers.warm_up():.1f} s", file=sys.stderr)
     rows: list[dict[str, Any]] = []
+    peers: list[dict[str, Any]] = []
     for name in names:
         log_path, rel_path = (data / part for part in LOGS[name])
         if not log_path.exists() or not rel_path.exists():
@@ -338,6 +430,8 @@ def main(argv: list[str] | None = None) -> None:
         full = {"label": f"{name} full", "log": name, "thinning": None}
         full.update(run_default(log_path, relations))
         rows.append(full)
+        if args.peers:
+            peers.append(peer_row(full["label"], full, log_path, relations))
         print(f"{name}: full in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
         for key in keys:
             t0 = time.perf_counter()
@@ -348,6 +442,8 @@ def main(argv: list[str] | None = None) -> None:
             row.update(run_default(out, relations))
             row["ratios"] = ratios(row, full)
             rows.append(row)
+            if args.peers:
+                peers.append(peer_row(row["label"], row, out, relations))
             print(
                 f"{name}: thin {key}: {info['scans_kept']} of {info['scans_full']} scans in "
                 f"{time.perf_counter() - t0:.0f} s",
@@ -356,6 +452,9 @@ def main(argv: list[str] | None = None) -> None:
     if scratch is not None:
         scratch.cleanup()
     print(table(rows))
+    if peers:
+        print()
+        print(peer_table(peers))
     if args.no_write:
         return
     meta = {
@@ -368,7 +467,7 @@ def main(argv: list[str] | None = None) -> None:
         "data": os.path.abspath(data),
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(markdown(rows, meta), encoding="utf-8")
+    args.out.write_text(markdown(rows, meta, peers), encoding="utf-8")
     write_json(
         args.out.with_suffix(".json"),
         {
@@ -376,6 +475,7 @@ def main(argv: list[str] | None = None) -> None:
             "thinnings": {k: {"distance_m": d, "angle_deg": a} for k, (d, a) in THINNINGS.items()},
             "target_ratio": TARGET_RATIO,
             "rows": rows,
+            "peers": peers,
         },
     )
     print(f"\nwritten: {args.out} and {args.out.with_suffix('.json').name}", file=sys.stderr)
