@@ -3,11 +3,16 @@ kiss-icp on the shared logs, all scored with the benchmark's relations metric, w
 time per scan of each measured in the same process.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_peers.py [--data ../shared/data]
-        [--logs intel,aces,sim180,sim360] [--max-scans N] [--json OUT.json] [--rounds N]
+        [--logs intel,aces,sim180,sim360,intel-thin-0.5,…] [--max-scans N] [--json OUT.json]
+        [--rounds N]
 
 ``sim180`` and ``sim360`` are simulated logs (``simulated_log``: the demo's gym, three laps,
 180 or 360 beams), written as CARMEN logs with relations from the truth before the runs: the
-shared logs have 180 beams, and issue 12 asks for the time on 360 too.
+shared logs have 180 beams, and issue 12 asks for the time on 360 too. ``LOG-thin-0.5`` and
+``LOG-thin-1`` (LOG one of intel, aces, fr079, fr-clinic) are the shared log thinned as
+``bench_thinned.py`` thins it (its relations' end scans and a scan every 0.5 m / 10°, or
+1 m / 20°, of odometry: large steps between scans, issue 34), written before the runs and
+scored on the log's relations.
 
 The peers are optional (``pip install -e '.[bench]'``); a peer that is not installed is
 skipped with a note. Every run reads the log afresh with
@@ -388,6 +393,22 @@ def simulated_log(folder: Path, name: str) -> tuple[Path, Path]:
     return log, relations
 
 
+# -- thinned logs ------------------------------------------------------------------------
+def thinned_module() -> Any:
+    """``bench_thinned`` (imported when asked for: it imports this module)."""
+    here = os.fspath(Path(__file__).resolve().parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    import bench_thinned
+
+    return bench_thinned
+
+
+def thinned_names() -> list[str]:
+    """The thinned logs' names (``bench_thinned.thinned_names``)."""
+    return list(thinned_module().thinned_names())
+
+
 # -- running and scoring -----------------------------------------------------------------
 def run_method(method: Method, log_path: Path, max_scans: int | None) -> dict[str, Any]:
     """Run one method along a log: stamps, poses, odometry, timings."""
@@ -538,7 +559,8 @@ def main() -> None:
     ap.add_argument(
         "--logs",
         default="intel,aces",
-        help="comma-separated: intel, aces (shared), sim180, sim360 (simulated, see simulated_log)",
+        help="comma-separated: intel, aces (shared), sim180, sim360 (simulated, see "
+        "simulated_log), LOG-thin-0.5, LOG-thin-1 (a shared log thinned, see bench_thinned.py)",
     )
     ap.add_argument("--max-scans", type=int, default=None, help="the first N scans of each log")
     ap.add_argument("--json", type=Path, default=None, help="write the rows to this JSON file")
@@ -557,9 +579,10 @@ def main() -> None:
     for note in notes:
         print(note, file=sys.stderr)
     names = [s.strip() for s in args.logs.split(",") if s.strip()]
-    unknown = [n for n in names if n not in LOGS and n not in SIMULATED]
+    thinned = thinned_names()
+    unknown = [n for n in names if n not in LOGS and n not in SIMULATED and n not in thinned]
     if unknown:
-        known = ", ".join([*LOGS, *SIMULATED])
+        known = ", ".join([*LOGS, *SIMULATED, *thinned])
         sys.exit(f"--logs: unknown log(s) {', '.join(unknown)} (known: {known})")
     scratch = tempfile.TemporaryDirectory(prefix="bench_peers_")
 
@@ -569,6 +592,10 @@ def main() -> None:
     for name in names:
         if name in SIMULATED:
             log_path, rel_path = simulated_log(Path(scratch.name), name)
+        elif name in thinned:
+            log_path, rel_path = thinned_module().thinned_log(
+                Path(scratch.name), Path(args.data), name
+            )
         else:
             log_path = Path(args.data) / LOGS[name]
             rel_path = log_path.parent / f"{name}.relations"
