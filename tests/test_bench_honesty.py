@@ -16,8 +16,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fuzzypos.geometry import compose, inverse, propagate, relative
-from fuzzypos.io import Relations, write_tum
-from helpers import load_benchmark
+from fuzzypos.io import Relations, read_tum, write_tum
+from fuzzypos.logs import open_log
+from fuzzypos.run import run_log
+from helpers import load_benchmark, write_relations, write_sim_log
 
 
 @pytest.fixture(scope="module")
@@ -273,3 +275,20 @@ def test_the_report_names_date_commit_machine_and_command(bench, tmp_path, capsy
     assert "| syn | 2 | 1 | 1 |" in text
     data = json.loads(out.with_suffix(".json").read_text())
     assert data["rows"][0]["confident_gross"] == 1 and data["rows"][0]["used"] == 2
+
+
+def test_a_results_folder_of_the_run_job_reads(bench, tmp_path) -> None:
+    """``fuzzypos run``'s own results folder (covariance.csv as the run job writes it, with
+    whatever columns follow the seven): every short relation used, none unmatched."""
+    log = tmp_path / "sim.clf"
+    sim_run = write_sim_log(log)
+    run_log(open_log(log), results_dir=tmp_path / "out", plot=False)
+    stamps, _ = read_tum(tmp_path / "out" / "trajectory.tum")
+    pairs = [(k, k + 3) for k in range(0, len(stamps) - 3, 5)]
+    write_relations(tmp_path / "sim.relations", stamps, np.array(sim_run.true_poses), pairs)
+    s = bench.check_run(tmp_path / "out", tmp_path / "sim.relations")
+    assert (s.relations, s.used, s.unmatched, s.no_covariance) == (len(pairs), len(pairs), 0, 0)
+    assert math.isfinite(s.median_d2) and s.median_d2 > 0
+    cov_stamps, covs = bench.read_covariance(tmp_path / "out" / "covariance.csv")
+    np.testing.assert_array_equal(cov_stamps, stamps)
+    assert np.all(np.linalg.eigvalsh(covs) > 0)
