@@ -346,12 +346,14 @@ def machine() -> str:
 
 
 def commit() -> str:
-    """The commit this checkout is at, marked where its files differ from it."""
+    """The commit this checkout is at, marked where its code (``src``, ``benchmarks``)
+    differs from it."""
     h = git_hash() or "unknown"
     try:
-        here = Path(__file__).resolve().parent
+        top = Path(__file__).resolve().parent.parent
         dirty = subprocess.run(
-            ["git", "-C", os.fspath(here), "status", "--porcelain", "--untracked-files=no"],
+            ["git", "-C", os.fspath(top), "status", "--porcelain", "--untracked-files=no"]
+            + ["--", "src", "benchmarks"],
             capture_output=True,
             text=True,
             timeout=5,
