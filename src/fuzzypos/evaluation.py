@@ -7,7 +7,7 @@ taken wherever such an array is. Anything else raises :class:`EvaluationError`.
 - :func:`position_errors`, :func:`trajectory_errors`: pose by pose, the same scans in both.
 - :func:`relations_errors`: the relations metric of the Freiburg SLAM benchmark (Kümmerle et
   al., "On measuring the accuracy of SLAM algorithms", 2009), exactly as the shared data's
-  README (``/work/shared/data/README.md``, "How to score a trajectory") defines it.
+  README (the shared data's ``README.md``, "How to score a trajectory") defines it.
 - :func:`absolute_trajectory_error` (ATE) and :func:`relative_pose_error` (RPE), defined to
   agree with ``evo_ape``/``evo_rpe`` (evo 1.38) on planar trajectories; the exceptions are
   listed in each docstring.

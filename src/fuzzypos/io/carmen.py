@@ -3,7 +3,7 @@
 CARMEN logs
 -----------
 One message per line, ``NAME fields… ipc_timestamp hostname logger_timestamp``
-(``/work/shared/data/README.md`` describes the lines). The reader understands
+(the shared data's ``README.md`` describes the lines). The reader understands
 
 - ``FLASER n r_1 … r_n x y θ odom_x odom_y odom_θ ipc_timestamp hostname logger_timestamp``:
   one scan of any beam count ``n >= 2`` (180, 181, 360, 361, 541 …). The odometry comes from

@@ -1,6 +1,6 @@
 """Relations files: the ground truth of the Freiburg SLAM benchmark.
 
-Format (``/work/shared/data/README.md``, Kümmerle et al. 2009): one relation per line,
+Format (the shared data's ``README.md``, Kümmerle et al. 2009): one relation per line,
 ``t1 t2 x y z roll pitch yaw`` = the true motion of the robot from the scan at time ``t1`` to
 the scan at time ``t2``, expressed in the frame of the first (``x, y`` in metres, ``yaw`` in
 radians). :func:`read_relations` reads them into a :class:`Relations`;
