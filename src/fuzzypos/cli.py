@@ -236,6 +236,8 @@ err_console = Console(stderr=True)
 
 def _error_text(exc: BaseException) -> str:
     """One line for a library or file-system error."""
+    if isinstance(exc, OSError) and type(exc).__str__ is not OSError.__str__:
+        return " ".join(str(exc).split())  # a typed error that words itself
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return f"{exc.filename}: {exc.strerror}"
     text = str(exc) or type(exc).__name__

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .config import Config
+from .io import OutputPathError, check_output_file
 
 __all__ = [
     "RESULT_FILES",
@@ -214,24 +215,37 @@ def check_outputs(
     out_tum: str | os.PathLike[str] | None,
     bag_out: str | os.PathLike[str] | None,
 ) -> None:
-    """Fail before the run, not after it, on an output path that cannot be written."""
-    if folder is not None and (folder.exists() or folder.is_symlink()) and not folder.is_dir():
-        raise NotADirectoryError(errno.ENOTDIR, "is not a folder", os.fspath(folder))
+    """Fail before the run, not after it, on an output path that cannot be written: a
+    ``folder`` that is not one (or lies under a file), an ``out_tum`` that is not a regular
+    file, a new path, a pipe or a character device, or cannot be created
+    (:func:`~fuzzypos.io.check_output_file`), a ``bag_out`` that exists or whose folder
+    cannot be."""
+    if folder is not None:
+        _check_folder(folder)
     if out_tum is not None:
         tum = Path(out_tum)
         parent = tum.parent
+        in_results = folder is not None and parent.absolute() == folder.absolute()
         if tum.is_dir():
             raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", os.fspath(tum))
-        in_results = folder is not None and parent.absolute() == folder.absolute()
-        if not in_results and not parent.is_dir():
-            raise FileNotFoundError(
-                errno.ENOENT, f"cannot be written: no folder {os.fspath(parent)}", os.fspath(tum)
+        if not in_results or folder is None or folder.is_dir():
+            check_output_file(tum)
+    if bag_out is not None:
+        if Path(bag_out).exists() or Path(bag_out).is_symlink():
+            raise FileExistsError(
+                errno.EEXIST, "exists already; a bag is never overwritten", os.fspath(bag_out)
             )
-        if not in_results and not os.access(parent, os.W_OK):
-            raise PermissionError(
-                errno.EACCES, f"cannot be written: {os.fspath(parent)} is read-only", os.fspath(tum)
-            )
-    if bag_out is not None and (Path(bag_out).exists() or Path(bag_out).is_symlink()):
-        raise FileExistsError(
-            errno.EEXIST, "exists already; a bag is never overwritten", os.fspath(bag_out)
-        )
+        _check_folder(Path(bag_out).parent, os.fspath(bag_out))
+
+
+def _check_folder(folder: Path, name: str | None = None) -> None:
+    """That ``folder``, or where missing its nearest existing parent, is a folder (``name``:
+    the output path to name, default ``folder``)."""
+    for at in (folder.absolute(), *folder.absolute().parents):
+        if at.exists() or at.is_symlink():
+            if at.is_dir():
+                return
+            if name is None and at == folder.absolute():
+                raise NotADirectoryError(errno.ENOTDIR, "is not a folder", os.fspath(folder))
+            why = f"cannot be written: {os.fspath(at)} is a file, not a folder"
+            raise OutputPathError(errno.ENOTDIR, why, os.fspath(folder) if name is None else name)

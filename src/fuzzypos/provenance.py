@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from .io import write_text_file
+
 __all__ = ["file_sha256", "git_hash", "json_safe", "write_json"]
 
 
@@ -91,10 +93,7 @@ def json_safe(o: Any) -> Any:
 
 def write_json(path: Path, data: Any) -> None:
     """Write ``data`` (through :func:`json_safe`; numpy scalars and arrays and paths as JSON)
-    to ``path``, indented, by a temporary file renamed over it."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(
-        json.dumps(json_safe(data), indent=2, default=_json_default, allow_nan=False) + "\n",
-        encoding="utf-8",
-    )
-    os.replace(tmp, path)
+    to ``path``, indented, by a temporary file renamed over it (removed on failure; a failure
+    to write is an :class:`~fuzzypos.io.OutputWriteError`)."""
+    text = json.dumps(json_safe(data), indent=2, default=_json_default, allow_nan=False)
+    write_text_file(path, text + "\n")

@@ -11,12 +11,24 @@
 - :mod:`fuzzypos.io.tum`: TUM trajectories (``t x y z qx qy qz qw``, what ``evo`` reads).
 
 Every format error is a :class:`LogFormatError` (a :class:`ValueError`) naming the file, the
-line and what is wrong.
+line and what is wrong. Outputs are written where their paths point
+(:func:`output_target`): an :class:`OutputPathError` refuses a path before anything is
+written, an :class:`OutputWriteError` names the file a write failed on.
 """
 
 from __future__ import annotations
 
-from ._common import GZIP_MAGIC, LogFormatError, LogRecord, open_text
+from ._common import (
+    GZIP_MAGIC,
+    LogFormatError,
+    LogRecord,
+    OutputPathError,
+    OutputWriteError,
+    check_output_file,
+    open_text,
+    output_target,
+    write_text_file,
+)
 from .carmen import (
     CONVENTIONS,
     CarmenFormatError,
@@ -64,11 +76,16 @@ __all__ = [
     "CarmenWriter",
     "LogFormatError",
     "LogRecord",
+    "OutputPathError",
+    "OutputWriteError",
     "TumFormatError",
     "carmen_beam_geometry",
+    "check_output_file",
     "open_text",
+    "output_target",
     "read_carmen",
     "read_tum",
     "write_carmen",
+    "write_text_file",
     "write_tum",
 ]

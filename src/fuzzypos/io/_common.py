@@ -1,10 +1,12 @@
 """What the log readers and writers share: the typed format errors, opening plain or gzip
 text by content (from a pipe too), spooling a pipe that must be read more than once, and
-atomic writes."""
+writing an output where its path points (:func:`output_target`): a regular file atomically,
+a pipe or a character device streamed to."""
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import gzip
 import io
 import math
@@ -29,11 +31,16 @@ __all__ = [
     "GZIP_ERRORS",
     "LogFormatError",
     "LogRecord",
+    "OutputPathError",
+    "OutputWriteError",
     "Spool",
+    "check_output_file",
     "display_name",
     "is_stream",
     "open_text",
+    "output_target",
     "spool_if_stream",
+    "write_text_file",
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -247,25 +254,140 @@ def display_name(path: PathLike) -> str:
     return path.name if isinstance(path, Spool) else os.fspath(path)
 
 
+# -- outputs ---------------------------------------------------------------------------------
+class OutputPathError(OSError):
+    """An output path that fuzzypos will not write (a socket, a block device, a folder where a
+    file is wanted, one it cannot create or replace): ``"<path>: <why>"``, found before a
+    run starts."""
+
+    def __str__(self) -> str:
+        return f"{self.filename}: {self.strerror}"
+
+
+class OutputWriteError(OSError):
+    """Writing an output failed (a full disk, a closed pipe): ``"cannot write <path>: <why>"``
+    (``errno`` the failure's, ``filename`` the path as given)."""
+
+    def __str__(self) -> str:
+        return f"cannot write {self.filename}: {self.strerror}"
+
+
+def output_target(path: PathLike) -> tuple[Path, bool]:
+    """Where writing ``path`` goes, and whether it is streamed: a pipe, a FIFO or a character
+    device (``>(cat > x)``, ``/dev/stdout``, ``/dev/null``) is written to directly and never
+    replaced (``(path, True)``); a regular file or a new path is written where it points,
+    through symlinks (``(its target, False)``: replaced atomically in the target's folder).
+    Anything else (a folder, a socket, a block device, a path it cannot look at) is an
+    :class:`OutputPathError` (a folder an ``IsADirectoryError``)."""
+    name = os.fspath(path)
+    try:
+        mode: int | None = os.stat(name).st_mode
+    except FileNotFoundError:
+        mode = None  # a new path (or a link to one): written where it points
+    except OSError as exc:
+        why = exc.strerror or type(exc).__name__
+        if isinstance(exc, NotADirectoryError):
+            why = "a part of the path is a file, not a folder"
+        raise OutputPathError(exc.errno, f"cannot be written: {why}", name) from None
+    if mode is not None and (stat.S_ISFIFO(mode) or stat.S_ISCHR(mode)):
+        return Path(name), True
+    if mode is not None and stat.S_ISDIR(mode):
+        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", name)
+    if mode is not None and not stat.S_ISREG(mode):
+        what = "a socket" if stat.S_ISSOCK(mode) else "a block device or other special file"
+        raise OutputPathError(
+            errno.EINVAL, f"is {what}, not a file, a pipe or a character device", name
+        )
+    return Path(os.path.realpath(name)), False
+
+
+def check_output_file(path: PathLike) -> tuple[Path, bool]:
+    """:func:`output_target`, and that it can be written: a streamed target writable, else
+    its folder existing and a file creatable there (tried: a read-only folder or file system
+    is an :class:`OutputPathError`; no folder a ``FileNotFoundError``)."""
+    name = os.fspath(path)
+    target, streamed = output_target(path)
+    if streamed:
+        if not os.access(target, os.W_OK):
+            raise OutputPathError(errno.EACCES, "cannot be written: permission denied", name)
+        return target, streamed
+    folder = target.parent
+    if not folder.is_dir():
+        if folder.exists():
+            why = f"cannot be written: {os.fspath(folder)} is a file, not a folder"
+            raise OutputPathError(errno.ENOTDIR, why, name)
+        raise FileNotFoundError(
+            errno.ENOENT, f"cannot be written: no folder {os.fspath(folder)}", name
+        )
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".probe", dir=folder)
+    except OSError as exc:
+        why = (
+            f"{os.fspath(folder)} is read-only"
+            if exc.errno in (errno.EACCES, errno.EROFS)
+            else (exc.strerror or type(exc).__name__)
+        )
+        raise OutputPathError(exc.errno, f"cannot be written: {why}", name) from None
+    os.close(fd)
+    _unlink(probe)
+    return target, streamed
+
+
+@contextlib.contextmanager
+def _naming(path: PathLike, *also: PathLike) -> Iterator[None]:
+    """An ``OSError`` of writing (one without a file name, or naming ``also``, the temporary
+    file) as an :class:`OutputWriteError` naming ``path``."""
+    try:
+        yield
+    except OutputWriteError:
+        raise
+    except OSError as exc:
+        named = exc.filename
+        if named is not None and os.fspath(named) not in {os.fspath(a) for a in also}:
+            raise
+        why = exc.strerror or str(exc) or type(exc).__name__
+        raise OutputWriteError(exc.errno, why, display_name(path)) from exc
+
+
+def _write_to(target: PathLike, gz: bool, write: Callable[[IO[str]], None]) -> None:
+    if gz:
+        with (
+            open(target, "wb") as raw,
+            gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gzf,
+            io.TextIOWrapper(gzf, encoding="utf-8", newline="\n") as fh,
+        ):
+            write(fh)
+    else:
+        with open(target, "w", encoding="utf-8", newline="\n") as fh:
+            write(fh)
+
+
 def _write_atomically(path: PathLike, write: Callable[[IO[str]], None]) -> None:
-    """Call ``write`` on a text stream that ends up in ``path`` only if it returns: a
-    temporary file next to ``path`` is renamed over it, or removed on error. A name ending in
-    ``.gz`` gets a gzip file."""
-    target = Path(path)
+    """Call ``write`` on a text stream that ends up where ``path`` points
+    (:func:`output_target`): streamed to a pipe or character device; else a temporary file
+    next to the target is renamed over it only if ``write`` returns, or removed. A name
+    ending in ``.gz`` gets a gzip file. A failure to write is an :class:`OutputWriteError`."""
+    target, streamed = output_target(path)
+    gz = os.fspath(path).endswith(".gz")
+    if streamed:
+        with _naming(path, target):
+            _write_to(target, gz, write)
+        return
     tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     try:
-        if target.name.endswith(".gz"):
-            with (
-                open(tmp, "wb") as raw,
-                gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz,
-                io.TextIOWrapper(gz, encoding="utf-8", newline="\n") as fh,
-            ):
-                write(fh)
-        else:
-            with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-                write(fh)
-        os.replace(tmp, target)
+        with _naming(path, tmp, target):
+            _write_to(tmp, gz, write)
+            os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def write_text_file(path: PathLike, text: str) -> None:
+    """Write ``text`` (UTF-8) where ``path`` points, as :func:`_write_atomically` does."""
+
+    def write(fh: IO[str]) -> None:
+        fh.write(text)
+
+    _write_atomically(path, write)

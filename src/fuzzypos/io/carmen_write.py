@@ -16,9 +16,11 @@ One ``FLASER n r_1 … r_n x y θ odom_x odom_y odom_θ ipc_timestamp hostname
 logger_timestamp`` (or ``ROBOTLASER1``) line per scan (both timestamps the scan's stamp,
 ``repr``), then ``TRUEPOS`` where the truth is given; poses at full precision (``repr``),
 ranges to 0.1 mm.
-The file is written to a temporary file next to ``path`` that :meth:`CarmenWriter.close`
-renames over it (:meth:`CarmenWriter.abort` removes it), so a failure leaves no partial log;
-one scan is held at a time.
+The file is written to a temporary file next to where ``path`` points (through symlinks)
+that :meth:`CarmenWriter.close` renames over it (:meth:`CarmenWriter.abort` removes it), so a
+failure leaves no partial log; a pipe or character device is written to directly
+(:func:`~fuzzypos.io._common.output_target`). One scan is held at a time; a failure to write
+is an :class:`~fuzzypos.io._common.OutputWriteError` naming ``path``.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from .._kernels import compiled
 from .._version import __version__
 from ..geometry import Pose2D
 from ..scan import LaserScan
-from ._common import LogRecord, PathLike
+from ._common import LogRecord, OutputWriteError, PathLike, _naming, output_target
 from ._flaser import GEOMETRY_TOL, RANGE_DECIMALS, carmen_beam_geometry, check_convention, check_fov
 
 __all__ = ["CarmenWriter", "flaser_geometry", "write_carmen"]
@@ -296,7 +298,11 @@ class CarmenWriter:
         self.hostname = hostname
         self.name = os.fspath(path)
         self.path = Path(path)
-        self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        target, self.streamed = output_target(path)
+        self.tmp = (
+            target if self.streamed else target.with_name(f".{target.name}.{os.getpid()}.tmp")
+        )
+        self._target = target
         self.written = 0
         self.robotlaser1 = 0
         self.notes: list[str] = []
@@ -488,10 +494,16 @@ class CarmenWriter:
             self.robotlaser1 += 1
         if truth is not None:
             text += f"TRUEPOS {_pose_text(truth)} {odo} {trailer}\n"
-        fh.write(text)
+        try:
+            fh.write(text)
+        except OSError as exc:
+            raise self._write_error(exc) from exc
         self.written += 1
 
     # -- finishing -------------------------------------------------------------------------
+    def _write_error(self, exc: OSError) -> OutputWriteError:
+        return OutputWriteError(exc.errno, exc.strerror or str(exc), self.name)
+
     def _close_files(self) -> None:
         fh, raw = self._fh, self._raw
         self._fh = self._raw = None
@@ -511,7 +523,8 @@ class CarmenWriter:
         if self._fh is None:
             return False
         try:
-            self._close_files()
+            with _naming(self.name, self.tmp):
+                self._close_files()
             if poses is not None:
                 self._replace_poses(np.asarray(poses, dtype=float), why)
             if self.estimate_of is not None:
@@ -522,9 +535,11 @@ class CarmenWriter:
                         "the first scan, cannot describe)"
                     )
                 if self.written == 0:
-                    os.unlink(self.tmp)
+                    if not self.streamed:
+                        os.unlink(self.tmp)
                     return False
-            os.replace(self.tmp, self.path)
+            if not self.streamed:
+                os.replace(self.tmp, self._target)
         except BaseException:
             self.abort()
             raise
@@ -534,8 +549,9 @@ class CarmenWriter:
         """Rewrite the closed temporary file with ``poses`` as the scans' estimates: FLASER's
         ``x y θ``, ROBOTLASER1's robot pose and its laser pose (the new robot pose composed
         with the mount, as :meth:`write` wrote it)."""
-        if self.estimate_of is None:
-            raise ValueError(f"{self.name}: poses can only be replaced in an estimate log")
+        if self.estimate_of is None or self.streamed:
+            what = "a pipe or device" if self.streamed else "a log that is not an estimate's"
+            raise ValueError(f"{self.name}: poses cannot be replaced in {what}")
         if poses.shape != (self.written, 3) or not np.isfinite(poses).all():
             raise ValueError(
                 f"{self.name}: expected {self.written} finite poses (x, y, θ), got an array "
@@ -544,27 +560,35 @@ class CarmenWriter:
         new = self.tmp.with_name(self.tmp.name + ".poses")
         opener: Any = gzip.open if self._gz else open
         k = 0
-        with (
-            opener(self.tmp, "rt", encoding="utf-8") as src,
-            opener(new, "wt", encoding="utf-8", newline="\n") as dst,
-        ):
-            for line in src:
-                kind = line[: line.find(" ")]
-                if kind == "FLASER" or kind == "ROBOTLASER1":
-                    line = _with_pose(line, Pose2D.from_array(poses[k]))
-                    k += 1
-                elif line.startswith("# written by") and why:
-                    line += f"# {why}\n"
-                dst.write(line)
-        os.replace(new, self.tmp)
+        try:
+            with (
+                _naming(self.name, new),
+                opener(self.tmp, "rt", encoding="utf-8") as src,
+                opener(new, "wt", encoding="utf-8", newline="\n") as dst,
+            ):
+                for line in src:
+                    kind = line[: line.find(" ")]
+                    if kind == "FLASER" or kind == "ROBOTLASER1":
+                        line = _with_pose(line, Pose2D.from_array(poses[k]))
+                        k += 1
+                    elif line.startswith("# written by") and why:
+                        line += f"# {why}\n"
+                    dst.write(line)
+            os.replace(new, self.tmp)
+        except BaseException:  # Ctrl-C too: no stray file
+            with contextlib.suppress(OSError):
+                os.unlink(new)
+            raise
 
     def abort(self) -> None:
         """Give up: close and remove the temporary file (``path`` is left as it was)."""
         try:
-            self._close_files()
+            with contextlib.suppress(OSError):  # a full disk fails the flush: nothing to keep
+                self._close_files()
         finally:
-            with contextlib.suppress(OSError):
-                os.unlink(self.tmp)
+            if not self.streamed:
+                with contextlib.suppress(OSError):
+                    os.unlink(self.tmp)
 
     def __enter__(self) -> CarmenWriter:
         return self
