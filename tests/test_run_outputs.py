@@ -13,6 +13,8 @@ only after the fixed code path says it streams to it.
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import json
 import os
 import select
@@ -182,6 +184,37 @@ def test_o_to_a_socket_or_a_folder_is_refused_before_the_run(sim_log, tmp_path, 
     assert not Path("results").exists()
 
 
+# -- unwritable paths --------------------------------------------------------------------------
+def read_only(monkeypatch: pytest.MonkeyPatch, folder: Path) -> None:
+    """``folder`` read-only: by its mode, and, for root (whom modes do not stop), by
+    refusing to create anything in it."""
+    folder.chmod(0o555)
+    monkeypatch.setattr(os, "open", _refusing(os.open, folder))
+
+
+def _refusing(real, folder: Path):
+    def fake(name, flags, *args, **kwargs):
+        if flags & os.O_CREAT and Path(os.fsdecode(name)).parent == folder:
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fsdecode(name))
+        return real(name, flags, *args, **kwargs)
+
+    return fake
+
+
+def test_an_unwritable_results_folder_is_refused_before_the_run(sim_log, tmp_path, monkeypatch):
+    path, _run = sim_log
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    read_only(monkeypatch, ro)
+    never_run(monkeypatch)
+    try:
+        refused(["run", str(path), "--results", str(ro)], f"{ro}: cannot be written")
+        refused(["run", str(path), "-o", str(ro / "x.tum")], f"{ro} is read-only")
+    finally:
+        ro.chmod(0o755)
+    assert list(ro.iterdir()) == []
+
+
 def test_a_path_under_a_file_is_refused_before_the_run(sim_log, tmp_path, monkeypatch):
     path, _run = sim_log
     never_run(monkeypatch)
@@ -190,3 +223,40 @@ def test_a_path_under_a_file_is_refused_before_the_run(sim_log, tmp_path, monkey
     refused(["run", str(path), "--results", under], f"{tmp_path / 'f'} is a file, not a folder")
     refused(["run", str(path), "-o", under + ".tum"], "is a file, not a folder")
     refused(["run", str(path), "--bag-out", under + ".bag"], "is a file, not a folder")
+
+
+# -- one run per folder ------------------------------------------------------------------------
+def test_a_folder_in_use_by_another_run_is_refused(sim_log, tmp_path, monkeypatch):
+    path, _run = sim_log
+    out = tmp_path / "res"
+    out.mkdir()
+    with open(out / ".fuzzypos.lock", "w") as held:  # another run's lock
+        fcntl.flock(held, fcntl.LOCK_EX)
+        held.write("4242\n")
+        held.flush()
+        never_run(monkeypatch)
+        for extra in ([], ["--overwrite"]):
+            refused(
+                ["run", str(path), "--results", str(out), *extra],
+                f"results folder {out} is in use by another run (pid 4242)",
+            )
+    monkeypatch.setattr(Positioner, "update", _UPDATE)
+    res = runner.invoke(app, ["run", str(path), "--results", str(out), "--max-scans", "3"])
+    assert res.exit_code == 0, res.output
+    assert hidden(out) == []  # the lock is gone with its run
+
+
+def test_the_run_holds_its_folder_until_it_ends(sim_log, tmp_path, monkeypatch):
+    path, _run = sim_log
+    out = tmp_path / "res"
+    seen: list[str] = []
+
+    def update(self, scan, odometry):
+        if not seen:  # a second run, while this one positions
+            seen.append(runner.invoke(app, ["run", str(path), "--results", str(out)]).output)
+        return _UPDATE(self, scan, odometry)
+
+    monkeypatch.setattr(Positioner, "update", update)
+    run_log(path, results_dir=out, plot=False, max_scans=5)
+    assert f"results folder {out} is in use by another run (pid {os.getpid()})" in seen[0]
+    assert json.loads((out / "summary.json").read_text())["scans"] == 5

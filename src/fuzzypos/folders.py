@@ -5,13 +5,17 @@ of a run's output paths before it starts (:func:`check_outputs`).
 A run's folder is new (by default ``results/<log>/<date-time>/``, with ``results/<log>/latest``
 linked to the newest), empty, or one holding another run's results, which is refused unless
 ``overwrite``: then it is cleared first, but only where it is fuzzypos's (its
-``summary.json`` or ``config.toml`` is) and holds nothing else.
+``summary.json`` or ``config.toml`` is) and holds nothing else. A run locks its folder
+(:meth:`ResultsFolder.make`, an ``flock`` on ``.fuzzypos.lock`` in it, which holds the run's
+pid) until it ends: a second run into it is a :class:`ResultsFolderBusyError`. A folder the
+run cannot create a file in is an :class:`~fuzzypos.io.OutputPathError`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import json
 import os
 import shutil
@@ -25,6 +29,7 @@ from .io import OutputPathError, check_output_file
 __all__ = [
     "RESULT_FILES",
     "ResultsFolder",
+    "ResultsFolderBusyError",
     "ResultsFolderError",
     "check_outputs",
     "default_results_dir",
@@ -50,6 +55,8 @@ RESULT_FILES = (
     "map.yaml",
     "map.png",
 )
+#: the lock file of a results folder in use (hidden: never a result)
+LOCK_FILE = ".fuzzypos.lock"
 #: the default results folder's name: the run's local date and time
 _DATE_TIME = "%Y-%m-%d_%H-%M-%S"
 
@@ -81,6 +88,61 @@ class ResultsFolderError(FileExistsError):
 
     def __str__(self) -> str:
         return f"{self.filename}: {self.strerror}"
+
+
+class ResultsFolderBusyError(ResultsFolderError):
+    """A results folder another run is writing (it holds the folder's lock):
+    ``"results folder <folder> is in use by another run (pid <pid>)"``."""
+
+    def __init__(self, folder: str | os.PathLike[str], pid: int | None) -> None:
+        self.pid = pid
+        who = "another run" + ("" if pid is None else f" (pid {pid})")
+        super().__init__(folder, f"is in use by {who}")
+        self.errno = errno.EBUSY
+
+    def __str__(self) -> str:
+        return f"results folder {self.filename} {self.strerror}"
+
+
+def _holder(fd: int) -> int | None:
+    """The pid written in a lock file (None where unreadable: its run is just starting)."""
+    try:
+        text = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None
+
+
+def _lock(folder: Path) -> int:
+    """Take ``folder``'s lock (:data:`LOCK_FILE`, ``flock``, its pid written in it): the open
+    descriptor. Held: :class:`ResultsFolderBusyError`; no file can be created there:
+    :class:`~fuzzypos.io.OutputPathError`."""
+    path = folder / LOCK_FILE
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except OSError as exc:
+            why = exc.strerror or type(exc).__name__
+            raise OutputPathError(
+                exc.errno, f"cannot be written: {why}", os.fspath(folder)
+            ) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            pid = _holder(fd)
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+                raise ResultsFolderBusyError(folder, pid) from None
+            raise
+        try:  # its last owner may have removed it between our open and our lock
+            same = os.path.samestat(os.fstat(fd), os.stat(path))
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode("ascii"))
+            return fd
+        os.close(fd)
 
 
 def _visible(folder: Path) -> list[str]:
@@ -168,29 +230,63 @@ class ResultsFolder:
     path: Path
     created: list[Path]
     default: bool
+    #: the lock's descriptor while the run holds the folder (:meth:`release`)
+    lock: int | None = None
 
     @classmethod
     def make(
         cls, log: str | os.PathLike[str], results_dir: Path | None, overwrite: bool
     ) -> ResultsFolder:
         """The folder for a run of ``log``: ``results_dir`` (checked, cleared with
-        ``overwrite``, created where missing), or a new default one."""
+        ``overwrite``, created where missing), or a new default one; locked by this run
+        (before it is cleared) until :meth:`release` (the end of a ``with`` block) or the
+        process's end."""
         if results_dir is None:
             first = default_results_dir(log)
             for k in range(1, 1000):
                 cand = first if k == 1 else first.with_name(f"{first.name}-{k}")
                 with contextlib.suppress(FileExistsError):
-                    return cls(cand, _mkdirs(cand), True)
+                    return cls(cand, _mkdirs(cand), True)._locked()
             raise ResultsFolderError(first, "exists, and so do 998 more of its names")
         if results_dir.is_dir():
-            _clear_for_a_run(results_dir, overwrite)
-            return cls(results_dir, [], False)
+            folder = cls(results_dir, [], False)._locked()
+            try:
+                _clear_for_a_run(results_dir, overwrite)
+            except BaseException:
+                folder.release()
+                raise
+            return folder
         if results_dir.exists() or results_dir.is_symlink():
             raise NotADirectoryError(errno.ENOTDIR, "is not a folder", os.fspath(results_dir))
-        return cls(results_dir, _mkdirs(results_dir), False)
+        return cls(results_dir, _mkdirs(results_dir), False)._locked()
+
+    def _locked(self) -> ResultsFolder:
+        try:
+            self.lock = _lock(self.path)
+        except BaseException:
+            self.discard()
+            raise
+        return self
+
+    def release(self) -> None:
+        """Give the folder up: remove its lock file and unlock it (again: nothing)."""
+        if self.lock is None:
+            return
+        fd, self.lock = self.lock, None
+        with contextlib.suppress(OSError):
+            (self.path / LOCK_FILE).unlink()  # while still locked: no one else holds it
+        os.close(fd)
+
+    def __enter__(self) -> ResultsFolder:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.release()
 
     def discard(self) -> None:
-        """Remove the folders the run created, where they are empty."""
+        """Release the folder, and remove the folders the run created, where they are
+        empty."""
+        self.release()
         for d in self.created:
             with contextlib.suppress(OSError):
                 d.rmdir()

@@ -767,35 +767,49 @@ def run_log(
     given = None if results_dir is None else Path(results_dir)
     check_outputs(given, out_tum, bag_out)
     folder = ResultsFolder.make(log.name, given, overwrite)
-    clf, outputs = _open_outputs(folder, log.name, bag_out, bag_storage)
-    track = _position_along(records, positioner, clf, outputs, plot, map_every, progress, total)
-    if len(track) == 0:
-        clf.abort()
-        outputs.abort()
-        folder.discard()
-        raise track.stopped if track.stopped is not None else _no_scans(log, start, end)
-    labels = {
+    with folder:  # locked by this run until it ends
+        clf, outputs = _open_outputs(folder, log.name, bag_out, bag_storage)
+        track = _position_along(records, positioner, clf, outputs, plot, map_every, progress, total)
+        if len(track) == 0:
+            clf.abort()
+            outputs.abort()
+            folder.discard()
+            raise track.stopped if track.stopped is not None else _no_scans(log, start, end)
+        labels = _labels(start, end, max_scans, preset, config_file, found)
+        finish = functools.partial(
+            _finish,
+            folder.path,
+            log,
+            cfg,
+            track,
+            clf,
+            outputs,
+            positioner=positioner,
+            labels=labels,
+            out_tum=out_tum,
+            relations=relations,
+            plot=plot,
+            map_every=map_every,
+            hash_input=hash_input,
+        )
+        return _keep(finish, folder, track, clf, outputs, progress)
+
+
+def _labels(
+    start: float | None,
+    end: float | None,
+    max_scans: int | None,
+    preset: str | None,
+    config_file: str | os.PathLike[str] | None,
+    found: list[dict[str, Any]],
+) -> dict[str, Any]:
+    """What ``summary.json`` says of the run's choices: ``selection``, ``config``,
+    ``no_return_values_found``."""
+    return {
         "selection": {"start_s": start, "end_s": end, "max_scans": max_scans},
         "config": {"preset": preset, "file": None if config_file is None else str(config_file)},
         "no_return_values_found": found,
     }
-    finish = functools.partial(
-        _finish,
-        folder.path,
-        log,
-        cfg,
-        track,
-        clf,
-        outputs,
-        positioner=positioner,
-        labels=labels,
-        out_tum=out_tum,
-        relations=relations,
-        plot=plot,
-        map_every=map_every,
-        hash_input=hash_input,
-    )
-    return _keep(finish, folder, track, clf, outputs, progress)
 
 
 def _no_returns(log: OpenLog, cfg: Config) -> tuple[Config, list[dict[str, Any]]]:
