@@ -35,6 +35,7 @@ RANK = {name: k for k, names in enumerate(LAYERS) for name in names}
 PART_OF = {p.stem: "config" for p in SRC.glob("_config_*.py")}
 PART_OF.update({p.stem: "cli" for p in SRC.glob("_cli_*.py")})
 PART_OF.update({p.stem: "features" for p in SRC.glob("_features_*.py")})
+PART_OF.update({p.stem: "run" for p in SRC.glob("_run_*.py")})
 
 
 def _unit(path: Path) -> str:

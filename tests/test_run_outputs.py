@@ -225,6 +225,91 @@ def test_a_path_under_a_file_is_refused_before_the_run(sim_log, tmp_path, monkey
     refused(["run", str(path), "--bag-out", under + ".bag"], "is a file, not a folder")
 
 
+# -- a full disk -------------------------------------------------------------------------------
+def test_a_full_device_names_the_file_and_keeps_the_results(sim_log, tmp_path):
+    path, run = sim_log
+    full = char_device(tmp_path / "full", 7)
+    out = tmp_path / "res"
+    line = refused(
+        ["run", str(path), "--results", str(out), "-o", str(full)],
+        f"cannot write {full}: No space left on device",
+    )
+    assert line.endswith(
+        f"(after the {len(run)} scans; the results of the {len(run)} scans are kept in {out}/ "
+        '(summary.json: "partial": true))'
+    )
+    assert stat.S_ISCHR(os.lstat(full).st_mode)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["partial"] is True and "No space left on device" in s["partial_reason"]
+    assert tum_rows(out / "trajectory.tum") == len(run) and (out / "trajectory.clf").exists()
+    assert not (out / "path.png").exists() and hidden(out) == []
+
+
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EFBIG])
+def test_a_full_results_folder_names_the_file(sim_log, tmp_path, monkeypatch, code):
+    """A file of the folder cannot be written (simulated where files are written): the rest
+    is, summary.json says partial; where summary.json cannot be, the line says so."""
+    from fuzzypos.io import _common
+
+    path, _run = sim_log
+    real = _common._write_to
+    full = {"trajectory.tum"}
+
+    def write_to(target, gz, write):
+        if any(Path(target).name.startswith(f".{name}.") for name in full):
+            raise OSError(code, os.strerror(code))
+        return real(target, gz, write)
+
+    monkeypatch.setattr(_common, "_write_to", write_to)
+    out = tmp_path / "res"
+    why = os.strerror(code)
+    refused(["run", str(path), "--results", str(out)], f"cannot write {out}/trajectory.tum: {why}")
+    s = json.loads((out / "summary.json").read_text())
+    assert s["partial"] and s["partial_reason"].endswith(f"trajectory.tum: {why}")
+    assert "trajectory.tum" not in s["files"] and (out / "covariance.csv").exists()
+    assert hidden(out) == []
+    full.add("summary.json")
+    out2 = tmp_path / "res2"
+    line = refused(["run", str(path), "--results", str(out2)], "cannot write")
+    assert line.endswith("(summary.json could not be written))")
+    assert not (out2 / "summary.json").exists() and hidden(out2) == []
+
+
+def test_a_file_too_large_mid_run_names_it_and_keeps_the_scans_before(
+    sim_log, tmp_path, monkeypatch
+):
+    """covariance.csv, written scan by scan, fails at its 6th row (EFBIG)."""
+    import fuzzypos._run_outputs as run_outputs
+
+    path, _run = sim_log
+
+    class Full:
+        def __init__(self, fh) -> None:
+            self.fh, self.rows = fh, 0
+
+        def write(self, text: str) -> int:
+            self.rows += 1
+            if self.rows == 7:  # the header, then 5 rows
+                raise OSError(errno.EFBIG, os.strerror(errno.EFBIG))
+            return self.fh.write(text)
+
+        def close(self) -> None:
+            self.fh.close()
+
+    opener = lambda *a, **k: Full(open(*a, **k))  # noqa: E731, SIM115 (closed by close)
+    monkeypatch.setattr(run_outputs, "open", opener, raising=False)
+    out = tmp_path / "res"
+    line = refused(
+        ["run", str(path), "--results", str(out)],
+        f"cannot write {out}/covariance.csv: {os.strerror(errno.EFBIG)} (stopped at scan 6; "
+        "the 5 scans before it are kept",
+    )
+    assert line.endswith('(summary.json: "partial": true))')
+    s = json.loads((out / "summary.json").read_text())
+    assert s["partial_reason"].startswith("failed at scan 6: cannot write")
+    assert tum_rows(out / "trajectory.tum") == 5 and hidden(out) == []
+
+
 # -- one run per folder ------------------------------------------------------------------------
 def test_a_folder_in_use_by_another_run_is_refused(sim_log, tmp_path, monkeypatch):
     path, _run = sim_log
@@ -260,3 +345,122 @@ def test_the_run_holds_its_folder_until_it_ends(sim_log, tmp_path, monkeypatch):
     run_log(path, results_dir=out, plot=False, max_scans=5)
     assert f"results folder {out} is in use by another run (pid {os.getpid()})" in seen[0]
     assert json.loads((out / "summary.json").read_text())["scans"] == 5
+
+
+# -- Ctrl-C after the loop ---------------------------------------------------------------------
+def ctrl_c(*_args, **_kwargs):
+    raise KeyboardInterrupt
+
+
+def numba_ctrl_c(*_args, **_kwargs):
+    """What a compiled call raises when Ctrl-C arrives inside it."""
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as exc:
+        raise SystemError(
+            "CPUDispatcher(<function refine>) returned a result with an exception set"
+        ) from exc
+
+
+def test_ctrl_c_inside_the_loop_from_numba_is_an_interrupt(sim_log, tmp_path, monkeypatch):
+    path, _run = sim_log
+    calls: list[int] = []
+
+    def update(self, scan, odometry):
+        calls.append(1)
+        if len(calls) == 4:
+            numba_ctrl_c()
+        return _UPDATE(self, scan, odometry)
+
+    monkeypatch.setattr(Positioner, "update", update)
+    out = tmp_path / "res"
+    res = runner.invoke(app, ["run", str(path), "--results", str(out)])
+    assert res.exit_code == 130 and "Traceback" not in res.output, res.output
+    assert lines_of(res)[0].startswith("fuzzypos: interrupted at scan 4; the 3 scans")
+    assert (
+        json.loads((out / "summary.json").read_text())["partial_reason"] == "interrupted at scan 4"
+    )
+
+
+@pytest.mark.parametrize("step", ["path.png", "config.toml"])
+def test_ctrl_c_in_a_writer_keeps_the_rest(sim_log, tmp_path, monkeypatch, step):
+    import fuzzypos.run as run_module
+
+    path, run = sim_log
+    if step == "path.png":
+        monkeypatch.setattr(run_module, "_plot_path", ctrl_c)
+    else:
+        monkeypatch.setattr(run_module, "write_text_file", numba_ctrl_c)
+    out = tmp_path / "res"
+    res = runner.invoke(app, ["run", str(path), "--results", str(out)])
+    assert res.exit_code == 130 and "Traceback" not in res.output, res.output
+    assert lines_of(res) == [
+        (
+            f"fuzzypos: interrupted while writing {step}; the results of the {len(run)} scans "
+            f'are kept in {out}/ (summary.json: "partial": true)'
+        )
+    ]
+    s = json.loads((out / "summary.json").read_text())
+    assert s["partial"] is True and s["partial_reason"] == f"interrupted while writing {step}"
+    assert tum_rows(out / "trajectory.tum") == len(run)
+    assert not (out / step).exists() and (out / "trajectory.clf").exists()
+    assert hidden(out) == []
+
+
+# -- Ctrl-C in loop closure's final steps ------------------------------------------------------
+@pytest.fixture(scope="module")
+def loop_log(tmp_path_factory):
+    pytest.importorskip("gtsam", reason="loop closure needs gtsam (pip install 'fuzzypos[graph]')")
+    path = tmp_path_factory.mktemp("loop") / "loop.clf"
+    return path, write_sim_log(path, laps=1.3, seed=0)
+
+
+@pytest.mark.parametrize("where", ["optimisation", "realign"])
+def test_ctrl_c_in_the_final_optimisation_keeps_the_front_end(
+    loop_log, tmp_path, monkeypatch, where
+):
+    import fuzzypos.graph.outputs as graph_outputs
+    from fuzzypos.graph import OnlineMapper
+
+    path, run = loop_log
+    if where == "optimisation":
+        monkeypatch.setattr(OnlineMapper, "finish", ctrl_c)
+    else:  # numba's refine, inside the realignment
+        monkeypatch.setattr(graph_outputs, "realign", numba_ctrl_c)
+    out = tmp_path / "res"
+    res = runner.invoke(app, ["run", str(path), "--loop-closure", "--results", str(out)])
+    assert res.exit_code == 130 and "Traceback" not in res.output, res.output
+    assert lines_of(res) == [
+        (
+            "fuzzypos: interrupted in loop closure's final optimisation; the results of the "
+            f'{len(run)} scans are kept in {out}/ (summary.json: "partial": true)'
+        )
+    ]
+    s = json.loads((out / "summary.json").read_text())
+    assert s["partial_reason"] == "interrupted in loop closure's final optimisation"
+    assert "loop closure did not finish: trajectory.tum holds the front end's poses" in s["notes"]
+    assert tum_rows(out / "trajectory.tum") == len(run) and (out / "trajectory.clf").exists()
+    assert not (out / "graph.g2o").exists() and hidden(out) == []
+
+
+def test_ctrl_c_while_trajectory_clf_takes_the_optimised_poses(loop_log, tmp_path, monkeypatch):
+    """No stray ``.trajectory.clf.PID.tmp.poses``; the other files are written."""
+    import fuzzypos.io.carmen_write as carmen_write
+
+    path, run = loop_log
+    real, calls = carmen_write._with_pose, []
+
+    def with_pose(line, pose):
+        calls.append(1)
+        if len(calls) == 10:
+            raise KeyboardInterrupt
+        return real(line, pose)
+
+    monkeypatch.setattr(carmen_write, "_with_pose", with_pose)
+    out = tmp_path / "res"
+    res = runner.invoke(app, ["run", str(path), "--loop-closure", "--results", str(out)])
+    assert res.exit_code == 130 and "Traceback" not in res.output, res.output
+    s = json.loads((out / "summary.json").read_text())
+    assert s["partial_reason"] == "interrupted while writing trajectory.clf"
+    assert not (out / "trajectory.clf").exists() and (out / "graph.g2o").exists()
+    assert tum_rows(out / "trajectory.tum") == len(run) and hidden(out) == []

@@ -307,13 +307,21 @@ def _kept(exc: BaseException) -> str:
     kept = partial_results(exc)
     if kept is None:
         return "; nothing kept" if isinstance(exc, KeyboardInterrupt) else ""
-    where = (
-        f"the {kept.scans} scans before it are kept in {kept.results_dir}/ (summary.json: "
-        '"partial": true)'
+    marked = (
+        '(summary.json: "partial": true)'
+        if "summary.json" in kept.files
+        else "(summary.json could not be written)"
     )
-    if isinstance(exc, KeyboardInterrupt):
-        return f" at scan {kept.scans + 1}; {where}"
-    return f" (stopped at scan {kept.scans + 1}; {where})"
+    reason = str(kept.summary.get("partial_reason") or "")
+    if reason.startswith(("interrupted at scan", "failed at scan")):  # in the loop
+        where = f"the {kept.scans} scans before it are kept in {kept.results_dir}/ {marked}"
+        if isinstance(exc, KeyboardInterrupt):
+            return f" at scan {kept.scans + 1}; {where}"
+        return f" (stopped at scan {kept.scans + 1}; {where})"
+    where = f"the results of the {kept.scans} scans are kept in {kept.results_dir}/ {marked}"
+    if isinstance(exc, KeyboardInterrupt):  # after the loop: where
+        return f" {reason.removeprefix('interrupted ')}; {where}"
+    return f" (after the {kept.scans} scans; {where})"
 
 
 def _progress() -> Progress:
@@ -607,7 +615,7 @@ def run(
     marked "partial" in summary.json.
     """
     from .io import read_relations
-    from .run import run_log
+    from .run import as_interrupt, is_interrupt, run_log
 
     cfg = _load_config(preset, config_file)
     if loop_closure:
@@ -649,8 +657,10 @@ def run(
                     bag_storage=bag_storage,
                     relations=rel,
                 )
-    except KeyboardInterrupt as exc:
-        typer.echo(f"fuzzypos: interrupted{_kept(exc)}", err=True)
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not is_interrupt(exc):  # numba's SystemError around Ctrl-C is Ctrl-C
+            raise
+        typer.echo(f"fuzzypos: interrupted{_kept(as_interrupt(exc))}", err=True)
         raise typer.Exit(code=130) from None
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc) + _kept(exc))

@@ -5,9 +5,12 @@
 default a new ``results/<log>/<date-time>/`` (:func:`default_results_dir`; ``<log>`` is
 :func:`log_label`, the file name without a compression suffix) with ``results/<log>/latest``
 linked to it; a folder given that holds another run's results is refused, or with
-``overwrite=True`` cleared first (:class:`ResultsFolderError`). A run stopped by an error or
-Ctrl-C after some scans keeps them: the files below (but ``path.png``) for the scans done,
-``summary.json`` saying ``"partial": true`` and why (:func:`partial_results`).
+``overwrite=True`` cleared first (:class:`ResultsFolderError`); the run locks it until it
+ends. A run stopped by an error or Ctrl-C after some scans keeps them: the files below (but
+``path.png``) for the scans done, ``summary.json`` saying ``"partial": true`` and why
+(:func:`partial_results`); so does one stopped after its loop (loop closure's final
+optimisation: the front end's poses are written; a writer: the other files are), each step
+after the loop a :class:`~fuzzypos._run_outputs.Steps` step.
 
 ================  ==========================================================================
 ``trajectory.tum``  the estimated pose of every scan, ``t x y z qx qy qz qw``, one line per
@@ -65,6 +68,16 @@ from typing import Any
 
 import numpy as np
 
+from ._run_outputs import (
+    COVARIANCE_COLUMNS,
+    POSE_COVARIANCE_COLUMNS,
+    STEP_COVARIANCE_COLUMNS,
+    Steps,
+    _CovarianceOut,
+    as_interrupt,
+    is_interrupt,
+    one_line,
+)
 from ._version import __version__
 from .config import Config
 from .evaluation import EvaluationError, relations_errors, trajectory_errors
@@ -76,21 +89,26 @@ from .folders import (
     default_results_dir,
     log_label,
 )
-from .geometry import Cov3Upper, Pose2D, covariance_to_parent3, propagate3
-from .graph import OnlineMapper, require_gtsam
-from .io import CarmenWriter, LogRecord, OdometryBagWriter, Relations, write_tum
+from .geometry import Pose2D
+from .graph import LoopClosureResult, OnlineMapper, require_gtsam
+from .io import CarmenWriter, LogRecord, Relations, write_text_file, write_tum
 from .logs import OpenLog, find_no_return_values, open_log, select_records, select_stamps
 from .no_returns import with_found_bands
-from .pipeline import Estimate, Positioner, Reason
+from .pipeline import Positioner, Reason
 from .provenance import file_sha256, git_hash, write_json
 from .scan import LaserScan
 
 __all__ = [
+    "COVARIANCE_COLUMNS",
+    "POSE_COVARIANCE_COLUMNS",
     "RESULT_FILES",
+    "STEP_COVARIANCE_COLUMNS",
     "Progress",
     "ResultsFolderError",
     "RunSummary",
+    "as_interrupt",
     "default_results_dir",
+    "is_interrupt",
     "log_label",
     "log_name",
     "partial_results",
@@ -105,14 +123,6 @@ Progress = Callable[[int, "int | None"], None]
 _LOG_SUFFIXES = (".gz", ".clf", ".log", ".bag", ".carmen")
 #: where :func:`partial_results` finds what a stopped run kept
 _PARTIAL = "fuzzypos_partial_results"
-
-#: ``covariance.csv``'s first columns, as they always were: the stamp, then the step's (the
-#: increment's) covariance's upper triangle
-STEP_COVARIANCE_COLUMNS = ("stamp", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
-#: then the pose's covariance in the trajectory frame, likewise
-POSE_COVARIANCE_COLUMNS = tuple(f"pose_{c}" for c in STEP_COVARIANCE_COLUMNS[1:])
-#: ``covariance.csv``'s columns (module docstring)
-COVARIANCE_COLUMNS = (*STEP_COVARIANCE_COLUMNS, *POSE_COVARIANCE_COLUMNS, "reason", "degraded")
 
 #: how often (in scans) :func:`run_log` reports its progress
 _PROGRESS_EVERY = 25
@@ -258,117 +268,6 @@ class _Track:
         return len(self.stamps)
 
 
-class _CovarianceOut:
-    """``covariance.csv`` (written to a temporary name, renamed by :meth:`close`) and, with
-    ``bag_out``, the bag, streamed scan by scan (module docstring). The pose's covariance is
-    carried in floats (:func:`~fuzzypos.geometry.propagate3`,
-    :func:`~fuzzypos.geometry.covariance_to_parent3`: :func:`~fuzzypos.geometry.propagate`'s
-    and :func:`~fuzzypos.geometry.covariance_to_parent`'s to rounding, a tenth of their time).
-    A scan without a covariance is a ``ValueError`` naming it, but where the first has none
-    and no bag is asked for: then there is no ``covariance.csv`` (a note says so)."""
-
-    def __init__(
-        self, out: Path, source: str, bag_out: str | os.PathLike[str] | None, storage: str | None
-    ) -> None:
-        self.path, self.source = out / "covariance.csv", source
-        self._tmp = out / ".covariance.csv.part"
-        self._csv: Any = None
-        self._reasons: dict[object, str] = {}  # reason → its CSV field
-        self.has_covariance = True
-        self.notes: list[str] = []
-        self.bag = None if bag_out is None else OdometryBagWriter(bag_out, storage)
-        self._pose_cov: Cov3Upper = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # in the pose's frame
-        self._stamp = math.nan
-
-    def _covariance(self, k: int, est: Estimate) -> tuple[np.ndarray, list[list[float]]] | None:
-        """The estimate's covariance, checked, and as floats; None where the run has none."""
-        if est.covariance is None:
-            if k == 0 and self.bag is None:
-                self.has_covariance = False
-                self.notes.append("no covariance.csv: the positioner gave no covariance")
-            if not self.has_covariance:
-                return None
-            what = "the estimate has no covariance (Estimate.covariance)"
-            raise ValueError(f"{self._where(k, est)}: {what}")
-        cov = np.asarray(est.covariance, dtype=np.float64)
-        c = cov.tolist()  # Python floats: the same repr, without a numpy scalar per entry
-        if cov.shape != (3, 3) or not all(math.isfinite(v) for row in c for v in row):
-            raise ValueError(f"{self._where(k, est)}: the covariance must be a finite 3x3 array")
-        return cov, c
-
-    def _where(self, k: int, est: Estimate) -> str:
-        return f"{self.source}: scan {k + 1} (stamp {est.stamp!r})"
-
-    def _reason(self, reason: object) -> str:
-        """``reason``'s value as a CSV field (quoted where it has a comma or a quote)."""
-        field = self._reasons.get(reason)
-        if field is None:
-            text = str(reason)
-            quote = any(ch in text for ch in ',"\r\n')
-            field = '"' + text.replace('"', '""') + '"' if quote else text
-            self._reasons[reason] = field
-        return field
-
-    def write(self, k: int, est: Estimate) -> None:
-        checked = self._covariance(k, est)
-        if checked is None:
-            return
-        cov, c = checked
-        if self._csv is None:
-            self._csv = open(self._tmp, "w", encoding="utf-8")  # noqa: SIM115 (closed by close)
-            self._csv.write(",".join(COVARIANCE_COLUMNS) + "\n")
-        step = (c[0][0], c[0][1], c[0][2], c[1][1], c[1][2], c[2][2])
-        inc = est.increment
-        pose_cov = step if k == 0 else propagate3(self._pose_cov, (inc.x, inc.y, inc.theta), step)
-        self._pose_cov = pose_cov
-        in_trajectory = covariance_to_parent3(est.pose.theta, pose_cov)
-        numbers = ",".join(map(repr, (float(est.stamp), *step, *in_trajectory)))
-        why = self._reason(est.reason)
-        self._csv.write(f"{numbers},{why},{1 if est.degraded else 0}\n")
-        if self.bag is not None:
-            self._write_bag(k, est, cov, in_trajectory)
-
-    def _write_bag(self, k: int, est: Estimate, cov: np.ndarray, pose_cov: Cov3Upper) -> None:
-        inc = est.increment
-        dt = est.stamp - self._stamp
-        twist, twist_cov = (0.0, 0.0, 0.0), None
-        if k > 0 and dt > 0.0:
-            twist, twist_cov = (inc.x / dt, inc.y / dt, inc.theta / dt), cov / (dt * dt)
-        self._stamp = est.stamp
-        xx, xy, xt, yy, yt, tt = pose_cov
-        world_cov = np.array([[xx, xy, xt], [xy, yy, yt], [xt, yt, tt]])
-        assert self.bag is not None
-        self.bag.write(est.stamp, est.pose, world_cov, twist, twist_cov)
-
-    def close(self, *, partial: bool = False) -> dict[str, Path]:
-        """Finish the files; name → path of those written. ``partial``: a bag that cannot be
-        finished (the run stopped inside it) is removed, with a note."""
-        files: dict[str, Path] = {}
-        if self._csv is not None:
-            self._csv.close()
-            os.replace(self._tmp, self.path)
-            files["covariance.csv"] = self.path
-        if self.bag is not None:
-            try:
-                self.bag.close()
-            except Exception as exc:
-                if not partial:
-                    raise
-                self.bag.abort()
-                self.notes.append(f"{self.bag.path}: not kept: {' '.join(str(exc).split())}")
-            else:
-                files["bag"] = self.bag.path
-        return files
-
-    def abort(self) -> None:
-        """Remove what was written."""
-        if self._csv is not None:
-            self._csv.close()
-            self._tmp.unlink(missing_ok=True)
-        if self.bag is not None:
-            self.bag.abort()
-
-
 def _position_along(
     records: Iterator[LogRecord],
     positioner: Positioner,
@@ -409,10 +308,11 @@ def _position_along(
             if progress is not None and (k + 1) % _PROGRESS_EVERY == 0:
                 progress(k + 1, total)
     except (Exception, KeyboardInterrupt) as exc:
-        track.stopped = exc
+        stopped = as_interrupt(exc)  # numba's SystemError around Ctrl-C: Ctrl-C
+        track.stopped = stopped
         at = f"scan {len(track) + 1}"
-        what = " ".join(str(exc).split()) or type(exc).__name__
-        interrupted = isinstance(exc, KeyboardInterrupt)
+        what = one_line(stopped)
+        interrupted = isinstance(stopped, KeyboardInterrupt)
         track.partial_reason = f"interrupted at {at}" if interrupted else f"failed at {at}: {what}"
     except BaseException:
         clf.abort()
@@ -505,47 +405,63 @@ def _write_results(
     out_tum: str | os.PathLike[str] | None,
     plot: bool,
     map_every: int,
-    notes: list[str],
-    optimised: bool = False,
+    steps: Steps,
+    loop: LoopClosureResult | None = None,
 ) -> dict[str, Path]:
-    """Write the results folder's files but ``summary.json``; name → path, in writing order.
-    A partial run (``track.partial_reason``) gets no ``path.png`` and no ``out_tum``.
-    ``optimised``: ``a.poses`` are loop closure's, which ``trajectory.clf`` then carries."""
-    partial = track.partial_reason is not None
-    files: dict[str, Path] = {"trajectory.tum": out / "trajectory.tum"}
-    what = "part of the" if partial else "the"
-    write_tum(
-        files["trajectory.tum"],
-        a.stamps,
-        a.poses,
-        header_comment=f"fuzzypos {__version__}: {what} estimate of {log.name} (t = the scan's "
-        "stamp)",
-    )
-    files.update(outputs.close(partial=partial))
-    notes.extend(outputs.notes)
-    if out_tum is not None and not partial:
+    """Write the results folder's files but ``summary.json``; name → path of those written,
+    in writing order. Each is a step (:class:`Steps`): one that fails or is interrupted
+    makes the run partial, and the others are still written but ``path.png`` and
+    ``out_tum``, which a partial run does not get. ``loop``: loop closure's result, whose
+    poses ``a.poses`` are and ``trajectory.clf`` then carries."""
+    files: dict[str, Path] = {}
+
+    def tum() -> dict[str, Path]:
+        what = "part of the" if steps.partial else "the"
+        comment = f"fuzzypos {__version__}: {what} estimate of {log.name} (t = the scan's stamp)"
+        write_tum(out / "trajectory.tum", a.stamps, a.poses, header_comment=comment)
+        return {"trajectory.tum": out / "trajectory.tum"}
+
+    def out_file() -> dict[str, Path]:
+        assert out_tum is not None
         comment = f"fuzzypos {__version__} estimate of {log.name}"
         write_tum(out_tum, a.stamps, a.poses, header_comment=comment)
-        files["out_tum"] = Path(out_tum)
-    try:
-        why = "x y theta after loop closure: the optimised poses" if optimised else ""
-        if clf.close(a.poses if optimised else None, why):
-            files["trajectory.clf"] = out / "trajectory.clf"
-    except Exception as exc:  # the run stopped inside it
-        if not partial:
-            raise
-        notes.append(f"no trajectory.clf: {' '.join(str(exc).split())}")
-    notes.extend(clf.notes)
-    files["config.toml"] = out / "config.toml"
-    files["config.toml"].write_text(cfg.to_toml(), encoding="utf-8")
-    if partial:
-        notes.append(
-            "a partial run: no path.png"
-            + ("" if out_tum is None else f", and {out_tum} was not written")
-        )
-    elif plot:
-        files["path.png"] = out / "path.png"
-        _plot_path(files["path.png"], log, a.poses, a.odometry, track.map_points, map_every)
+        return {"out_tum": Path(out_tum)}
+
+    def trajectory_clf() -> dict[str, Path]:
+        why = "x y theta after loop closure: the optimised poses" if loop is not None else ""
+        kept = clf.close(a.poses if loop is not None else None, why)
+        return {"trajectory.clf": out / "trajectory.clf"} if kept else {}
+
+    def config_toml() -> dict[str, Path]:
+        write_text_file(out / "config.toml", cfg.to_toml())
+        return {"config.toml": out / "config.toml"}
+
+    def path_png() -> dict[str, Path]:
+        _plot_path(out / "path.png", log, a.poses, a.odometry, track.map_points, map_every)
+        return {"path.png": out / "path.png"}
+
+    def loop_files() -> dict[str, Path]:
+        assert loop is not None
+        return loop.write(out, a.stamps, log.name, cfg.loop_closure.map_resolution)
+
+    for what, write, whole_runs_only in (
+        ("trajectory.tum", tum, False),
+        ("covariance.csv", outputs.close_csv, False),
+        ("the bag", lambda: outputs.close_bag(partial=steps.partial), False),
+        (os.fspath(out_tum or ""), out_file if out_tum is not None else None, True),
+        ("trajectory.clf", trajectory_clf, False),
+        ("config.toml", config_toml, False),
+        ("path.png", path_png if plot else None, True),
+        ("loop closure's files", loop_files if loop is not None else None, False),
+    ):
+        if write is not None and not (whole_runs_only and steps.partial):
+            files.update(steps.run(f"while writing {what}", write) or {})
+    steps.notes.extend([*outputs.notes, *clf.notes])
+    if steps.partial:
+        missing = [] if "path.png" in files else ["no path.png"]
+        if out_tum is not None and "out_tum" not in files:
+            missing.append(f"{out_tum} was not written")
+        steps.notes.append("a partial run" + (": " + ", and ".join(missing) if missing else ""))
     return files
 
 
@@ -607,6 +523,26 @@ def _reason_counts(counts: dict[str, int]) -> dict[str, int]:
     return {why: counts[why] for why in [*order, *(w for w in counts if w not in order)]}
 
 
+def _final_optimisation(track: _Track, steps: Steps) -> tuple[_Arrays, LoopClosureResult | None]:
+    """The track as arrays, with loop closure's optimised poses once its final optimisation
+    (a step) is done; the front end's where it did not finish, or the run is partial."""
+    a = _Arrays.of(track)
+    if track.mapper is None or steps.partial:
+        return a, None
+    loop = steps.run("in loop closure's final optimisation", track.mapper.finish)
+    if loop is None:
+        steps.notes.append(
+            "loop closure did not finish: trajectory.tum holds the front end's poses"
+        )
+        return a, None
+    steps.notes.append(
+        "loop closure: trajectory.tum holds the optimised poses (trajectory_frontend.tum "
+        "the front end's, trajectory_online.tum each scan's as first output online) and "
+        "so does trajectory.clf; covariance.csv and the bag are the front end's"
+    )
+    return replace(a, poses=loop.poses), loop
+
+
 def _finish(
     out: Path,
     log: OpenLog,
@@ -622,38 +558,40 @@ def _finish(
     plot: bool,
     map_every: int,
     hash_input: bool,
+    progress: Progress | None,
 ) -> RunSummary:
-    """After the loop: write the results folder (``summary.json`` last) and sum the run up."""
+    """After the loop: loop closure's final optimisation, the results folder
+    (``summary.json`` last), the run summed up. Each is a step (:class:`Steps`): one that
+    fails or is interrupted makes the run partial (``track.stopped``, ``partial_reason``) and
+    the rest is still done; where loop closure did not finish, its files are not written and
+    ``trajectory.tum`` and ``trajectory.clf`` hold the front end's poses."""
     jumps = int(positioner.odometry_jumps)
     notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
-    a = _Arrays.of(track)
-    loop = None
-    if track.mapper is not None and track.partial_reason is None:
-        loop = track.mapper.finish()
-        a = replace(a, poses=loop.poses)
-        notes.append(
-            "loop closure: trajectory.tum holds the optimised poses (trajectory_frontend.tum "
-            "the front end's, trajectory_online.tum each scan's as first output online) and "
-            "so does trajectory.clf; covariance.csv and the bag are the front end's"
-        )
+    steps = Steps(track.stopped, track.partial_reason, notes)
+    n = len(track)
+    if progress is not None and not steps.partial:
+        steps.run("after the last scan", lambda: progress(n, n))
+    a, loop = _final_optimisation(track, steps)
     files = _write_results(
-        out,
-        log,
-        cfg,
-        a,
-        track,
-        clf,
-        outputs=outputs,
-        out_tum=out_tum,
-        plot=plot,
-        map_every=map_every,
-        notes=notes,
-        optimised=loop is not None,
+        out, log, cfg, a, track, clf, outputs=outputs, out_tum=out_tum, plot=plot,
+        map_every=map_every, steps=steps, loop=loop,
+    )  # fmt: skip
+    truth_errors = steps.run(
+        "scoring against the truth",
+        lambda: _truth_errors(a.truth, a.poses, a.odometry, track.degraded),
     )
-    if loop is not None:
-        files.update(loop.write(out, a.stamps, log.name, cfg.loop_closure.map_resolution))
-    truth_errors = _truth_errors(a.truth, a.poses, a.odometry, track.degraded)
-    rel = _relations_errors(a.stamps, a.poses, relations, notes)
+    rel = steps.run(
+        "while scoring against the relations",
+        lambda: _relations_errors(a.stamps, a.poses, relations, notes),
+    )
+    loop_rel = {}
+    if loop is not None and relations is not None and loop.online is not None:
+        for name, poses in (("frontend", loop.frontend), ("online", loop.online)):
+            loop_rel[f"relations_{name}"] = steps.run(
+                "while scoring against the relations",
+                functools.partial(_relations_errors, a.stamps, poses, relations, notes),
+            )
+    track.stopped, track.partial_reason = steps.stop, steps.reason
     files["summary.json"] = out / "summary.json"
     summary = _summary(
         log,
@@ -671,12 +609,12 @@ def _finish(
     )
     summary["no_return_values_found"] = labels["no_return_values_found"]
     if loop is not None:
-        summary["loop_closure"] = loop.summary
-        if relations is not None and loop.online is not None:
-            for name, poses in (("frontend", loop.frontend), ("online", loop.online)):
-                rel_of = _relations_errors(a.stamps, poses, relations, notes)
-                summary["loop_closure"][f"relations_{name}"] = rel_of
-    write_json(files["summary.json"], summary)
+        summary["loop_closure"] = {**loop.summary, **loop_rel}
+    if not steps.done(
+        "while writing summary.json", lambda: write_json(out / "summary.json", summary)
+    ):
+        del files["summary.json"]
+    track.stopped, track.partial_reason = steps.stop, steps.reason
     return RunSummary(
         results_dir=out,
         scans=len(track),
@@ -748,10 +686,15 @@ def run_log(
     the optimised poses, ``loop_closure`` with ``relations_frontend`` and ``relations_online``.
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
-    log) or ``OSError``. An error or ``KeyboardInterrupt`` after some scans is raised once
-    their results are written (``"partial": true``, ``"partial_reason"``: ``"interrupted at
-    scan N"`` or ``"failed at scan N: …"``; no ``path.png`` or ``out_tum``; their
-    :class:`RunSummary`: :func:`partial_results`); before the first, nothing is kept.
+    log) or ``OSError`` (an output path refused before the run:
+    :class:`~fuzzypos.io.OutputPathError`; a folder another run holds:
+    :class:`~fuzzypos.folders.ResultsFolderBusyError`). An error or ``KeyboardInterrupt``
+    (numba's ``SystemError`` around one too) after some scans is raised once what was done is
+    written (``"partial": true``, ``"partial_reason"``: ``"interrupted at scan N"``, ``"failed
+    at scan N: …"``, or after the loop ``"interrupted in loop closure's final optimisation"``,
+    ``"failed while writing F: cannot write F: No space left on device"`` …; no ``path.png`` or
+    ``out_tum`` after it; their :class:`RunSummary`: :func:`partial_results`); before the
+    first, nothing is kept.
     """
     if not isinstance(log, OpenLog):
         log = open_log(log)
@@ -775,24 +718,13 @@ def run_log(
             outputs.abort()
             folder.discard()
             raise track.stopped if track.stopped is not None else _no_scans(log, start, end)
-        labels = _labels(start, end, max_scans, preset, config_file, found)
         finish = functools.partial(
-            _finish,
-            folder.path,
-            log,
-            cfg,
-            track,
-            clf,
-            outputs,
-            positioner=positioner,
-            labels=labels,
-            out_tum=out_tum,
-            relations=relations,
-            plot=plot,
-            map_every=map_every,
-            hash_input=hash_input,
-        )
-        return _keep(finish, folder, track, clf, outputs, progress)
+            _finish, folder.path, log, cfg, track, clf, outputs, positioner=positioner,
+            labels=_labels(start, end, max_scans, preset, config_file, found), out_tum=out_tum,
+            relations=relations, plot=plot, map_every=map_every, hash_input=hash_input,
+            progress=progress,
+        )  # fmt: skip
+        return _keep(finish, folder, track, clf, outputs)
 
 
 def _labels(
@@ -844,19 +776,18 @@ def _keep(
     track: _Track,
     clf: CarmenWriter,
     outputs: _CovarianceOut,
-    progress: Progress | None,
 ) -> RunSummary:
-    """Write the results (``finish``); raise what stopped the run, if anything did, with the
-    results kept (:func:`partial_results`)."""
-    if progress is not None and track.stopped is None:
-        progress(len(track), len(track))
+    """Write the results (``finish``); raise what stopped the run, if anything did (in the
+    loop or after it), with the results kept (:func:`partial_results`)."""
     try:
         summary = finish()
-    except BaseException:
+    except BaseException as exc:
         clf.abort()
         outputs.abort()
         if track.stopped is not None:  # what stopped the run, not what failed after it
             raise track.stopped from None
+        if is_interrupt(exc):
+            raise as_interrupt(exc) from None
         raise
     folder.link_latest()
     if track.stopped is not None:
