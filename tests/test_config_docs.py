@@ -23,9 +23,7 @@ def test_the_committed_configuration_reference_is_the_generators_output() -> Non
 
 
 def test_the_reference_names_every_setting_with_its_reason() -> None:
-    sections = {
-        part.split("]`", 1)[0]: part for part in settings_markdown().split("\n## `[")[1:]
-    }
+    sections = {part.split("]`", 1)[0]: part for part in settings_markdown().split("\n## `[")[1:]}
     for key, spec in Config.schema().items():
         section, name = key.split(".")
         toml_key = name + "_deg" if spec.is_angle else name
