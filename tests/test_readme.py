@@ -10,10 +10,10 @@ import re
 from pathlib import Path
 
 import pytest
-from helpers import write_sim_log
 
 from fuzzypos.cli import app
 from fuzzypos.folders import RESULT_FILES
+from helpers import write_sim_log
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
