@@ -1,7 +1,8 @@
 """The claims of issue 3 on the default demo (``fuzzypos demo``: seed 0, two laps of the 4 m
 gym circle, 1,676 scans): the default configuration's final and mean position errors are at
 least 5 times smaller than odometry's, and the paper preset's are smaller than odometry's.
-The figures themselves are in the README (``make demo`` prints them).
+``make demo`` prints the figures; those of past runs are in docs/history.md ("The paper's
+experiment").
 
 And what the demo's figures draw (issue 11, items 17–19): Fig. 18 the virtual angular points
 of the 25th scan, Fig. 19 every path's end and a zoom on the ends, where odometry's 2.1 m

@@ -2,7 +2,7 @@
 
 Half a lap of the gym circle and a 16 m drive down the office corridor, three seeds each,
 with the demo's scanner (SICK LMS200-like, 30 m) and the B21r slip. Thresholds are the
-measured worst case rounded up (stated in the README):
+measured worst case rounded up (the measured figures: docs/history.md, "End to end"):
 
 | run | default final / mean (m), seeds 0–2 | odometry final / mean (m) |
 | --- | --- | --- |

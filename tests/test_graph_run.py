@@ -121,7 +121,7 @@ def test_run_scores_the_front_end_online_and_optimised_poses(loop_log, tmp_path)
     _, online = read_tum(out / "trajectory_online.tum")[:2]
     assert len(online) == len(run.scans)
     # each figure is its trajectory file's (on this short loop of a simulated office the
-    # closure does not improve the relations from the start: the README's known gaps)
+    # closure does not improve the relations from the start: docs/known-gaps.md)
     relations = read_relations(rel)
     for name, file in (("frontend", "trajectory_frontend.tum"), ("online", "trajectory_online.tum"),
                        ("optimised", "trajectory.tum")):  # fmt: skip

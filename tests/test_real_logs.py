@@ -1,7 +1,7 @@
 """The positioner on stretches of the shared Freiburg logs (skipped where they are absent; CI
 has them): beating odometry on the relations inside a stretch, surviving aces' odometry jump,
 standing still where the odometry does, and the bag and the CARMEN copy of aces agreeing.
-The full-log figures come from ``fuzzypos benchmark`` (README)."""
+The full-log figures come from ``fuzzypos benchmark`` (past runs: docs/history.md)."""
 
 from __future__ import annotations
 
@@ -66,7 +66,7 @@ def test_local_relations_beat_odometry(path: Path, start: int, stop: int) -> Non
     assert e.matched == o.matched > 200
     # the issue's rotation target, on the stretch: half odometry's mean rotational error; the
     # median translational error within 5 mm of odometry's (on the full logs it is below it:
-    # README), where the relations' own 1 cm grid is the floor
+    # docs/history.md), where the relations' own 1 cm grid is the floor
     assert e.rotation_deg.mean <= 0.5 * o.rotation_deg.mean, (e, o)
     assert e.translation_m.median <= o.translation_m.median + 0.005, (e, o)
 

@@ -440,7 +440,7 @@ def test_records_keep_their_type():
     assert BENCHMARK_CONFIGS == ("odometry", "paper", "default")
 
 
-# -- fuzzypos.results: the names it had before the split (the README names them) ----------------
+# -- fuzzypos.results: the names it had before the split (docs/python.md names them) ------------
 def test_the_results_compatibility_names_are_the_new_modules_objects():
     import fuzzypos.results as results_mod
     from fuzzypos import benchmark, provenance, scoring

@@ -24,7 +24,7 @@ class LoopClosureConfig:
         "off by default: it needs gtsam (the optional extra [graph]) and its verification "
         "searches cost several times the front end's time on a long log; tested on simulated "
         "loops (a known closure brings the end back, no false closure survives between two "
-        "identical rooms) and measured on the shared logs (README); `fuzzypos run "
+        "identical rooms) and measured on the shared logs (docs/history.md); `fuzzypos run "
         "--loop-closure` turns it on",
     )
     recent_keyframes: int = _field(

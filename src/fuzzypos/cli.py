@@ -28,6 +28,7 @@ from ._cli_tables import (
     no_return_rows,
     relations_line,
 )
+from ._config_docs import settings_lines, settings_markdown
 from ._version import __version__
 from .config import Config, ConfigError
 
@@ -219,13 +220,22 @@ def config(
     reasons: Annotated[
         bool, typer.Option(help="print the reason for every setting instead")
     ] = False,
+    markdown: Annotated[
+        bool,
+        typer.Option(
+            help="print every setting's default, unit, bounds and reason as markdown "
+            "(docs/configuration.md)"
+        ),
+    ] = False,
 ) -> None:
     """Print a configuration as TOML (or why each value is what it is)."""
     cfg = _load_config(preset, config_file)
+    if markdown:
+        typer.echo(settings_markdown(), nl=False)
+        return
     if reasons:
-        for key, spec in Config.schema().items():
-            what = spec.describe()
-            typer.echo(f"{key}{f' [{what}]' if what else ''}: {spec.reason}")
+        for line in settings_lines():
+            typer.echo(line)
         return
     typer.echo(cfg.to_toml())
 

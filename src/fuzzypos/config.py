@@ -8,7 +8,7 @@ the code; in TOML they sit in keys ending in ``_deg`` and are converted once, at
 keys are an error that names the key; keys of older files that moved or were removed are
 translated with a FutureWarning.
 
-``Config()`` is the default: the best configuration measurement supports (see the README).
+``Config()`` is the default: the best configuration measurement supports (docs/method.md).
 ``Config.preset("paper")`` keeps every rule and value the paper states (with SPEC's corrections)
 and takes our defaults where the paper states none.
 """
