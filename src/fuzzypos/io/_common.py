@@ -127,8 +127,9 @@ def _lines(fh: IO[str], path: PathLike, error: type[LogFormatError]) -> Iterator
 def open_text(path: PathLike) -> IO[str]:
     """Open a text log for reading, decompressing gzip when the file starts with its magic
     bytes (whatever its name). The file is opened once and its first bytes put back, so a
-    pipe or FIFO (``<(zcat log.gz)``, ``/dev/stdin``) reads whole. Undecodable bytes become
-    U+FFFD (and fail to parse as numbers rather than aborting the read)."""
+    pipe or FIFO (``<(zcat log.gz)``, ``/dev/stdin``) reads whole. A UTF-8 byte order mark
+    at the start is dropped (editors on Windows write one). Undecodable bytes become U+FFFD
+    (and fail to parse as numbers rather than aborting the read)."""
     f = open(path, "rb")  # noqa: SIM115 - closed with the returned stream
     try:
         magic = f.read(2)
@@ -148,11 +149,11 @@ def open_text(path: PathLike) -> IO[str]:
 
 
 class _TextLog(io.TextIOWrapper):
-    """UTF-8 text (undecodable bytes replaced) over a byte stream, closing ``also_close``
-    (the file under a gzip layer) with itself."""
+    """UTF-8 text (a leading byte order mark dropped, undecodable bytes replaced) over a byte
+    stream, closing ``also_close`` (the file under a gzip layer) with itself."""
 
     def __init__(self, raw: IO[bytes], also_close: IO[bytes] | None = None) -> None:
-        super().__init__(raw, encoding="utf-8", errors="replace")
+        super().__init__(raw, encoding="utf-8-sig", errors="replace")
         self._also_close = also_close
 
     def close(self) -> None:
