@@ -3,6 +3,11 @@ bad input is one line ``fuzzypos: error: …`` and exit 2, never a traceback."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
+import pytest
 from typer.testing import CliRunner
 
 from fuzzypos.cli import app
@@ -50,3 +55,42 @@ def test_a_byte_order_mark_keeps_the_first_scan(tmp_path):
     stamps = [rec.scan.stamp for rec in reader.records()]
     assert stamps == [0.0, 0.1, 0.2, 0.30000000000000004] and reader.bad_lines == 0
     assert len(reader.scan_stamps()) == 4
+
+
+# -- 5. a symlink loop, a device that never ends ----------------------------------------------
+def test_a_symlink_loop_is_named_as_one(tmp_path):
+    a, b = tmp_path / "a.clf", tmp_path / "b.clf"
+    a.symlink_to(b)
+    b.symlink_to(a)
+    for cmd in ("info", "run"):
+        line = one_line_error([cmd, str(a)], f"{a}: symlink loop")
+        assert "No such file" not in line
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
+def test_a_device_of_zeros_is_refused_at_once():
+    # in a process of its own: without the fix it reads /dev/zero until the timeout
+    code = "import sys; from fuzzypos.cli import main; sys.argv[0] = 'fuzzypos'; main()"
+    for cmd in ("info", "run"):
+        res = subprocess.run(
+            [sys.executable, "-c", code, cmd, "/dev/zero"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert res.returncode == 2, res.stderr
+        lines = res.stderr.splitlines()
+        assert len(lines) == 1 and "/dev/zero: not a log: binary content" in lines[0], lines
+
+
+# -- 4. a stretch beyond the log's end --------------------------------------------------------
+def test_a_start_beyond_the_end_says_the_stretch_is_empty(tmp_path):
+    path = tmp_path / "short.clf"
+    small_log(path, 5, stamps=[100.0 + 0.5 * k for k in range(5)])
+    line = one_line_error(
+        ["run", str(path), "--start", "50", "--results", str(tmp_path / "r")],
+        f"{path}: the stretch (--start 50 s",
+        "holds no scans",
+        "from stamp 100.0 to 102.0 (2.000 s",
+    )
+    assert "FLASER" not in line

@@ -65,6 +65,7 @@ __all__ = [
     "StampError",
     "UnknownLogError",
     "describe_log",
+    "empty_stretch",
     "find_no_return_values",
     "log_kind",
     "open_log",
@@ -124,11 +125,17 @@ def _is_text(head: bytes, complete: bool) -> bool:
 def log_kind(path: PathLike) -> str:
     """``"ros2"``, ``"ros1"`` or ``"carmen"`` from the content of ``path`` (see the module
     docstring); :class:`UnknownLogError` for anything else, :class:`FileNotFoundError` when
-    nothing is there."""
+    nothing is there, an ``OSError`` (``ELOOP``, "symlink loop") for a symbolic link that
+    leads back to itself."""
     p = Path(path)
-    name = os.fspath(path)
-    if not p.exists():
-        raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), name)
+    name = display_name(path)
+    try:
+        os.stat(p)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:  # not "No such file or directory"
+            what = "symlink loop (too many levels of symbolic links)"
+            raise OSError(errno.ELOOP, what, name) from None
+        raise type(exc)(exc.errno, exc.strerror, name) from None
     if p.is_dir():
         if (p / "metadata.yaml").is_file():
             return "ros2"
@@ -401,6 +408,27 @@ def select_stamps(
     s, e = _selection(start, end, max_scans)
     chosen = _select(iter(stamps), s, e, max_scans, float)
     return np.fromiter(chosen, dtype=np.float64)
+
+
+def empty_stretch(log: OpenLog, start: float | None, end: float | None) -> SelectionError | None:
+    """The error for a stretch (``start``, ``end``) that holds none of ``log``'s scans when the
+    log has some: the log's first and last stamps and its duration, so that the user can
+    choose again. None when the log has no scans at all (or its stamps cannot be read)."""
+    try:
+        stamps = log.scan_stamps()
+    except (ValueError, OSError):
+        return None
+    if stamps.shape[0] == 0:
+        return None
+    first, last = float(stamps[0]), float(stamps[-1])
+    asked = " and ".join(
+        f"{name} {v:g} s" for name, v in (("--start", start), ("--end", end)) if v is not None
+    )
+    return SelectionError(
+        f"{log.name}: the stretch ({asked} after the first scan's stamp) holds no scans: the "
+        f"log's {stamps.shape[0]:,} scans run from stamp {first!r} to {last!r} "
+        f"({last - first:.3f} s; --start and --end count from the first stamp)"
+    )
 
 
 def _selection(
