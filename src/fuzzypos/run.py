@@ -79,7 +79,14 @@ from .folders import (
 from .geometry import Cov3Upper, Pose2D, covariance_to_parent3, propagate3
 from .graph import OnlineMapper, require_gtsam
 from .io import CarmenWriter, LogRecord, OdometryBagWriter, Relations, write_tum
-from .logs import OpenLog, find_no_return_values, open_log, select_records, select_stamps
+from .logs import (
+    OpenLog,
+    empty_stretch,
+    find_no_return_values,
+    open_log,
+    select_records,
+    select_stamps,
+)
 from .no_returns import with_found_bands
 from .pipeline import Estimate, Positioner, Reason
 from .provenance import file_sha256, git_hash, write_json
@@ -423,9 +430,12 @@ def _position_along(
 
 
 def _no_scans(log: OpenLog, start: float | None, end: float | None) -> ValueError:
-    what = "no scans" if (start is None and end is None) else "no scans in the chosen stretch"
+    if start is not None or end is not None:
+        stretch = empty_stretch(log, start, end)
+        if stretch is not None:  # the log has scans, but not there
+            return stretch
     hint = " (is it a CARMEN log with FLASER or ROBOTLASER1 lines?)" if log.kind == "carmen" else ""
-    return ValueError(f"{log.name}: {what}{hint}")
+    return ValueError(f"{log.name}: no scans{hint}")
 
 
 def _plot_path(
