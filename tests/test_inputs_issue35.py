@@ -3,6 +3,7 @@ bad input is one line ``fuzzypos: error: …`` and exit 2, never a traceback."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -94,3 +95,31 @@ def test_a_start_beyond_the_end_says_the_stretch_is_empty(tmp_path):
         "from stamp 100.0 to 102.0 (2.000 s",
     )
     assert "FLASER" not in line
+
+
+# -- 8. --scan-rate -----------------------------------------------------------------------------
+def test_corrupt_stamps_are_refused_naming_scan_rate(tmp_path):
+    path = tmp_path / "equal.clf"
+    small_log(path, 12, stamps=[5.0] * 12)
+    one_line_error(
+        ["run", str(path), "--results", str(tmp_path / "r")],
+        f"{path}: the scans' stamps are corrupt",
+        "pass --scan-rate HZ",
+    )
+
+
+def test_scan_rate_stamps_the_scans_evenly(tmp_path):
+    path = tmp_path / "equal.clf"
+    small_log(path, 12, stamps=[5.0] * 12)
+    out = tmp_path / "r"
+    lines = invoke(["run", str(path), "--scan-rate", "10", "--results", str(out)], 0)
+    assert not any("warning" in ln for ln in lines), lines
+    rows = [ln.split() for ln in (out / "trajectory.tum").read_text().splitlines()]
+    stamps = [float(r[0]) for r in rows if not r[0].startswith("#")]
+    assert stamps == [k / 10 for k in range(12)]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["scan_rate_hz"] == 10.0 and summary["scans"] == 12
+    assert any("evenly spaced 0.1 s apart" in n for n in summary["notes"])
+    info = invoke(["info", str(path), "--scan-rate", "10", "--json"], 0)
+    assert json.loads("\n".join(info))["duration_s"] == pytest.approx(1.1)
+    one_line_error(["run", str(path), "--scan-rate", "0"], "--scan-rate must be a finite rate > 0")

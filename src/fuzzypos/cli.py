@@ -254,6 +254,7 @@ _FLAG_OF = {
     "odometry": "--odometry",
     "start": "--start",
     "end": "--end",
+    "scan_rate_hz": "--scan-rate",
 }
 _LIBRARY_NAME = re.compile(
     r"(?<![\w./\-'\"])(" + "|".join(_FLAG_OF) + r")(?:(=)(?=\S)|=|(?= must\b| \(\d))"
@@ -278,6 +279,7 @@ def _open(
     fov: float = 180.0,
     max_range: float | None = None,
     convention: str = "auto",
+    scan_rate: float | None = None,
 ) -> OpenLog:
     from .logs import open_log, parse_laser_offset
 
@@ -293,6 +295,7 @@ def _open(
             field_of_view_deg=fov,
             max_range=max_range,
             convention=convention,
+            scan_rate_hz=scan_rate,
         )
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
@@ -361,6 +364,11 @@ _LASER_OFFSET = typer.Option(
     help="the laser's mounting pose on the robot 'x,y,θ' (m, m, degrees); overrides the log's",
 )
 _JSON = typer.Option("--json", help="print JSON instead of a table")
+_SCAN_RATE = typer.Option(
+    "--scan-rate",
+    help="take the scans as evenly spaced at this rate (Hz) in file order, stamped k/HZ from 0, "
+    "instead of the log's stamps (for a log whose stamps are corrupt)",
+)
 
 
 @app.command("plot-scan")
@@ -426,6 +434,7 @@ def info(
     fov: Annotated[float, _FOV] = 180.0,
     convention: Annotated[str, _CONVENTION] = "auto",
     config_file: Annotated[Path | None, _CONFIG_FILE] = None,
+    scan_rate: Annotated[float | None, _SCAN_RATE] = None,
 ) -> None:
     """Describe a log (CARMEN, ROS1 bag or ROS2 bag): what it holds.
 
@@ -446,6 +455,7 @@ def info(
         skip_bad_lines=skip_bad_lines,
         fov=fov,
         convention=convention,
+        scan_rate=scan_rate,
     )
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -556,6 +566,7 @@ def run(
     fov: Annotated[float, _FOV] = 180.0,
     max_range: Annotated[float | None, _MAX_RANGE] = None,
     convention: Annotated[str, _CONVENTION] = "auto",
+    scan_rate: Annotated[float | None, _SCAN_RATE] = None,
     bag_out: Annotated[
         Path | None,
         typer.Option(
@@ -620,6 +631,7 @@ def run(
         fov=fov,
         max_range=max_range,
         convention=convention,
+        scan_rate=scan_rate,
     )
     try:
         rel = None if relations is None else read_relations(relations)

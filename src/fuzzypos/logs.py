@@ -194,6 +194,9 @@ class OpenLog:
     reader: CarmenReader | BagReader
     notes: list[str] = field(default_factory=list)
     options: dict[str, Any] = field(default_factory=dict)
+    #: the scans taken as evenly spaced at this rate (Hz) in file order, stamped ``k / rate``
+    #: (``k`` from 0), instead of the log's own stamps (None: the log's)
+    scan_rate_hz: float | None = None
 
     _stamps: Any = field(default=None, init=False, repr=False)
 
@@ -202,8 +205,12 @@ class OpenLog:
         return display_name(self.path)
 
     def records(self) -> Iterator[LogRecord]:
-        """Stream the log's records in file (bag) order; each call reads the log again."""
-        return self.reader.records()
+        """Stream the log's records in file (bag) order; each call reads the log again. With
+        :attr:`scan_rate_hz` the scans are stamped ``k / scan_rate_hz`` (the odometry is
+        still the log's at its own stamps)."""
+        if self.scan_rate_hz is None:
+            return self.reader.records()
+        return _evenly_stamped(self.reader.records(), self.scan_rate_hz)
 
     def __iter__(self) -> Iterator[LogRecord]:
         return self.records()
@@ -234,7 +241,11 @@ class OpenLog:
         the first call reads them, :meth:`CarmenReader.scan_stamps` /
         :meth:`BagReader.scan_stamps`)."""
         if self._stamps is None:
-            self._stamps = self.reader.scan_stamps()
+            stamps = self.reader.scan_stamps()
+            if self.scan_rate_hz is not None:
+                stamps = np.arange(stamps.shape[0], dtype=np.float64) / self.scan_rate_hz
+                stamps.setflags(write=False)
+            self._stamps = stamps
         return self._stamps  # type: ignore[no-any-return]
 
     def check_stamps(
@@ -261,12 +272,31 @@ class OpenLog:
                 self.path,
                 0,
                 f"{check.remark()}; fuzzypos needs the time between scans to judge the "
-                f"odometry (see `fuzzypos info {self.name}`)",
+                f"odometry (see `fuzzypos info {self.name}`); to take the scans as evenly "
+                "spaced in file order at the scanner's rate, pass scan_rate_hz=HZ",
             )
         remark = check.remark()
         if remark is not None:
             warnings.warn(f"{self.name}: {remark}", RuntimeWarning, stacklevel=2)
         return check
+
+
+def _evenly_stamped(records: Iterator[LogRecord], rate_hz: float) -> Iterator[LogRecord]:
+    for k, rec in enumerate(records):
+        yield rec._replace(scan=replace(rec.scan, stamp=k / rate_hz))
+
+
+def _scan_rate(scan_rate_hz: float | None) -> float | None:
+    """``scan_rate_hz`` checked: None, or a finite rate > 0 (else :class:`SelectionError`)."""
+    if scan_rate_hz is None:
+        return None
+    try:
+        rate = float(scan_rate_hz)
+    except (TypeError, ValueError):
+        raise SelectionError(f"scan_rate_hz must be a number, got {scan_rate_hz!r}") from None
+    if not (math.isfinite(rate) and rate > 0.0):
+        raise SelectionError(f"scan_rate_hz must be a finite rate > 0 (Hz), got {scan_rate_hz!r}")
+    return rate
 
 
 def open_log(
@@ -280,8 +310,13 @@ def open_log(
     field_of_view_deg: float = 180.0,
     max_range: float | None = None,
     convention: str = "auto",
+    scan_rate_hz: float | None = None,
 ) -> OpenLog:
     """Open a CARMEN log or a ROS1/ROS2 bag, telling which by content (module docstring).
+
+    ``scan_rate_hz``: take the scans as evenly spaced at this rate in file order (stamps
+    ``k / scan_rate_hz`` from 0) instead of their own stamps, for a log whose stamps are
+    corrupt (:class:`StampError`); said in :attr:`OpenLog.notes` and ``options``.
 
     CARMEN logs take ``skip_bad_lines``, ``odometry`` (``"scan"``: each scan line's own
     odometry fields; ``"interpolated"``: the ODOM stream at the scan's stamp),
@@ -297,6 +332,7 @@ def open_log(
     """
     if laser_offset is not None and not isinstance(laser_offset, Pose2D):
         raise TypeError(f"laser_offset must be a Pose2D or None, got {type(laser_offset).__name__}")
+    rate = _scan_rate(scan_rate_hz)
     path = spool_if_stream(path)  # a pipe can be read once: copy it, read the copy
     kind = log_kind(path)
     notes: list[str] = []
@@ -347,7 +383,15 @@ def open_log(
             odom_topic=reader.odom_topic,
             sensor_pose_source=reader.sensor_pose_source,
         )
-    return OpenLog(path=path, kind=kind, reader=reader, notes=notes, options=options)
+    if rate is not None:
+        options["scan_rate_hz"] = rate
+        notes.append(
+            f"scan_rate_hz={rate:g}: the scans are taken as evenly spaced {1.0 / rate:g} s apart "
+            f"in file order (stamps k/{rate:g} s from 0), not stamped as in the log"
+        )
+    return OpenLog(
+        path=path, kind=kind, reader=reader, notes=notes, options=options, scan_rate_hz=rate
+    )
 
 
 # -- choosing a stretch -----------------------------------------------------------------------

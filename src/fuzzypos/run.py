@@ -600,6 +600,7 @@ def _summary(
         "config": config,
         "bad_lines_skipped": log.bad_lines,
         "truncated": log.truncated,
+        "scan_rate_hz": log.scan_rate_hz,
         "first_stamp": track.stamps[0],
         "last_stamp": track.stamps[-1],
         "has_odometry": a.odometry is not None,
