@@ -466,12 +466,12 @@ def empty_stretch(log: OpenLog, start: float | None, end: float | None) -> Selec
         return None
     first, last = float(stamps[0]), float(stamps[-1])
     asked = " and ".join(
-        f"{name} {v:g} s" for name, v in (("--start", start), ("--end", end)) if v is not None
+        f"{name}={v:g} s" for name, v in (("start", start), ("end", end)) if v is not None
     )
     return SelectionError(
-        f"{log.name}: the stretch ({asked} after the first scan's stamp) holds no scans: the "
-        f"log's {stamps.shape[0]:,} scans run from stamp {first!r} to {last!r} "
-        f"({last - first:.3f} s; --start and --end count from the first stamp)"
+        f"{log.name}: the stretch ({asked}, counted from the first scan's stamp) holds no "
+        f"scans: the log's {stamps.shape[0]:,} scans run from stamp {first!r} to {last!r} "
+        f"({last - first:.3f} s)"
     )
 
 
