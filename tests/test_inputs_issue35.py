@@ -4,9 +4,11 @@ bad input is one line ``fuzzypos: error: …`` and exit 2, never a traceback."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
+import warnings
 
 import pytest
 from typer.testing import CliRunner
@@ -123,3 +125,31 @@ def test_scan_rate_stamps_the_scans_evenly(tmp_path):
     info = invoke(["info", str(path), "--scan-rate", "10", "--json"], 0)
     assert json.loads("\n".join(info))["duration_s"] == pytest.approx(1.1)
     one_line_error(["run", str(path), "--scan-rate", "0"], "--scan-rate must be a finite rate > 0")
+
+
+# -- 3. absurd ranges ---------------------------------------------------------------------------
+def test_absurd_ranges_are_invalid_and_written_as_read(tmp_path):
+    path = tmp_path / "absurd.clf"
+    lines = []
+    for k in range(8):
+        ranges = [2.0 + 0.01 * j for j in range(20)]
+        if k % 2:
+            ranges[3:6] = ["1e308", "1e308", "1e309"]
+        lines.append(flaser(ranges, (0.05 * k, 0, 0), 0.1 * k))
+    path.write_text("".join(lines))
+    records = list(CarmenReader(path).records())
+    scan = records[1].scan
+    assert not scan.valid[3:6].any() and scan.valid[6:].all()
+    assert math.isinf(scan.range_max)  # 1e308 twice is no scanner's "no return" value
+    out = tmp_path / "r"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no numpy overflow warning
+        res = invoke(["run", str(path), "--results", str(out), "--max-scans", "4"], 0)
+    assert not any("overflow" in ln or "warning" in ln for ln in res), res
+    text = (out / "trajectory.clf").read_text().splitlines()
+    written = [ln for ln in text if ln.startswith("FLASER")]
+    second = written[1].split()
+    assert second[5:8] == ["1e+308", "1e+308", "inf"], second[:10]
+    assert max(len(t) for ln in written for t in ln.split()) < 30  # no 309-digit numbers
+    again = list(CarmenReader(out / "trajectory.clf").records())
+    assert not again[1].scan.valid[3:6].any() and again[1].scan.valid[6:].all()

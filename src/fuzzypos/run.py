@@ -177,7 +177,8 @@ def write_estimate_clf(
     logger_timestamp`` line per scan, in the order given: ``x y θ`` = the estimate,
     ``odom_*`` = the odometry (the estimate where it is None), both timestamps the scan's
     stamp (``repr``); then ``TRUEPOS`` when ``truth`` is given. Ranges are the scan's raw
-    readings to 0.1 mm (NaN/inf as 0, which reads back invalid). Unlike
+    readings to 0.1 mm (NaN, ±inf and absurd ones as read, ``nan``, ``inf``, ``1e+308``,
+    which read back invalid). Unlike
     :func:`fuzzypos.io.write_carmen` (which writes the odometry into both pose fields and
     needs one ``range_max`` for the whole log) this streams any log the readers give: the
     beam geometry is taken from the first scan (field of view and convention in a header

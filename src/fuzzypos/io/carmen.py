@@ -124,7 +124,7 @@ from numpy.typing import NDArray
 
 from .._kernels import compiled
 from ..geometry import Pose2D
-from ..scan import LaserScan, ScanError
+from ..scan import ABSURD_RANGE_M, LaserScan, ScanError
 from ._common import (
     FloatArray,
     LogFormatError,
@@ -509,7 +509,8 @@ class CarmenReader:
             return self.max_range
         if self._param_max is not None:
             return self._param_max
-        finite = ranges[np.isfinite(ranges)]
+        with np.errstate(invalid="ignore"):  # absurd readings are no scanner's "no return"
+            finite = ranges[np.abs(ranges) < ABSURD_RANGE_M]
         if finite.size == 0:
             m = -math.inf
         else:
