@@ -10,11 +10,15 @@ import subprocess
 import sys
 import warnings
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from fuzzypos.cli import app
+from fuzzypos.config import Config
 from fuzzypos.io import CarmenReader
+from fuzzypos.logs import open_log
+from helpers import make_bag, write_sim_log
 
 runner = CliRunner()
 
@@ -153,3 +157,136 @@ def test_absurd_ranges_are_invalid_and_written_as_read(tmp_path):
     assert max(len(t) for ln in written for t in ln.split()) < 30  # no 309-digit numbers
     again = list(CarmenReader(out / "trajectory.clf").records())
     assert not again[1].scan.valid[3:6].any() and again[1].scan.valid[6:].all()
+
+
+# -- 2 and 7: odometry that does not cover the scans --------------------------------------------
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    """A simulated log of 32 scans (about 0.9 m along a circle) and its run."""
+    path = tmp_path_factory.mktemp("sim") / "sim.clf"
+    return path, write_sim_log(path)
+
+
+def _with_odometry(src, dst, change) -> None:
+    """``src`` with each FLASER line's six pose fields replaced by ``change(k, fields)``."""
+    out, k = [], 0
+    for line in src.read_text().splitlines(True):
+        if line.startswith("FLASER "):
+            t = line.split(" ")
+            p = 2 + int(t[1])
+            t[p : p + 6] = change(k, t[p : p + 6])
+            k += 1
+            line = " ".join(t)
+        out.append(line)
+    dst.write_text("".join(out))
+
+
+def _summary(out):
+    return json.loads((out / "summary.json").read_text())
+
+
+def _travelled(out) -> float:
+    rows = [ln.split() for ln in (out / "trajectory.tum").read_text().splitlines()]
+    xy = np.array([[float(r[1]), float(r[2])] for r in rows if not r[0].startswith("#")])
+    return float(np.linalg.norm(xy[-1] - xy[0]))
+
+
+@pytest.mark.parametrize("skip", [False, True])
+def test_a_nan_odometry_field_loses_only_that_scans_odometry(sim, tmp_path, skip):
+    path = tmp_path / "nan.clf"
+    _with_odometry(sim[0], path, lambda k, f: [*f[:3], "nan", *f[4:]] if k == 10 else f)
+    out = tmp_path / "r"
+    args = ["run", str(path), "--results", str(out), *(["--skip-bad-lines"] if skip else [])]
+    lines = invoke(args, 0)
+    s = _summary(out)
+    assert s["scans"] == 32 and s["bad_lines_skipped"] == 0 and not s["partial"]
+    assert s["odometry_coverage"]["scans_without_odometry"] == 1
+    assert any("1 FLASER lines have odometry fields that are not finite" in n for n in s["notes"])
+    assert any(ln.startswith("note: odometry coverage: 1 of 32 scans") for ln in lines), lines
+    assert s["truth_errors"]["estimate"]["mean_position_error_m"] < 0.05
+    info = invoke(["info", str(path)], 0)
+    assert any("odometry" in ln and "31 scans" in ln and "1 scans not covered" in ln for ln in info)
+
+
+def test_odometry_all_zero_while_the_scans_move_is_detected(sim, tmp_path):
+    path = tmp_path / "zero.clf"
+    _with_odometry(sim[0], path, lambda k, f: ["0"] * 6)
+    out = tmp_path / "r"
+    lines = invoke(["run", str(path), "--results", str(out)], 0)
+    s = _summary(out)
+    cov = s["odometry_coverage"]
+    assert cov["scans_with_stuck_odometry"] == 32 and cov["stuck_stretches"] == [[0, 31]]
+    assert any("odometry stands exactly still while the scans show" in ln for ln in lines)
+    truth = sim[1]
+    moved = math.dist(truth.true_pose(0).as_array()[:2], truth.true_pose(31).as_array()[:2])
+    assert _travelled(out) == pytest.approx(moved, abs=0.15)  # not frozen at the start
+    info = invoke(["info", str(path)], 0)
+    assert any("none that covers the scans (32 scans not covered" in ln for ln in info), info
+
+
+def test_odometry_standing_still_with_still_scans_is_not_flagged(sim, tmp_path):
+    path = tmp_path / "still.clf"
+    _with_odometry(sim[0], path, lambda k, f: ["0"] * 6)
+    first = next(ln for ln in path.read_text().splitlines(True) if ln.startswith("FLASER "))
+    still = "".join(first.replace(" 0.0 host", f" {0.1 * k!r} host", 1) for k in range(20))
+    path.write_text(still)
+    from fuzzypos.logs import survey_log
+
+    _, coverage = survey_log(open_log(path), Config().scanner)
+    assert coverage.scans == 20 and coverage.uncovered == 0 and coverage.note() is None
+
+
+def _bag_of(tmp_path, run, *, odom_shift=0.0, odom_from=0, bad_angle_max=()):
+    stamps = [float(s.stamp) for s in run.scans]
+
+    def build(b):
+        msgs = []
+        for k, scan in enumerate(run.scans):
+            a_max = scan.angle_min + (scan.n_beams - 1) * scan.angle_increment
+            extra = {"angle_max": a_max + (0.2 if k in bad_angle_max else 0.0)}
+            msg = b.scan(
+                stamps[k],
+                scan.ranges,
+                angle_min=scan.angle_min,
+                angle_increment=scan.angle_increment,
+                range_max=30.0,
+                **extra,
+            )
+            msgs.append(("/scan", stamps[k] + 0.001, msg))
+        for k in range(odom_from, len(stamps)):
+            o = run.odometry_pose(k)
+            t = stamps[k] + odom_shift
+            msgs.append(("/odom", t + 0.001, b.odom(t, (o.x, o.y, o.theta))))
+        msgs.sort(key=lambda m: m[1])
+        return msgs
+
+    return make_bag(tmp_path, "ros2", build)
+
+
+def test_a_bag_whose_odometry_clock_is_off_is_detected(sim, tmp_path):
+    bag = _bag_of(tmp_path, sim[1], odom_shift=1000.0)
+    out = tmp_path / "r"
+    lines = invoke(["run", str(bag), "--results", str(out)], 0)
+    s = _summary(out)
+    assert s["odometry_coverage"]["scans_without_odometry"] == 32
+    assert any("32 of 32 scans lie outside the odometry's time span" in n for n in s["notes"])
+    assert any("note: odometry coverage: 32 of 32 scans" in ln for ln in lines)
+    truth = sim[1]
+    moved = math.dist(truth.true_pose(0).as_array()[:2], truth.true_pose(31).as_array()[:2])
+    assert _travelled(out) == pytest.approx(moved, abs=0.15)
+    info = invoke(["info", str(bag)], 0)
+    assert any("none that covers the scans" in ln for ln in info), info
+
+
+def test_a_bag_odometry_starting_late_and_angle_max_mismatches_are_reported(sim, tmp_path):
+    bag = _bag_of(tmp_path, sim[1], odom_from=12, bad_angle_max=(3, 4))
+    out = tmp_path / "r"
+    lines = invoke(["run", str(bag), "--results", str(out)], 0)
+    s = _summary(out)
+    assert s["odometry_coverage"]["scans_without_odometry"] == 12 - 2  # two periods' reach
+    for text in ("10 of 32 scans lie outside the odometry's time span", "2 of 32 scan messages"):
+        assert any(text in n for n in s["notes"]), (text, s["notes"])
+        assert any(text in ln for ln in lines), (text, lines)
+    info = invoke(["info", str(bag)], 0)
+    assert any("2 of 32 scan messages have an angle_max" in ln for ln in info), info
+    assert any("22 scans); 10 scans not covered" in ln for ln in info), info

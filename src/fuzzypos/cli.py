@@ -32,7 +32,7 @@ from ._version import __version__
 from .config import Config, ConfigError
 
 if TYPE_CHECKING:
-    from .logs import OpenLog
+    from .logs import LogInfo, OpenLog
 
 
 app = typer.Typer(
@@ -504,7 +504,7 @@ def info(
         ("duration", duration),
         ("stamps going backwards", str(result.stamps_backwards)),
         ("stamps repeated", str(result.stamps_repeated)),
-        ("odometry", f"yes ({result.scans_with_odometry} scans)" if result.has_odometry else "no"),
+        ("odometry", _odometry_text(result)),
         ("truth (TRUEPOS)", f"yes ({result.scans_with_truth} scans)" if result.has_truth else "no"),
         ("bad lines skipped", str(result.bad_lines) + (" (truncated)" if result.truncated else "")),
         *no_return_rows(result.no_returns),
@@ -515,6 +515,16 @@ def info(
     _wide().print(table)
     for note in result.notes:
         typer.echo(f"note: {note}")
+
+
+def _odometry_text(result: LogInfo) -> str:
+    """``info``'s odometry row: the scans it covers, and those it does not (see the note)."""
+    missed = result.scans_odometry_not_covered
+    if not missed:
+        return f"yes ({result.scans_with_odometry} scans)" if result.has_odometry else "no"
+    if result.has_odometry:
+        return f"yes ({result.scans_with_odometry} scans); {missed} scans not covered (see note)"
+    return f"none that covers the scans ({missed} scans not covered: see the note)"
 
 
 @app.command()

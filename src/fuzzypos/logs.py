@@ -53,6 +53,7 @@ from .io import GZIP_MAGIC, BagReader, CarmenReader, LogFormatError, LogRecord
 from .io._common import display_name, spool_if_stream
 from .io.rosbag import ROS1_MAGIC
 from .no_returns import FoundNoReturn, RangeTally
+from .odometry_check import OdometryCoverage
 from .scan import LaserScan, no_return_counts
 
 __all__ = [
@@ -72,6 +73,7 @@ __all__ = [
     "parse_laser_offset",
     "select_records",
     "select_stamps",
+    "survey_log",
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -214,6 +216,12 @@ class OpenLog:
 
     def __iter__(self) -> Iterator[LogRecord]:
         return self.records()
+
+    @property
+    def has_odometry(self) -> bool:
+        """Whether the log has odometry: a CARMEN log always (its scan lines carry it), a bag
+        with an odometry topic that holds messages."""
+        return bool(getattr(self.reader, "has_odometry", True))
 
     @property
     def bad_lines(self) -> int:
@@ -659,7 +667,10 @@ class LogInfo:
     previous one's; ``stamps_repeated``: how often it equals it; ``stamp_problem``: what is
     wrong with the stamps (:meth:`StampCheck.remark`, also warned), else None;
     ``scans_without_ranges``: scans of no beam (not in the beam angles);
-    ``scans_with_odometry`` / ``scans_with_truth``;
+    ``scans_with_odometry``: scans whose odometry covers them, ``scans_odometry_not_covered``
+    the others (no odometry at them in a log that has some, or odometry standing still while
+    the scans move: :class:`~fuzzypos.odometry_check.OdometryCoverage`, whose
+    ``as_dict()`` is ``odometry_coverage``); ``scans_with_truth``;
     ``range_max``: the distinct finite ``range_max`` of the scans (at most 10 kept);
     ``no_returns``: per "no return" band, the readings it removes (:class:`NoReturnCount`);
     ``no_return_values_found``: the codes found in the readings (:func:`find_no_return_values`;
@@ -683,6 +694,8 @@ class LogInfo:
     stamp_problem: str | None = None
     scans_without_ranges: int = 0
     scans_with_odometry: int = 0
+    scans_odometry_not_covered: int = 0
+    odometry_coverage: dict[str, Any] = field(default_factory=dict)
     scans_with_truth: int = 0
     range_max: list[float] = field(default_factory=list)
     no_returns: list[NoReturnCount] = field(default_factory=list)
@@ -729,6 +742,7 @@ def describe_log(
     beams: set[int] = set()
     rmax: set[float] = set()
     stamps = StampCheck()
+    coverage = OdometryCoverage(expected=log.has_odometry)
     amin = amax = fov = None
     for rec in log.records():
         scan = rec.scan
@@ -750,7 +764,7 @@ def describe_log(
             info.max_stamp = max(info.max_stamp, t)  # type: ignore[type-var]
         stamps.add(t)
         info.last_stamp = t
-        info.scans_with_odometry += rec.odometry is not None
+        coverage.add(rec)
         info.scans_with_truth += rec.truth is not None
         if math.isfinite(scan.range_max) and len(rmax) < 10:
             rmax.add(scan.range_max)
@@ -771,12 +785,21 @@ def describe_log(
     _describe_stamps(info, stamps, log.name)
     info.bad_lines = log.bad_lines
     info.truncated = log.truncated
-    info.notes = list(log.notes)
-    if isinstance(log.reader, BagReader):  # the bag reader's notes may grow while reading
-        info.notes = list(dict.fromkeys([*log.notes, *log.reader.notes]))
+    # the readers' notes may grow while reading
+    info.notes = list(dict.fromkeys([*log.notes, *log.reader.notes]))
+    _describe_coverage(info, coverage.finish())
     if info.scans_without_ranges:
         info.notes.append(f"{info.scans_without_ranges:,} scans have no ranges at all")
     return info
+
+
+def _describe_coverage(info: LogInfo, coverage: OdometryCoverage) -> None:
+    info.scans_with_odometry = coverage.covered
+    info.scans_odometry_not_covered = coverage.uncovered
+    info.odometry_coverage = coverage.as_dict()
+    note = coverage.note()
+    if note is not None:
+        info.notes.append(note)
 
 
 def _describe_stamps(info: LogInfo, stamps: StampCheck, name: str) -> None:
@@ -798,6 +821,28 @@ def _count_no_returns(
     for c, r, b in zip(counts, removed, in_band):
         c.removed += r
         c.in_band += b
+
+
+def survey_log(
+    log: OpenLog, scanner: ScannerConfig
+) -> tuple[list[FoundNoReturn], OdometryCoverage]:
+    """One pass over the whole of ``log`` before a run: the "no return" codes
+    (:func:`find_no_return_values`, none when ``scanner.find_no_return_values`` is off) and
+    which scans the odometry covers (:class:`~fuzzypos.odometry_check.OdometryCoverage`). A
+    log that cannot be read to its end is judged on the records before the error, silently
+    (the run's own pass reports it)."""
+    tally = RangeTally() if scanner.find_no_return_values else None
+    coverage = OdometryCoverage(expected=log.has_odometry)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            for rec in log.records():
+                coverage.add(rec)
+                if tally is not None:
+                    tally.add(rec.scan, rec.odometry)
+        except (ValueError, OSError):
+            pass
+    return ([] if tally is None else tally.find(scanner)), coverage.finish()
 
 
 def find_no_return_values(log: OpenLog, scanner: ScannerConfig) -> list[FoundNoReturn]:
