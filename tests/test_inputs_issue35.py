@@ -201,6 +201,7 @@ def test_a_nan_odometry_field_loses_only_that_scans_odometry(sim, tmp_path, skip
     s = _summary(out)
     assert s["scans"] == 32 and s["bad_lines_skipped"] == 0 and not s["partial"]
     assert s["odometry_coverage"]["scans_without_odometry"] == 1
+    assert s["odometry_coverage"]["without_odometry_first"] == [10]
     assert any("1 FLASER lines have odometry fields that are not finite" in n for n in s["notes"])
     assert any(ln.startswith("note: odometry coverage: 1 of 32 scans") for ln in lines), lines
     assert s["truth_errors"]["estimate"]["mean_position_error_m"] < 0.05

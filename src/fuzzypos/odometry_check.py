@@ -48,6 +48,8 @@ MOVED_M = 0.10
 #: ... and by more than 5 times what consecutive scans of the stretch differ by (for a robot
 #: standing still both are the scanner's noise, ratio about 1)
 MOVED_RATIO = 5.0
+#: how many indices of scans without odometry ``summary.json`` lists
+_KEPT_INDICES = 100
 #: beams valid in both scans needed to compare them
 _MIN_COMMON_BEAMS = 5
 
@@ -104,6 +106,8 @@ class OdometryCoverage:
     with_odometry: int = 0
     #: ``(first, last)`` 0-based scan indices (file order) of the stuck stretches
     stuck: list[tuple[int, int]] = field(default_factory=list)
+    #: the 0-based indices of the first :data:`_KEPT_INDICES` scans without odometry
+    without: list[int] = field(default_factory=list)
     _open: _Stretch | None = field(default=None, repr=False)
 
     def add(self, rec: LogRecord) -> None:
@@ -111,6 +115,8 @@ class OdometryCoverage:
         self.scans += 1
         odom = rec.odometry
         if odom is None:
+            if self.expected and len(self.without) < _KEPT_INDICES:
+                self.without.append(k)
             self._close()
             return
         self.with_odometry += 1
@@ -189,6 +195,7 @@ class OdometryCoverage:
             "scans": self.scans,
             "scans_not_covered": self.uncovered,
             "scans_without_odometry": self.missing,
+            "without_odometry_first": list(self.without),
             "scans_with_stuck_odometry": self.stuck_scans,
             "stuck_stretches": [list(s) for s in self.stuck],
             "thresholds": {
