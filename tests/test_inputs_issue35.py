@@ -204,6 +204,8 @@ def test_a_nan_odometry_field_loses_only_that_scans_odometry(sim, tmp_path, skip
     assert s["odometry_coverage"]["without_odometry_first"] == [10]
     assert any("1 FLASER lines have odometry fields that are not finite" in n for n in s["notes"])
     assert any(ln.startswith("note: odometry coverage: 1 of 32 scans") for ln in lines), lines
+    res = runner.invoke(app, [*args[:3], str(tmp_path / "r2"), *args[4:]])
+    assert "note: odometry coverage" in res.stderr and "note:" not in res.stdout
     assert s["truth_errors"]["estimate"]["mean_position_error_m"] < 0.05
     info = invoke(["info", str(path)], 0)
     assert any("odometry" in ln and "31 scans" in ln and "1 scans not covered" in ln for ln in info)

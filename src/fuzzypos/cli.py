@@ -514,7 +514,7 @@ def info(
         table.add_row(k, v)
     _wide().print(table)
     for note in result.notes:
-        typer.echo(f"note: {note}")
+        typer.echo(f"note: {note}", err=True)
 
 
 def _odometry_text(result: LogInfo) -> str:
@@ -694,7 +694,7 @@ def run(
     if s["relations"] and not s.get("loop_closure"):  # (loop closure's lines have them)
         typer.echo(relations_line(s["relations"]))
     for note in summary.notes:
-        typer.echo(f"note: {note}")
+        typer.echo(f"note: {note}", err=True)
     typer.echo(
         f"results in {summary.results_dir}/"
         + (f"; trajectory also in {out}" if out else "")
