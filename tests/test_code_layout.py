@@ -21,7 +21,7 @@ LAYERS = (
     ("matching",),
     ("pipeline",),
     ("io", "sim"),
-    ("evaluation", "plot", "graph", "no_returns"),
+    ("evaluation", "plot", "graph", "no_returns", "odometry_check"),
     ("logs", "provenance", "folders", "tasks"),
     ("scoring", "run"),
     ("benchmark", "batch", "demo"),

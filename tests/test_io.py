@@ -482,8 +482,7 @@ BAD_LINES = [
     (GOOD.replace("FLASER 6", "FLASER 1", 1), "beam count must be >= 2"),
     ("FLASER", "missing the beam count"),
     (GOOD.replace(" 3.0 ", " 3.o ", 1), "FLASER: range 3 of 6 is not a number: '3.o'"),
-    (flaser(R5, odom=(float("nan"), 0.0, 0.0)), "odom_x must be finite"),
-    (flaser(R5, odom=(0.0, 0.0, float("inf"))), "odom_θ must be finite"),
+    (flaser(R5, odom=("abc", 0.0, 0.0), xyt=(0, 0, 0)), "odom_x is not a number"),
     (flaser(R5, xyt=("abc", 0, 0)), "FLASER: x is not a number"),
     (flaser(R5, stamp="x1"), "ipc_timestamp is not a number"),
     (flaser(R5, stamp="nan"), "ipc_timestamp must be finite"),
@@ -506,6 +505,17 @@ def test_malformed_line_raises_with_file_line_and_what(tmp_path, bad, what):
     assert "broken.clf" in msg and what in msg
     assert err.line == 3 and err.path == str(path) and what in err.reason
     assert isinstance(err, ValueError) and isinstance(err, LogFormatError)
+
+
+@pytest.mark.parametrize("odom", [(math.nan, 0.0, 0.0), (0.0, 0.0, math.inf)])
+def test_non_finite_odometry_keeps_the_scan_without_odometry(tmp_path, odom):
+    """Issue 35: a non-finite odometry field is a bad value of that scan, not a bad line."""
+    path = write_lines(tmp_path / "odom.clf", [GOOD, flaser(R5, odom=odom), GOOD])
+    reader = CarmenReader(path)
+    records = list(reader.records())
+    assert [r.odometry is None for r in records] == [False, True, False]
+    assert reader.bad_odometry == 1 and reader.first_bad_odometry_line == 2
+    assert reader.bad_lines == 0 and "line 2" in reader.notes[0]
 
 
 def test_format_errors_pickle():

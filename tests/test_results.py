@@ -111,7 +111,7 @@ def test_run_log_with_a_stretch(sim_log, tmp_path):
     assert "path.png" not in res.files
     s = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert s["selection"] == {"start_s": 1.0, "end_s": None, "max_scans": 5}
-    with pytest.raises(ValueError, match="no scans in the chosen stretch"):
+    with pytest.raises(ValueError, match="holds no scans: the log's 32 scans run from"):
         run_log(path, Config(), results_dir=tmp_path / "b", start=1e6)
     assert not (tmp_path / "b" / "trajectory.clf").exists()
 

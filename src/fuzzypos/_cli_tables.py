@@ -10,7 +10,7 @@ from rich.table import Table
 from rich.text import Text
 
 if TYPE_CHECKING:
-    from .logs import NoReturnCount
+    from .logs import LogInfo, NoReturnCount
     from .no_returns import FoundNoReturn
 
 __all__ = [
@@ -18,6 +18,7 @@ __all__ = [
     "found_rows",
     "loop_closure_lines",
     "no_return_rows",
+    "odometry_text",
     "pm",
     "relations_line",
 ]
@@ -137,3 +138,13 @@ def found_rows(found: list[FoundNoReturn], looked: bool) -> list[tuple[str, str]
             text += f" ({f.invalid_at_range_max:,} already invalid at range_max)"
         rows.append((f"no-return {f.value_m:g} m (found in the data)", text))
     return rows or [("no-return values found", "none")]
+
+
+def odometry_text(result: LogInfo) -> str:
+    """``info``'s odometry row: the scans it covers, and those it does not (see the note)."""
+    missed = result.scans_odometry_not_covered
+    if not missed:
+        return f"yes ({result.scans_with_odometry} scans)" if result.has_odometry else "no"
+    if result.has_odometry:
+        return f"yes ({result.scans_with_odometry} scans); {missed} scans not covered (see note)"
+    return f"none that covers the scans ({missed} scans not covered: see the note)"

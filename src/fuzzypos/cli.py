@@ -26,6 +26,7 @@ from ._cli_tables import (
     found_rows,
     loop_closure_lines,
     no_return_rows,
+    odometry_text,
     relations_line,
 )
 from ._config_docs import settings_lines, settings_markdown
@@ -266,6 +267,7 @@ _FLAG_OF = {
     "odometry": "--odometry",
     "start": "--start",
     "end": "--end",
+    "scan_rate_hz": "--scan-rate",
 }
 _LIBRARY_NAME = re.compile(
     r"(?<![\w./\-'\"])(" + "|".join(_FLAG_OF) + r")(?:(=)(?=\S)|=|(?= must\b| \(\d))"
@@ -290,6 +292,7 @@ def _open(
     fov: float = 180.0,
     max_range: float | None = None,
     convention: str = "auto",
+    scan_rate: float | None = None,
 ) -> OpenLog:
     from .logs import open_log, parse_laser_offset
 
@@ -305,6 +308,7 @@ def _open(
             field_of_view_deg=fov,
             max_range=max_range,
             convention=convention,
+            scan_rate_hz=scan_rate,
         )
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
@@ -381,6 +385,11 @@ _LASER_OFFSET = typer.Option(
     help="the laser's mounting pose on the robot 'x,y,θ' (m, m, degrees); overrides the log's",
 )
 _JSON = typer.Option("--json", help="print JSON instead of a table")
+_SCAN_RATE = typer.Option(
+    "--scan-rate",
+    help="take the scans as evenly spaced at this rate (Hz) in file order, stamped k/HZ from 0, "
+    "instead of the log's stamps (for a log whose stamps are corrupt)",
+)
 
 
 @app.command("plot-scan")
@@ -446,6 +455,7 @@ def info(
     fov: Annotated[float, _FOV] = 180.0,
     convention: Annotated[str, _CONVENTION] = "auto",
     config_file: Annotated[Path | None, _CONFIG_FILE] = None,
+    scan_rate: Annotated[float | None, _SCAN_RATE] = None,
 ) -> None:
     """Describe a log (CARMEN, ROS1 bag or ROS2 bag): what it holds.
 
@@ -466,6 +476,7 @@ def info(
         skip_bad_lines=skip_bad_lines,
         fov=fov,
         convention=convention,
+        scan_rate=scan_rate,
     )
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -514,7 +525,7 @@ def info(
         ("duration", duration),
         ("stamps going backwards", str(result.stamps_backwards)),
         ("stamps repeated", str(result.stamps_repeated)),
-        ("odometry", f"yes ({result.scans_with_odometry} scans)" if result.has_odometry else "no"),
+        ("odometry", odometry_text(result)),
         ("truth (TRUEPOS)", f"yes ({result.scans_with_truth} scans)" if result.has_truth else "no"),
         ("bad lines skipped", str(result.bad_lines) + (" (truncated)" if result.truncated else "")),
         *no_return_rows(result.no_returns),
@@ -524,7 +535,7 @@ def info(
         table.add_row(k, v)
     _wide().print(table)
     for note in result.notes:
-        typer.echo(f"note: {note}")
+        typer.echo(f"note: {note}", err=True)
 
 
 @app.command()
@@ -576,6 +587,7 @@ def run(
     fov: Annotated[float, _FOV] = 180.0,
     max_range: Annotated[float | None, _MAX_RANGE] = None,
     convention: Annotated[str, _CONVENTION] = "auto",
+    scan_rate: Annotated[float | None, _SCAN_RATE] = None,
     bag_out: Annotated[
         Path | None,
         typer.Option(
@@ -640,6 +652,7 @@ def run(
         fov=fov,
         max_range=max_range,
         convention=convention,
+        scan_rate=scan_rate,
     )
     try:
         rel = None if relations is None else read_relations(relations)
@@ -694,7 +707,7 @@ def run(
     if s["relations"] and not s.get("loop_closure"):  # (loop closure's lines have them)
         typer.echo(relations_line(s["relations"]))
     for note in summary.notes:
-        typer.echo(f"note: {note}")
+        typer.echo(f"note: {note}", err=True)
     typer.echo(
         f"results in {summary.results_dir}/"
         + (f"; trajectory also in {out}" if out else "")

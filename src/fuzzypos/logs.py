@@ -53,6 +53,7 @@ from .io import GZIP_MAGIC, BagReader, CarmenReader, LogFormatError, LogRecord
 from .io._common import display_name, spool_if_stream
 from .io.rosbag import ROS1_MAGIC
 from .no_returns import FoundNoReturn, RangeTally
+from .odometry_check import OdometryCoverage
 from .scan import LaserScan, no_return_counts
 
 __all__ = [
@@ -65,12 +66,14 @@ __all__ = [
     "StampError",
     "UnknownLogError",
     "describe_log",
+    "empty_stretch",
     "find_no_return_values",
     "log_kind",
     "open_log",
     "parse_laser_offset",
     "select_records",
     "select_stamps",
+    "survey_log",
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -124,11 +127,17 @@ def _is_text(head: bytes, complete: bool) -> bool:
 def log_kind(path: PathLike) -> str:
     """``"ros2"``, ``"ros1"`` or ``"carmen"`` from the content of ``path`` (see the module
     docstring); :class:`UnknownLogError` for anything else, :class:`FileNotFoundError` when
-    nothing is there."""
+    nothing is there, an ``OSError`` (``ELOOP``, "symlink loop") for a symbolic link that
+    leads back to itself."""
     p = Path(path)
-    name = os.fspath(path)
-    if not p.exists():
-        raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), name)
+    name = display_name(path)
+    try:
+        os.stat(p)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:  # not "No such file or directory"
+            what = "symlink loop (too many levels of symbolic links)"
+            raise OSError(errno.ELOOP, what, name) from None
+        raise type(exc)(exc.errno, exc.strerror, name) from None
     if p.is_dir():
         if (p / "metadata.yaml").is_file():
             return "ros2"
@@ -187,6 +196,9 @@ class OpenLog:
     reader: CarmenReader | BagReader
     notes: list[str] = field(default_factory=list)
     options: dict[str, Any] = field(default_factory=dict)
+    #: the scans taken as evenly spaced at this rate (Hz) in file order, stamped ``k / rate``
+    #: (``k`` from 0), instead of the log's own stamps (None: the log's)
+    scan_rate_hz: float | None = None
 
     _stamps: Any = field(default=None, init=False, repr=False)
 
@@ -195,11 +207,21 @@ class OpenLog:
         return display_name(self.path)
 
     def records(self) -> Iterator[LogRecord]:
-        """Stream the log's records in file (bag) order; each call reads the log again."""
-        return self.reader.records()
+        """Stream the log's records in file (bag) order; each call reads the log again. With
+        :attr:`scan_rate_hz` the scans are stamped ``k / scan_rate_hz`` (the odometry is
+        still the log's at its own stamps)."""
+        if self.scan_rate_hz is None:
+            return self.reader.records()
+        return _evenly_stamped(self.reader.records(), self.scan_rate_hz)
 
     def __iter__(self) -> Iterator[LogRecord]:
         return self.records()
+
+    @property
+    def has_odometry(self) -> bool:
+        """Whether the log has odometry: a CARMEN log always (its scan lines carry it), a bag
+        with an odometry topic that holds messages."""
+        return bool(getattr(self.reader, "has_odometry", True))
 
     @property
     def bad_lines(self) -> int:
@@ -227,7 +249,11 @@ class OpenLog:
         the first call reads them, :meth:`CarmenReader.scan_stamps` /
         :meth:`BagReader.scan_stamps`)."""
         if self._stamps is None:
-            self._stamps = self.reader.scan_stamps()
+            stamps = self.reader.scan_stamps()
+            if self.scan_rate_hz is not None:
+                stamps = np.arange(stamps.shape[0], dtype=np.float64) / self.scan_rate_hz
+                stamps.setflags(write=False)
+            self._stamps = stamps
         return self._stamps  # type: ignore[no-any-return]
 
     def check_stamps(
@@ -254,12 +280,31 @@ class OpenLog:
                 self.path,
                 0,
                 f"{check.remark()}; fuzzypos needs the time between scans to judge the "
-                f"odometry (see `fuzzypos info {self.name}`)",
+                f"odometry (see `fuzzypos info {self.name}`); to take the scans as evenly "
+                "spaced in file order at the scanner's rate, pass scan_rate_hz=HZ",
             )
         remark = check.remark()
         if remark is not None:
             warnings.warn(f"{self.name}: {remark}", RuntimeWarning, stacklevel=2)
         return check
+
+
+def _evenly_stamped(records: Iterator[LogRecord], rate_hz: float) -> Iterator[LogRecord]:
+    for k, rec in enumerate(records):
+        yield rec._replace(scan=replace(rec.scan, stamp=k / rate_hz))
+
+
+def _scan_rate(scan_rate_hz: float | None) -> float | None:
+    """``scan_rate_hz`` checked: None, or a finite rate > 0 (else :class:`SelectionError`)."""
+    if scan_rate_hz is None:
+        return None
+    try:
+        rate = float(scan_rate_hz)
+    except (TypeError, ValueError):
+        raise SelectionError(f"scan_rate_hz must be a number, got {scan_rate_hz!r}") from None
+    if not (math.isfinite(rate) and rate > 0.0):
+        raise SelectionError(f"scan_rate_hz must be a finite rate > 0 (Hz), got {scan_rate_hz!r}")
+    return rate
 
 
 def open_log(
@@ -273,8 +318,13 @@ def open_log(
     field_of_view_deg: float = 180.0,
     max_range: float | None = None,
     convention: str = "auto",
+    scan_rate_hz: float | None = None,
 ) -> OpenLog:
     """Open a CARMEN log or a ROS1/ROS2 bag, telling which by content (module docstring).
+
+    ``scan_rate_hz``: take the scans as evenly spaced at this rate in file order (stamps
+    ``k / scan_rate_hz`` from 0) instead of their own stamps, for a log whose stamps are
+    corrupt (:class:`StampError`); said in :attr:`OpenLog.notes` and ``options``.
 
     CARMEN logs take ``skip_bad_lines``, ``odometry`` (``"scan"``: each scan line's own
     odometry fields; ``"interpolated"``: the ODOM stream at the scan's stamp),
@@ -290,6 +340,7 @@ def open_log(
     """
     if laser_offset is not None and not isinstance(laser_offset, Pose2D):
         raise TypeError(f"laser_offset must be a Pose2D or None, got {type(laser_offset).__name__}")
+    rate = _scan_rate(scan_rate_hz)
     path = spool_if_stream(path)  # a pipe can be read once: copy it, read the copy
     kind = log_kind(path)
     notes: list[str] = []
@@ -340,7 +391,15 @@ def open_log(
             odom_topic=reader.odom_topic,
             sensor_pose_source=reader.sensor_pose_source,
         )
-    return OpenLog(path=path, kind=kind, reader=reader, notes=notes, options=options)
+    if rate is not None:
+        options["scan_rate_hz"] = rate
+        notes.append(
+            f"scan_rate_hz={rate:g}: the scans are taken as evenly spaced {1.0 / rate:g} s apart "
+            f"in file order (stamps k/{rate:g} s from 0), not stamped as in the log"
+        )
+    return OpenLog(
+        path=path, kind=kind, reader=reader, notes=notes, options=options, scan_rate_hz=rate
+    )
 
 
 # -- choosing a stretch -----------------------------------------------------------------------
@@ -401,6 +460,27 @@ def select_stamps(
     s, e = _selection(start, end, max_scans)
     chosen = _select(iter(stamps), s, e, max_scans, float)
     return np.fromiter(chosen, dtype=np.float64)
+
+
+def empty_stretch(log: OpenLog, start: float | None, end: float | None) -> SelectionError | None:
+    """The error for a stretch (``start``, ``end``) that holds none of ``log``'s scans when the
+    log has some: the log's first and last stamps and its duration, so that the user can
+    choose again. None when the log has no scans at all (or its stamps cannot be read)."""
+    try:
+        stamps = log.scan_stamps()
+    except (ValueError, OSError):
+        return None
+    if stamps.shape[0] == 0:
+        return None
+    first, last = float(stamps[0]), float(stamps[-1])
+    asked = " and ".join(
+        f"{name}={v:g} s" for name, v in (("start", start), ("end", end)) if v is not None
+    )
+    return SelectionError(
+        f"{log.name}: the stretch ({asked}, counted from the first scan's stamp) holds no "
+        f"scans: the log's {stamps.shape[0]:,} scans run from stamp {first!r} to {last!r} "
+        f"({last - first:.3f} s)"
+    )
 
 
 def _selection(
@@ -587,7 +667,10 @@ class LogInfo:
     previous one's; ``stamps_repeated``: how often it equals it; ``stamp_problem``: what is
     wrong with the stamps (:meth:`StampCheck.remark`, also warned), else None;
     ``scans_without_ranges``: scans of no beam (not in the beam angles);
-    ``scans_with_odometry`` / ``scans_with_truth``;
+    ``scans_with_odometry``: scans whose odometry covers them, ``scans_odometry_not_covered``
+    the others (no odometry at them in a log that has some, or odometry standing still while
+    the scans move: :class:`~fuzzypos.odometry_check.OdometryCoverage`, whose
+    ``as_dict()`` is ``odometry_coverage``); ``scans_with_truth``;
     ``range_max``: the distinct finite ``range_max`` of the scans (at most 10 kept);
     ``no_returns``: per "no return" band, the readings it removes (:class:`NoReturnCount`);
     ``no_return_values_found``: the codes found in the readings (:func:`find_no_return_values`;
@@ -611,6 +694,8 @@ class LogInfo:
     stamp_problem: str | None = None
     scans_without_ranges: int = 0
     scans_with_odometry: int = 0
+    scans_odometry_not_covered: int = 0
+    odometry_coverage: dict[str, Any] = field(default_factory=dict)
     scans_with_truth: int = 0
     range_max: list[float] = field(default_factory=list)
     no_returns: list[NoReturnCount] = field(default_factory=list)
@@ -657,6 +742,7 @@ def describe_log(
     beams: set[int] = set()
     rmax: set[float] = set()
     stamps = StampCheck()
+    coverage = OdometryCoverage(expected=log.has_odometry)
     amin = amax = fov = None
     for rec in log.records():
         scan = rec.scan
@@ -678,7 +764,7 @@ def describe_log(
             info.max_stamp = max(info.max_stamp, t)  # type: ignore[type-var]
         stamps.add(t)
         info.last_stamp = t
-        info.scans_with_odometry += rec.odometry is not None
+        coverage.add(rec)
         info.scans_with_truth += rec.truth is not None
         if math.isfinite(scan.range_max) and len(rmax) < 10:
             rmax.add(scan.range_max)
@@ -699,12 +785,21 @@ def describe_log(
     _describe_stamps(info, stamps, log.name)
     info.bad_lines = log.bad_lines
     info.truncated = log.truncated
-    info.notes = list(log.notes)
-    if isinstance(log.reader, BagReader):  # the bag reader's notes may grow while reading
-        info.notes = list(dict.fromkeys([*log.notes, *log.reader.notes]))
+    # the readers' notes may grow while reading
+    info.notes = list(dict.fromkeys([*log.notes, *log.reader.notes]))
+    _describe_coverage(info, coverage.finish())
     if info.scans_without_ranges:
         info.notes.append(f"{info.scans_without_ranges:,} scans have no ranges at all")
     return info
+
+
+def _describe_coverage(info: LogInfo, coverage: OdometryCoverage) -> None:
+    info.scans_with_odometry = coverage.covered
+    info.scans_odometry_not_covered = coverage.uncovered
+    info.odometry_coverage = coverage.as_dict()
+    note = coverage.note()
+    if note is not None:
+        info.notes.append(note)
 
 
 def _describe_stamps(info: LogInfo, stamps: StampCheck, name: str) -> None:
@@ -726,6 +821,28 @@ def _count_no_returns(
     for c, r, b in zip(counts, removed, in_band):
         c.removed += r
         c.in_band += b
+
+
+def survey_log(
+    log: OpenLog, scanner: ScannerConfig
+) -> tuple[list[FoundNoReturn], OdometryCoverage]:
+    """One pass over the whole of ``log`` before a run: the "no return" codes
+    (:func:`find_no_return_values`, none when ``scanner.find_no_return_values`` is off) and
+    which scans the odometry covers (:class:`~fuzzypos.odometry_check.OdometryCoverage`). A
+    log that cannot be read to its end is judged on the records before the error, silently
+    (the run's own pass reports it)."""
+    tally = RangeTally() if scanner.find_no_return_values else None
+    coverage = OdometryCoverage(expected=log.has_odometry)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            for rec in log.records():
+                coverage.add(rec)
+                if tally is not None:
+                    tally.add(rec.scan, rec.odometry)
+        except (ValueError, OSError):
+            pass
+    return ([] if tally is None else tally.find(scanner)), coverage.finish()
 
 
 def find_no_return_values(log: OpenLog, scanner: ScannerConfig) -> list[FoundNoReturn]:

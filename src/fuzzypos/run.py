@@ -92,8 +92,16 @@ from .folders import (
 from .geometry import Pose2D
 from .graph import LoopClosureResult, OnlineMapper, require_gtsam
 from .io import CarmenWriter, LogRecord, Relations, write_text_file, write_tum
-from .logs import OpenLog, find_no_return_values, open_log, select_records, select_stamps
+from .logs import (
+    OpenLog,
+    empty_stretch,
+    open_log,
+    select_records,
+    select_stamps,
+    survey_log,
+)
 from .no_returns import with_found_bands
+from .odometry_check import OdometryCoverage
 from .pipeline import Positioner, Reason
 from .provenance import file_sha256, git_hash, write_json
 from .scan import LaserScan
@@ -180,7 +188,8 @@ def write_estimate_clf(
     logger_timestamp`` line per scan, in the order given: ``x y θ`` = the estimate,
     ``odom_*`` = the odometry (the estimate where it is None), both timestamps the scan's
     stamp (``repr``); then ``TRUEPOS`` when ``truth`` is given. Ranges are the scan's raw
-    readings to 0.1 mm (NaN/inf as 0, which reads back invalid). Unlike
+    readings to 0.1 mm (NaN, ±inf and absurd ones as read, ``nan``, ``inf``, ``1e+308``,
+    which read back invalid). Unlike
     :func:`fuzzypos.io.write_carmen` (which writes the odometry into both pose fields and
     needs one ``range_max`` for the whole log) this streams any log the readers give: the
     beam geometry is taken from the first scan (field of view and convention in a header
@@ -323,9 +332,12 @@ def _position_along(
 
 
 def _no_scans(log: OpenLog, start: float | None, end: float | None) -> ValueError:
-    what = "no scans" if (start is None and end is None) else "no scans in the chosen stretch"
+    if start is not None or end is not None:
+        stretch = empty_stretch(log, start, end)
+        if stretch is not None:  # the log has scans, but not there
+            return stretch
     hint = " (is it a CARMEN log with FLASER or ROBOTLASER1 lines?)" if log.kind == "carmen" else ""
-    return ValueError(f"{log.name}: {what}{hint}")
+    return ValueError(f"{log.name}: no scans{hint}")
 
 
 def _plot_path(
@@ -506,6 +518,7 @@ def _summary(
         "config": config,
         "bad_lines_skipped": log.bad_lines,
         "truncated": log.truncated,
+        "scan_rate_hz": log.scan_rate_hz,
         "first_stamp": track.stamps[0],
         "last_stamp": track.stamps[-1],
         "has_odometry": a.odometry is not None,
@@ -608,6 +621,10 @@ def _finish(
         odometry_noise=positioner.odometry_noise.as_dict(),
     )
     summary["no_return_values_found"] = labels["no_return_values_found"]
+    coverage = labels["odometry_coverage"]
+    summary["odometry_coverage"] = coverage.as_dict()
+    if coverage.note() is not None and coverage.note() not in notes:
+        notes.append(coverage.note())
     if loop is not None:
         summary["loop_closure"] = {**loop.summary, **loop_rel}
     if not steps.done(
@@ -682,7 +699,10 @@ def run_log(
     ``has_odometry``, ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the
     estimate and of the odometry against the log's ``TRUEPOS``, where every scan has one; else
     None), ``relations`` (or None), ``no_return_values_found``, ``notes``, ``files``, and
-    ``partial`` (False) with ``partial_reason`` (None). Loop closure (online, ``OnlineMapper``):
+    ``partial`` (False) with ``partial_reason`` (None), ``scan_rate_hz`` (the log's
+    :attr:`~fuzzypos.logs.OpenLog.scan_rate_hz`), ``odometry_coverage``
+    (:meth:`~fuzzypos.odometry_check.OdometryCoverage.as_dict`: the scans the odometry does
+    not cover are positioned without it, with a note). Loop closure (online, ``OnlineMapper``):
     the optimised poses, ``loop_closure`` with ``relations_frontend`` and ``relations_online``.
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
@@ -698,11 +718,12 @@ def run_log(
     """
     if not isinstance(log, OpenLog):
         log = open_log(log)
-    cfg, found = _no_returns(log, config if config is not None else Config())
+    cfg, found, coverage = _survey(log, config if config is not None else Config())
     if isinstance(map_every, bool) or not isinstance(map_every, int) or map_every < 1:
         raise ValueError(f"map_every must be a whole number >= 1, got {map_every!r}")
-    records = select_records(log.records(), start=start, end=end, max_scans=max_scans)
-    log.check_stamps(start=start, end=end, max_scans=max_scans)  # corrupt stamps: StampError
+    stretch: dict[str, Any] = {"start": start, "end": end, "max_scans": max_scans}
+    records = select_records(coverage.records(log.records()), **stretch)
+    log.check_stamps(**stretch)  # corrupt stamps: StampError
     total = _scans_in_stretch(log, start, end, max_scans) if progress is not None else None
     positioner = Positioner(cfg)
     if cfg.loop_closure.enabled:
@@ -720,7 +741,7 @@ def run_log(
             raise track.stopped if track.stopped is not None else _no_scans(log, start, end)
         finish = functools.partial(
             _finish, folder.path, log, cfg, track, clf, outputs, positioner=positioner,
-            labels=_labels(start, end, max_scans, preset, config_file, found), out_tum=out_tum,
+            labels=_labels(stretch, preset, config_file, found, coverage), out_tum=out_tum,
             relations=relations, plot=plot, map_every=map_every, hash_input=hash_input,
             progress=progress,
         )  # fmt: skip
@@ -728,30 +749,34 @@ def run_log(
 
 
 def _labels(
-    start: float | None,
-    end: float | None,
-    max_scans: int | None,
+    stretch: dict[str, Any],
     preset: str | None,
     config_file: str | os.PathLike[str] | None,
     found: list[dict[str, Any]],
+    coverage: OdometryCoverage,
 ) -> dict[str, Any]:
-    """What ``summary.json`` says of the run's choices: ``selection``, ``config``,
-    ``no_return_values_found``."""
+    """What :func:`_finish` puts into ``summary.json`` besides the run's own figures."""
     return {
-        "selection": {"start_s": start, "end_s": end, "max_scans": max_scans},
+        "selection": {
+            "start_s": stretch["start"],
+            "end_s": stretch["end"],
+            "max_scans": stretch["max_scans"],
+        },
         "config": {"preset": preset, "file": None if config_file is None else str(config_file)},
         "no_return_values_found": found,
+        "odometry_coverage": coverage,
     }
 
 
-def _no_returns(log: OpenLog, cfg: Config) -> tuple[Config, list[dict[str, Any]]]:
-    """``cfg`` with the "no return" codes found in the whole log's readings (a first pass,
-    :func:`~fuzzypos.logs.find_no_return_values`) that no configured band holds added to
-    ``scanner.no_return_bands`` (so the positioner and ``config.toml`` have them), and every
+def _survey(log: OpenLog, cfg: Config) -> tuple[Config, list[dict[str, Any]], OdometryCoverage]:
+    """A first pass over the whole log (:func:`~fuzzypos.logs.survey_log`): ``cfg`` with the
+    "no return" codes found in its readings that no configured band holds added to
+    ``scanner.no_return_bands`` (so the positioner and ``config.toml`` have them), every
     code found (``value_m``, ``readings``, ``invalid_at_range_max``, ``in_configured_band``)
-    for ``summary.json``'s ``no_return_values_found``."""
-    found = find_no_return_values(log, cfg.scanner)
-    return with_found_bands(cfg, found), [f.as_dict() for f in found]
+    for ``summary.json``'s ``no_return_values_found``, and which scans the odometry covers
+    (``odometry_coverage``; the others are positioned without odometry)."""
+    found, coverage = survey_log(log, cfg.scanner)
+    return with_found_bands(cfg, found), [f.as_dict() for f in found], coverage
 
 
 def _open_outputs(

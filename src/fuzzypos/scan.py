@@ -3,7 +3,10 @@
 Beam ``i`` is at bearing ``angle_min + i*angle_increment`` (radians, counter-clockwise, x
 forward as in REP-103); a negative increment (upside-down mount) is allowed. A reading is
 valid iff it is finite, ``> 0`` and ``range_min <= r < range_max``: 0, NaN and ±inf are invalid
-(REP-117), and so is a reading at the maximum ("no return"). Invalid readings are data, not
+(REP-117), and so is a reading at the maximum ("no return"). A reading of
+:data:`ABSURD_RANGE_M` (100 km) or more is invalid whatever ``range_max`` says (a log's
+``range_max`` may be unknown, i.e. infinite): no 2D lidar measures that far, such values are
+corrupt (``1e308``), and their squares would overflow. Invalid readings are data, not
 errors; malformed metadata raises :class:`ScanError`.
 
 Some scanners also report "no return" as codes below their maximum (SICK in cm mode: 81.83 …
@@ -28,7 +31,14 @@ from .geometry import Pose2D, transform_points
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-__all__ = ["ScanError", "LaserScan", "no_return_mask", "no_return_counts", "usable"]
+__all__ = [
+    "ABSURD_RANGE_M",
+    "ScanError",
+    "LaserScan",
+    "no_return_mask",
+    "no_return_counts",
+    "usable",
+]
 
 #: slack on the "at most one turn" check, radians (float round-off of n*increment)
 _TURN_TOL = 1e-9
@@ -36,6 +46,10 @@ _TURN_TOL = 1e-9
 #: a "no return" band's bounds widen by this fraction of themselves: one float32 epsilon, twice
 #: the rounding of a float32 reading (ROS bags), so that 81.91 stored as 81.9100037 still matches
 NO_RETURN_SLACK = 2.0**-23
+
+
+#: a reading this far (metres) or further is no lidar's measurement: invalid (module docstring)
+ABSURD_RANGE_M = 1.0e5
 
 
 class ScanError(ValueError):
@@ -126,7 +140,12 @@ class LaserScan:
         angles = self.angle_min + np.arange(n, dtype=np.float64) * inc
         angles.setflags(write=False)
         with np.errstate(invalid="ignore"):
-            valid = np.isfinite(ranges) & (ranges > 0.0) & (ranges >= rmin) & (ranges < rmax)
+            valid = (
+                np.isfinite(ranges)
+                & (ranges > 0.0)
+                & (ranges >= rmin)
+                & (ranges < min(rmax, ABSURD_RANGE_M))
+            )
         valid.setflags(write=False)
         object.__setattr__(self, "_angles", angles)
         object.__setattr__(self, "_valid", valid)

@@ -134,8 +134,9 @@ def _lines(fh: IO[str], path: PathLike, error: type[LogFormatError]) -> Iterator
 def open_text(path: PathLike) -> IO[str]:
     """Open a text log for reading, decompressing gzip when the file starts with its magic
     bytes (whatever its name). The file is opened once and its first bytes put back, so a
-    pipe or FIFO (``<(zcat log.gz)``, ``/dev/stdin``) reads whole. Undecodable bytes become
-    U+FFFD (and fail to parse as numbers rather than aborting the read)."""
+    pipe or FIFO (``<(zcat log.gz)``, ``/dev/stdin``) reads whole. A UTF-8 byte order mark
+    at the start is dropped (editors on Windows write one). Undecodable bytes become U+FFFD
+    (and fail to parse as numbers rather than aborting the read)."""
     f = open(path, "rb")  # noqa: SIM115 - closed with the returned stream
     try:
         magic = f.read(2)
@@ -155,11 +156,11 @@ def open_text(path: PathLike) -> IO[str]:
 
 
 class _TextLog(io.TextIOWrapper):
-    """UTF-8 text (undecodable bytes replaced) over a byte stream, closing ``also_close``
-    (the file under a gzip layer) with itself."""
+    """UTF-8 text (a leading byte order mark dropped, undecodable bytes replaced) over a byte
+    stream, closing ``also_close`` (the file under a gzip layer) with itself."""
 
     def __init__(self, raw: IO[bytes], also_close: IO[bytes] | None = None) -> None:
-        super().__init__(raw, encoding="utf-8", errors="replace")
+        super().__init__(raw, encoding="utf-8-sig", errors="replace")
         self._also_close = also_close
 
     def close(self) -> None:
@@ -217,16 +218,22 @@ class Spool(os.PathLike[str]):
     """A log read from a pipe, copied once into a temporary file so that it can be read again
     (sniffed, counted, streamed, hashed). It opens as that file (``os.fspath``) but is named as
     the input given (``str``, :attr:`name`, and in every error message, see
-    :func:`display_name`). The file is removed when the spool is garbage collected (or the
+    :func:`display_name`). A stream whose first KiB holds a NUL byte but is neither gzip nor a
+    ROS1 bag (``/dev/zero``, which never ends) is refused at once with a
+    :class:`LogFormatError`. The file is removed when the spool is garbage collected (or the
     interpreter exits)."""
 
     def __init__(self, path: PathLike) -> None:
         self.name = os.fspath(path)
-        fd, tmp = tempfile.mkstemp(prefix="fuzzypos-spool-")
-        self.file = tmp
-        self._remove = weakref.finalize(self, _unlink, tmp)
-        with os.fdopen(fd, "wb") as dst, open(path, "rb") as src:
-            shutil.copyfileobj(src, dst, 1 << 20)
+        with open(path, "rb") as src:
+            head = src.read(_SNIFF_STREAM)
+            _check_stream_head(path, head)
+            fd, tmp = tempfile.mkstemp(prefix="fuzzypos-spool-")
+            self.file = tmp
+            self._remove = weakref.finalize(self, _unlink, tmp)
+            with os.fdopen(fd, "wb") as dst:
+                dst.write(head)
+                shutil.copyfileobj(src, dst, 1 << 20)
 
     def __fspath__(self) -> str:
         return self.file
@@ -236,6 +243,26 @@ class Spool(os.PathLike[str]):
 
     def __repr__(self) -> str:
         return f"Spool({self.name!r})"
+
+
+#: how many leading bytes of a stream are looked at before it is copied (:class:`Spool`)
+_SNIFF_STREAM = 1024
+
+#: what a ROS1 bag starts with (:mod:`fuzzypos.io.rosbag` has it too)
+_ROS1_MAGIC = b"#ROSBAG V2.0"
+
+
+def _check_stream_head(path: PathLike, head: bytes) -> None:
+    """Refuse a stream whose first bytes are binary but neither gzip nor a ROS1 bag (a NUL
+    byte in its first KiB): a device such as ``/dev/zero`` never ends, so it must be refused
+    before it is copied. :class:`LogFormatError` naming it."""
+    if b"\x00" in head and not head.startswith((GZIP_MAGIC, _ROS1_MAGIC)):
+        raise LogFormatError(
+            path,
+            0,
+            f"not a log: binary content (a NUL byte in its first {len(head)} bytes) that is "
+            "neither gzip, a ROS1 bag nor a CARMEN text log",
+        )
 
 
 def _unlink(path: str) -> None:

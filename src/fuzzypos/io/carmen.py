@@ -90,13 +90,14 @@ without ODOM lines cannot be read with ``odometry="interpolated"``).
 
 Errors. A malformed FLASER, ROBOTLASER1, ODOM, TRUEPOS or interpreted PARAM line raises
 :class:`CarmenFormatError` naming the file, the 1-based line and what is wrong (wrong field
-counts, a count that is not an integer, ``n_rem`` disagreeing with the fields left, a field
-that is not a number or not finite, a non-positive maximum range, a zero angular resolution
-…); with ``skip_bad_lines=True`` the line is skipped and counted in
-:attr:`CarmenReader.bad_lines`. A last line without its newline that does not parse (a log cut
-off mid-write), or a gzip stream that ends early, stops the reading with a
-:func:`warnings.warn` naming the file. A scan whose readings are all invalid is data, not an
-error. Records come in file order, even where the timestamps go backwards.
+counts, a count that is not an integer, ``n_rem`` disagreeing with the fields left, a field that
+is not a number or not finite, a non-positive maximum range, a zero angular resolution …; but a
+FLASER line whose ``odom_*`` fields are numbers that are not finite keeps its scan, without
+odometry, counted in :attr:`CarmenReader.bad_odometry`); with ``skip_bad_lines=True`` the line
+is skipped and counted in :attr:`CarmenReader.bad_lines`. A last line without its newline that
+does not parse (a log cut off mid-write), or a gzip stream that ends early, stops the reading
+with a :func:`warnings.warn` naming the file. A scan whose readings are all invalid is data, not
+an error. Records come in file order, even where the timestamps go backwards.
 
 The reader streams: one line in memory at a time, plus the record waiting for its TRUEPOS
 (and, with ``odometry="interpolated"``, the bounded window above). Gzip is recognised by its
@@ -124,7 +125,7 @@ from numpy.typing import NDArray
 
 from .._kernels import compiled
 from ..geometry import Pose2D
-from ..scan import LaserScan, ScanError
+from ..scan import ABSURD_RANGE_M, LaserScan, ScanError
 from ._common import (
     FloatArray,
     LogFormatError,
@@ -181,7 +182,8 @@ class _Bad(Exception):
 
 
 # -- CARMEN: reading -----------------------------------------------------------------------
-#: a CARMEN record is a :class:`~fuzzypos.io.LogRecord` (its odometry is never None)
+#: a CARMEN record is a :class:`~fuzzypos.io.LogRecord` (its odometry is None only for a FLASER
+#: line whose odometry fields are not finite)
 CarmenRecord = LogRecord
 
 
@@ -284,7 +286,11 @@ class CarmenReader:
     - ``truncated``: whether the log ended mid-line or mid-stream (a warning was issued);
     - ``lines``: lines read; ``no_return_value``: the learned "no return" reading (or None);
     - ``params``: the PARAM lines seen, name -> value (as text);
-    - ``odom_messages``: the well-formed ODOM lines read.
+    - ``odom_messages``: the well-formed ODOM lines read;
+    - ``bad_odometry``: FLASER lines whose odometry fields are not finite (NaN, inf), the
+      first at ``first_bad_odometry_line``: their scans are kept with ``odometry=None`` (a
+      bad value of that scan, not a malformed line: the reading goes on, with or without
+      ``skip_bad_lines``); ``notes`` says so.
 
     Each call of :meth:`records` reads the file again from the start and resets these.
     :meth:`scan_stamps` is a quick pass over the scan lines' stamps only.
@@ -344,6 +350,8 @@ class CarmenReader:
         self.no_return_value: float | None = None
         self.params: dict[str, str] = {}
         self.odom_messages = 0
+        self.bad_odometry = 0
+        self.first_bad_odometry_line = 0
         self._param_max: float | None = None
         self._sensor_pose = Pose2D(0.0, 0.0, 0.0)
         self._lineno = 0
@@ -356,6 +364,19 @@ class CarmenReader:
 
     def __iter__(self) -> Iterator[CarmenRecord]:
         return self.records()
+
+    @property
+    def notes(self) -> list[str]:
+        """What the latest :meth:`records` pass found odd, as sentences (FLASER lines whose
+        odometry fields are not finite)."""
+        if not self.bad_odometry or self.odometry != "scan":
+            return []
+        note = (
+            f"{self.bad_odometry:,} FLASER lines have odometry fields that are not finite (the "
+            f"first: line {self.first_bad_odometry_line}): those scans are positioned from the "
+            "scans alone, without an odometry prior"
+        )
+        return [note]
 
     # -- the loop ---------------------------------------------------------------------------
     def records(self) -> Iterator[CarmenRecord]:
@@ -454,7 +475,7 @@ class CarmenReader:
             self._ready.append(self._pending)
             self._pending = None
 
-    def _add_scan(self, scan: LaserScan, odometry: Pose2D) -> None:
+    def _add_scan(self, scan: LaserScan, odometry: Pose2D | None) -> None:
         """A parsed scan line: it becomes the pending record (the previous one is done)."""
         self._flush_pending()
         held = _Held(
@@ -482,9 +503,16 @@ class CarmenReader:
         p = 2 + n
         for k, what in enumerate(("x", "y", "θ")):
             _float(tok[p + k], f"FLASER: {what}")
-        ox = _finite(tok[p + 3], "FLASER: odom_x")
-        oy = _finite(tok[p + 4], "FLASER: odom_y")
-        ot = _finite(tok[p + 5], "FLASER: odom_θ")
+        ox = _float(tok[p + 3], "FLASER: odom_x")
+        oy = _float(tok[p + 4], "FLASER: odom_y")
+        ot = _float(tok[p + 5], "FLASER: odom_θ")
+        odometry: Pose2D | None = None
+        if math.isfinite(ox) and math.isfinite(oy) and math.isfinite(ot):
+            odometry = Pose2D(ox, oy, ot)
+        else:  # a bad value of this scan, not of the log: the scan is kept without odometry
+            self.bad_odometry += 1
+            if self.first_bad_odometry_line == 0:
+                self.first_bad_odometry_line = self._lineno
         stamp = _finite(tok[p + 6], "FLASER: ipc_timestamp")
         _finite(tok[p + 8], "FLASER: logger_timestamp")
 
@@ -501,7 +529,7 @@ class CarmenReader:
             stamp=stamp,
             sensor_pose=self._sensor_pose if self.laser_offset is None else self.laser_offset,
         )
-        self._add_scan(scan, Pose2D(ox, oy, ot))
+        self._add_scan(scan, odometry)
 
     def _range_max(self, ranges: FloatArray) -> float:
         """The scan's ``range_max`` (module docstring, "Maximum range")."""
@@ -509,7 +537,8 @@ class CarmenReader:
             return self.max_range
         if self._param_max is not None:
             return self._param_max
-        finite = ranges[np.isfinite(ranges)]
+        with np.errstate(invalid="ignore"):  # absurd readings are no scanner's "no return"
+            finite = ranges[np.abs(ranges) < ABSURD_RANGE_M]
         if finite.size == 0:
             m = -math.inf
         else:

@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 from .._kernels import compiled
 from .._version import __version__
 from ..geometry import Pose2D
-from ..scan import LaserScan
+from ..scan import ABSURD_RANGE_M, LaserScan
 from ._common import LogRecord, OutputWriteError, PathLike, _naming, output_target
 from ._flaser import GEOMETRY_TOL, RANGE_DECIMALS, carmen_beam_geometry, check_convention, check_fov
 
@@ -157,7 +157,7 @@ def _ranges_filled(scan: LaserScan, fill: str) -> str:
     would move them across 0 or ``range_max``), invalid ones as ``fill``."""
     r = scan.ranges
     valid = scan.valid
-    rounded = np.round(r, RANGE_DECIMALS)
+    rounded = _rounded(r)
     exact = valid & ((rounded >= scan.range_max) | (rounded <= 0.0))
     if not exact.any() and fill in ("0", _fixed_text(np.array([scan.range_max]))):
         fast = _fixed_text(np.where(valid, r, 0.0 if fill == "0" else scan.range_max))
@@ -169,7 +169,7 @@ def _ranges_filled(scan: LaserScan, fill: str) -> str:
 def _ranges_filled_exact(scan: LaserScan, fill: str) -> str:
     """:func:`_ranges_filled` one reading at a time (and the reference of the vectorised one)."""
     r, valid = scan.ranges, scan.valid
-    rounded = np.round(r, RANGE_DECIMALS)
+    rounded = _rounded(r)
     exact = valid & ((rounded >= scan.range_max) | (rounded <= 0.0))
     out: list[str] = []
     for v, ok, ex in zip(r.tolist(), valid.tolist(), exact.tolist()):
@@ -182,15 +182,30 @@ def _ranges_filled_exact(scan: LaserScan, fill: str) -> str:
     return " ".join(out)
 
 
+def _rounded(r: FloatArray) -> FloatArray:
+    """``r`` rounded to ``RANGE_DECIMALS`` (values too large to scale stay as they are)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        rounded = np.round(r, RANGE_DECIMALS)
+    return np.where(np.isfinite(rounded), rounded, r)
+
+
+def _odd(v: float) -> bool:
+    """A reading written as read (``repr``): NaN, ±inf, or absurdly far (invalid, never
+    rounded into hundreds of digits)."""
+    return not math.isfinite(v) or abs(v) >= ABSURD_RANGE_M
+
+
 def _ranges_raw(scan: LaserScan) -> str:
     """The estimate log's ranges: the raw readings (as the log gave them) to 0.1 mm; a valid
-    reading that rounding would move onto ``range_max`` or 0 at full precision; NaN and ±inf
-    as 0 (invalid)."""
+    reading that rounding would move onto ``range_max`` or 0 at full precision; NaN, ±inf
+    and readings of :data:`~fuzzypos.scan.ABSURD_RANGE_M` or more as read (``repr``:
+    ``nan``, ``inf``, ``1e+308``), which read back invalid."""
     r = scan.ranges
-    finite = np.isfinite(r)
-    rounded = np.round(r, RANGE_DECIMALS)
-    if not (scan.valid & ((rounded >= scan.range_max) | (rounded <= 0.0))).any():
-        fast = _fixed_text(np.where(finite, r, 0.0))
+    with np.errstate(invalid="ignore"):
+        odd = ~(np.abs(r) < ABSURD_RANGE_M)
+    rounded = _rounded(r)
+    if not odd.any() and not (scan.valid & ((rounded >= scan.range_max) | (rounded <= 0.0))).any():
+        fast = _fixed_text(r)
         if fast is not None:
             return fast
     return _ranges_raw_exact(scan)
@@ -201,8 +216,8 @@ def _ranges_raw_exact(scan: LaserScan) -> str:
     out: list[str] = []
     rmax = scan.range_max
     for v, ok in zip(scan.ranges.tolist(), scan.valid.tolist()):
-        if not math.isfinite(v):
-            out.append("0")
+        if _odd(v):
+            out.append(repr(v))
             continue
         r = round(v, RANGE_DECIMALS)
         if ok and (r >= rmax or r <= 0.0):

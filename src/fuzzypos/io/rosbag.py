@@ -48,8 +48,12 @@ What it reads
   then streams the scans, one message in memory at a time. Each scan gets the odometry pose
   (``pose.pose``: x, y and the yaw of the quaternion) interpolated at its header stamp
   (:func:`interpolate_poses`): linear in x and y, along the shorter arc in θ, between the two
-  odometry messages around it; before the first or after the last odometry stamp it gets the
-  nearest (first or last) pose, counted in :attr:`BagReader.extrapolated`. An odometry
+  odometry messages around it; within two of the odometry's usual (median) periods before
+  the first or after the last odometry stamp it gets the nearest (first or last) pose,
+  counted in :attr:`BagReader.extrapolated`; further outside the odometry's span it gets
+  none (``odometry=None``: the positioner runs without an odometry prior there, not with a
+  pose frozen at the span's end), counted in :attr:`BagReader.outside_odometry` and said in
+  :attr:`BagReader.notes`, as are the messages whose ``angle_max`` disagrees (below). An odometry
   message with a zero header stamp is placed at its record time like a scan.
 - Laser mounting (each scan's ``sensor_pose``): ``laser_offset=`` when given; else the
   transform from the robot's base frame to the scan's ``header.frame_id`` found in the
@@ -337,9 +341,11 @@ class BagReader:
 
     Counted by :meth:`records` (reset by each call, which reads the bag again): ``messages``
     (scans read), ``missing`` (scans the bag's index lists but that could not be read: a
-    damaged bag, with a warning), ``extrapolated`` (scans outside the odometry's time span,
-    given its nearest pose), ``zero_stamps`` (scans with a zero header stamp),
-    ``angle_max_mismatches``.
+    damaged bag, with a warning), ``extrapolated`` (scans just outside the odometry's time
+    span, within two of its usual periods, given its nearest pose), ``outside_odometry``
+    (scans further outside it, given no odometry), ``zero_stamps`` (scans with a zero header
+    stamp), ``angle_max_mismatches``; the last two of these, where not zero, are also said
+    in ``notes`` at the end of the pass.
     """
 
     def __init__(
@@ -406,6 +412,7 @@ class BagReader:
         self.messages = 0
         self.missing = 0
         self.extrapolated = 0
+        self.outside_odometry = 0
         self.zero_stamps = 0
         self.angle_max_mismatches = 0
 
@@ -691,6 +698,7 @@ class BagReader:
         (the bag is opened again and read as a stream)."""
         self._reset_counters()
         t_odom, p_odom = self.odometry_stamps, self.odometry_poses
+        reach = self._odometry_reach()
         with ExitStack() as stack:
             bag = self._open(stack)
             scan_conns = [c for c in bag.reader.connections if c.topic == self.scan_topic]
@@ -700,10 +708,14 @@ class BagReader:
                     scan = self._scan(msg, t_ns, k)
                 odometry: Pose2D | None = None
                 if self.has_odometry:
-                    if not t_odom[0] <= scan.stamp <= t_odom[-1]:
-                        self.extrapolated += 1
-                    odometry = _interpolate_one(t_odom, p_odom, scan.stamp)
+                    t = scan.stamp
+                    if t_odom[0] - reach <= t <= t_odom[-1] + reach:
+                        self.extrapolated += not t_odom[0] <= t <= t_odom[-1]
+                        odometry = _interpolate_one(t_odom, p_odom, t)
+                    else:  # no odometry covers it: none, rather than a pose frozen at the end
+                        self.outside_odometry += 1
                 yield LogRecord(scan, odometry, None)
+        self._pass_notes()
         self.missing = self.scan_count - self.messages
         if self.missing:
             warnings.warn(
@@ -712,6 +724,37 @@ class BagReader:
                 RuntimeWarning,
                 stacklevel=2,
             )
+
+    def _odometry_reach(self) -> float:
+        """How far (s) beyond the odometry's first and last stamps a scan still takes the
+        nearest pose: two of the odometry's usual (median) periods, in which a robot moves
+        little; further out the scan gets no odometry (:attr:`outside_odometry`)."""
+        t = self.odometry_stamps
+        if t.shape[0] < 2:
+            return 0.0
+        steps = np.diff(t)
+        steps = steps[steps > 0.0]
+        return 2.0 * float(np.median(steps)) if steps.size else 0.0
+
+    def _pass_notes(self) -> None:
+        """The notes on what this pass over the scans counted (once each)."""
+        notes = []
+        if self.outside_odometry:
+            t = self.odometry_stamps
+            notes.append(
+                f"{self.outside_odometry:,} of {self.messages:,} scans lie outside the "
+                f"odometry's time span (stamps {t[0]!r} to {t[-1]!r}, {self.odom_topic}): they "
+                "get no odometry (is the odometry's clock the scans'?)"
+            )
+        if self.angle_max_mismatches:
+            notes.append(
+                f"{self.angle_max_mismatches:,} of {self.messages:,} scan messages have an "
+                "angle_max that disagrees with angle_min + (n-1)·angle_increment by more than "
+                "half an increment: their beams are placed by angle_min and angle_increment"
+            )
+        for note in notes:
+            if note not in self.notes:
+                self.notes.append(note)
 
     def _scan(self, msg: Any, t_ns: int, k: int) -> LaserScan:
         stamp = _stamp(msg.header)
