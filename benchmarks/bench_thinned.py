@@ -464,7 +464,7 @@ def main(argv: list[str] | None = None) -> None:
         "command": shlex.join(
             ["python", "benchmarks/bench_thinned.py", *(sys.argv[1:] if argv is None else argv)]
         ),
-        "data": os.path.abspath(data),
+        "data": os.path.relpath(data, here.parent),
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(markdown(rows, meta, peers), encoding="utf-8")

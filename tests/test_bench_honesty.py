@@ -292,3 +292,79 @@ def test_a_results_folder_of_the_run_job_reads(bench, tmp_path) -> None:
     cov_stamps, covs = bench.read_covariance(tmp_path / "out" / "covariance.csv")
     np.testing.assert_array_equal(cov_stamps, stamps)
     assert np.all(np.linalg.eigvalsh(covs) > 0)
+
+
+# -- the scans' word on the reference -----------------------------------------------------------
+def _two_scans(turn_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Two simulated scans in the furnished room, the second 0.4 m on and ``turn_deg`` turned,
+    their points in the robot frame and the true motion between them."""
+    from fuzzypos.geometry import Pose2D
+    from fuzzypos.sim.scanner import ScannerModel, simulate_scan
+    from fuzzypos.sim.worlds import furnished_room
+
+    world, scanner = furnished_room(1), ScannerModel.sick_lms200()
+    rng = np.random.default_rng(3)
+    a, b = (
+        Pose2D(0.0, 0.0, 0.2),
+        Pose2D(0.0, 0.0, 0.2).compose(Pose2D(0.4, 0.05, math.radians(turn_deg))),
+    )
+    pts = []
+    for pose in (a, b):
+        xy = simulate_scan(world, pose, scanner, rng).points_robot()
+        pts.append(xy[np.isfinite(xy).all(axis=1)])
+    return pts[0], pts[1], relative(a.as_array(), b.as_array())
+
+
+def test_the_true_motion_lays_the_scans_on_each_other(bench) -> None:
+    """Most of the second scan lies within the radius of the first at the true motion; few at
+    a motion 10° off."""
+    first, second, truth = _two_scans(15.0)
+    n_true = bench.agreement(first, second, truth, bench.ALIGN_RADIUS_M)
+    off = truth + (0.0, 0.0, math.radians(10.0))
+    n_off = bench.agreement(first, second, off, bench.ALIGN_RADIUS_M)
+    assert n_true > 0.6 * second.shape[0]
+    assert n_off < 0.3 * n_true
+
+
+@pytest.mark.parametrize(
+    ("reference_off", "estimate_off", "contradicted"),
+    [
+        ((0.0, 0.0, 10.0), (0.0, 0.0, 0.0), True),  # a reference 10° off, the estimate right
+        ((0.4, 0.0, 0.0), (0.0, 0.0, 0.0), True),  # a reference 0.4 m off
+        ((0.0, 0.0, 0.0), (0.0, 0.0, 10.0), False),  # the reference right, the estimate off
+        ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), False),  # both right: no evidence either way
+    ],
+)
+def test_the_scans_contradict_only_a_reference_that_misaligns_them(
+    bench, reference_off, estimate_off, contradicted
+) -> None:
+    first, second, truth = _two_scans(15.0)
+    ref = compose(
+        truth, np.array([reference_off[0], reference_off[1], math.radians(reference_off[2])])
+    )
+    est = compose(
+        truth, np.array([estimate_off[0], estimate_off[1], math.radians(estimate_off[2])])
+    )
+    assert bench.reference_contradicted(first, second, ref, est) is contradicted
+
+
+def test_a_run_counts_the_references_its_scans_contradict(bench, tmp_path) -> None:
+    """On a simulated run, relations whose motion is the truth turned by 20° are confident
+    gross errors whose reference the log's scans contradict; with the log not given, nothing
+    is checked."""
+    log = tmp_path / "sim.clf"
+    sim_run = write_sim_log(log)
+    run_log(open_log(log), results_dir=tmp_path / "out", plot=False)
+    stamps, _ = read_tum(tmp_path / "out" / "trajectory.tum")
+    truth = np.array(sim_run.true_poses)
+    pairs = [(k, k + 2) for k in range(0, len(stamps) - 2, 6)]
+    wrong = truth.copy()
+    for i, j in pairs[::2]:  # every other relation 20° off
+        wrong[j] = compose(truth[i], compose(relative(truth[i], truth[j]), np.array([0, 0, 0.35])))
+    write_relations(tmp_path / "sim.relations", stamps, wrong, pairs[::2])
+    with_log = bench.check_run(tmp_path / "out", tmp_path / "sim.relations", log)
+    assert with_log.confident_gross == len(pairs[::2])
+    assert with_log.reference_contradicted == with_log.confident_gross
+    assert with_log.confident_gross_sound == 0
+    without = bench.check_run(tmp_path / "out", tmp_path / "sim.relations")
+    assert without.reference_contradicted == -1 and without.confident_gross_sound == -1
