@@ -270,3 +270,26 @@ class GateConfig:
         gt=0.0,
         lt=1.0,
     )
+    contradiction_check: bool = _field(
+        True,
+        "a match that only the features give (no point-to-line fit confirmed it, often two "
+        "pairs) and that contradicts the odometry beyond what the odometry's learned noise and "
+        "the features' own error allow (contradiction_probability) is not taken: the odometry "
+        "stands and the scan is flagged 'contradicts the odometry', wherever the gate is "
+        "(the gate is open only where the odometry is the more precise). Two false feature "
+        "pairs turned a scan by 6° and moved it 14 cm back while the odometry said it stood, "
+        "with the features' covariance of 0.5°, and the next keyframe kept the error",
+    )
+    contradiction_probability: float = _field(
+        0.999,
+        "the quantile of the disagreement between a features-only match and the odometry, "
+        "its d² under the sum of the odometry's learned covariance and the features' own "
+        "(covariance.feature_translation, feature_rotation_deg), beyond which the match "
+        "contradicts the odometry: the larger of χ²(3)'s and that of the d² of the matches a "
+        "fit confirmed, over the odometry noise's window (odometry_noise.window), so that "
+        "odometry whose errors have heavier tails than its covariance (turns whose odometry "
+        "lags the scans) raises the bar. 99.9 %: one true match in a thousand falls back to an "
+        "odometry that is good enough by construction",
+        gt=0.0,
+        lt=1.0,
+    )

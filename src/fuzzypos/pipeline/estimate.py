@@ -30,6 +30,9 @@ class Reason(str, enum.Enum):
     TOO_FEW_PAIRS = "too few pairs"
     #: the match disagreed with the odometry beyond the gate: the odometry was kept
     GATED = "rejected by the gate"
+    #: a match the features alone gave (no fit confirmed it) contradicted the odometry beyond
+    #: its learned noise and the features' own error: the odometry was kept
+    CONTRADICTS_ODOMETRY = "contradicts the odometry"
 
     def __str__(self) -> str:
         return self.value

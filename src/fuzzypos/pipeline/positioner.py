@@ -30,9 +30,10 @@ from ..features import (
     features_of_chain,
     rule_bases,
 )
-from ..geometry import Pose2D, Pose3, compose3, relative3
+from ..geometry import Pose2D, Pose3, compose3, relative, relative3
 from ..matching import Refinement
 from ..scan import LaserScan
+from ._window import Window
 from .estimate import Estimate, Reason
 from .feature_match import FeatureMatch, FeatureMatcher, _LinesFirst
 from .local_map import LocalMap
@@ -105,6 +106,8 @@ class Positioner:
         self.odometry_noise.reset()
         self.local_map.reset()
         self.uncertainty.reset()
+        #: the confirmed (refined) matches' d² against the odometry (:meth:`_contradicts`)
+        self._disagreements = Window(self.config.odometry_noise.window)
 
     @property
     def pose(self) -> Pose2D | None:
@@ -138,16 +141,12 @@ class Positioner:
         key_prior = self.local_map.from_keyframe(self._pose, prior.increment)
         prior_cov = self._prior_covariance(prior)
         information = self._prior_information(t_prev, prior, prior_cov)
-        chained = self._features_match_refine_assess(
+        held = self.uncertainty.held()
+        features, (n_pairs, reason, refined, from_key, judged) = self._matched(
             scan, key_prior, prior, prior_cov, information, t_prev
         )
-        if chained is None:
-            features = extract_features(scan, self.config)
-            n_pairs, reason, refined, from_key, judged = self._match_refine_assess(
-                features, key_prior, prior, prior_cov, information, t_prev, scan.angle_increment
-            )
-        else:
-            features, (n_pairs, reason, refined, from_key, judged) = chained
+        if from_key is not None and self._contradicts(t_prev, prior, prior_cov, from_key, refined):
+            from_key, reason, judged = self._overruled(held, t_prev, prior, prior_cov)
         # (the poses as floats once: the arrays' tolist() gives these very floats back)
         previous = self._pose.tolist()
         if from_key is None:  # fall back to the prior, and start afresh from this scan
@@ -174,6 +173,27 @@ class Positioner:
             covariance=judged.covariance, keyframe_covariance=judged.keyframe_covariance,
             gate=judged.gate, keyframe=renewed,
         )  # fmt: skip
+
+    def _matched(
+        self,
+        scan: LaserScan,
+        key_prior: FloatArray,
+        prior: Prior,
+        prior_cov: FloatArray,
+        information: tuple[FloatArray, FloatArray] | None,
+        t_prev: FloatArray,
+    ) -> tuple[Features, tuple[int, Reason, bool, FloatArray | None, Assessment]]:
+        """The scan's features and :meth:`_match_refine_assess` of them: in one compiled call
+        where it can be (:meth:`_features_match_refine_assess`), else staged."""
+        chained = self._features_match_refine_assess(
+            scan, key_prior, prior, prior_cov, information, t_prev
+        )
+        if chained is not None:
+            return chained
+        features = extract_features(scan, self.config)
+        return features, self._match_refine_assess(
+            features, key_prior, prior, prior_cov, information, t_prev, scan.angle_increment
+        )
 
     def _match_refine_assess(
         self,
@@ -379,6 +399,46 @@ class Positioner:
             from_key = None
         self._learn(prior, t_prev, fit, judged)
         return match.n_pairs, match.reason, fit is not None, from_key, judged
+
+    def _contradicts(
+        self,
+        t_prev: FloatArray,
+        prior: Prior,
+        prior_cov: FloatArray,
+        from_key: FloatArray,
+        refined: bool,
+    ) -> bool:
+        """Whether a features-only match ``from_key`` (from the keyframe; ``refined``: a fit
+        confirmed it) contradicts the odometry: its disagreement's d² under the odometry's
+        learned covariance plus the features' own error beyond the larger of χ²(3)'s and the
+        confirmed matches' own ``gate.contradiction_probability`` quantile (their d², kept
+        over the odometry noise's window: odometry whose errors have heavier tails than its
+        learned covariance says, as in turns whose odometry lags the scans, raises it).
+        Where the prior is the odometry's (no jump) and its noise is known."""
+        gate = self.config.gate
+        if not (gate.contradiction_check and prior.from_odometry and self.odometry_noise.warm):
+            return False
+        if prior.odometry_rejected:
+            return False
+        e = relative(prior.increment, relative(t_prev, from_key))
+        cov = prior_cov + self.uncertainty.feature_covariance() + self.uncertainty.floor
+        d2 = float(e @ np.linalg.solve(cov, e))
+        seen = self._disagreements
+        if refined:
+            seen.append(d2)
+            return False
+        threshold = self.uncertainty.contradiction_threshold
+        if len(seen) >= self.config.odometry_noise.min_samples:
+            threshold = max(threshold, seen.quantile(gate.contradiction_probability))
+        return d2 > threshold
+
+    def _overruled(
+        self, held: FloatArray, t_prev: FloatArray, prior: Prior, prior_cov: FloatArray
+    ) -> tuple[None, Reason, Assessment]:
+        """A match that contradicts the odometry (:meth:`_contradicts`): the odometry stands,
+        assessed from the previous scan's covariance ``held`` before the match's assessment."""
+        judged = self.uncertainty.overruled(held, t_prev, prior.increment, prior_cov)
+        return None, Reason.CONTRADICTS_ODOMETRY, judged
 
     def _prior(self, stamp: float, odom: Pose2D | None) -> Prior:
         """The odometry prior, its increment corrected by the learned calibration."""

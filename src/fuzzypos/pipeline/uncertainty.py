@@ -146,6 +146,8 @@ class Uncertainty:
         from scipy.special import gammaincinv
 
         self.threshold = float(2.0 * gammaincinv(1.5, gate.probability))
+        #: beyond it a features-only match contradicts the odometry (``contradiction_probability``)
+        self.contradiction_threshold = float(2.0 * gammaincinv(1.5, gate.contradiction_probability))
         f = covariance
         self.floor = np.diag([f.floor_translation**2, f.floor_translation**2, f.floor_rotation**2])
         self.floor.flags.writeable = False
@@ -466,6 +468,22 @@ class Uncertainty:
         return Assessment(
             0.5 * (prior_covariance + prior_covariance.T) + self.floor, kf, gate, gate is not None
         )
+
+    def held(self) -> FloatArray:
+        """The previous scan's covariance relative to the keyframe as it stands, before the
+        next assessment replaces it (what :meth:`overruled` starts from)."""
+        return self._previous
+
+    def overruled(
+        self, held: FloatArray, t_prev: FloatArray, prior: FloatArray, prior_covariance: FloatArray
+    ) -> Assessment:
+        """The assessment of a scan whose match, assessed already, was overruled: the prior
+        stands, from the previous scan's covariance ``held`` before that assessment."""
+        self._previous = held
+        ja, jb = compose_jacobians(t_prev, prior)
+        prev = ja @ held @ ja.T
+        odo = jb @ prior_covariance @ jb.T
+        return self._fallback(t_prev, prior, prior_covariance, prev, odo)
 
     def previous_covariance(self) -> FloatArray:
         """The additive covariance, in the keyframe's frame, of the previous scan's pose
