@@ -30,7 +30,7 @@ from ..features import (
     features_of_chain,
     rule_bases,
 )
-from ..geometry import Pose2D, Pose3, compose3, relative, relative3
+from ..geometry import Pose2D, Pose3, compose3, relative3
 from ..matching import Refinement
 from ..scan import LaserScan
 from ._window import Window
@@ -106,6 +106,9 @@ class Positioner:
         self.odometry_noise.reset()
         self.local_map.reset()
         self.uncertainty.reset()
+        #: the features' own error and the floor, the diagonal (:meth:`_disagreement`)
+        both = self.uncertainty.feature_covariance() + self.uncertainty.floor
+        self._feature_floor = (float(both[0, 0]), float(both[1, 1]), float(both[2, 2]))
         #: the confirmed (refined) matches' d² against the odometry (:meth:`_contradicts`)
         self._disagreements = Window(self.config.odometry_noise.window)
 
@@ -420,9 +423,7 @@ class Positioner:
             return False
         if prior.odometry_rejected:
             return False
-        e = relative(prior.increment, relative(t_prev, from_key))
-        cov = prior_cov + self.uncertainty.feature_covariance() + self.uncertainty.floor
-        d2 = float(e @ np.linalg.solve(cov, e))
+        d2 = self._disagreement(t_prev, prior.increment, prior_cov, from_key)
         seen = self._disagreements
         if refined:
             seen.append(d2)
@@ -431,6 +432,21 @@ class Positioner:
         if len(seen) >= self.config.odometry_noise.min_samples:
             threshold = max(threshold, seen.quantile(gate.contradiction_probability))
         return d2 > threshold
+
+    def _disagreement(
+        self, t_prev: FloatArray, increment: FloatArray, prior_cov: FloatArray, from_key: FloatArray
+    ) -> float:
+        """d² of the match ``from_key``'s increment from ``increment`` (the odometry's) under
+        ``prior_cov`` plus the features' own error and the floor, all three diagonal (the
+        learned noise's, :meth:`OdometryNoise.covariance`, or the broad one; and two
+        constants): in floats, a few microseconds a scan."""
+        ex, ey, et = relative3(increment.tolist(), relative3(t_prev.tolist(), from_key.tolist()))
+        fx, fy, ft = self._feature_floor
+        return (
+            ex * ex / (float(prior_cov[0, 0]) + fx)
+            + ey * ey / (float(prior_cov[1, 1]) + fy)
+            + et * et / (float(prior_cov[2, 2]) + ft)
+        )
 
     def _overruled(
         self, held: FloatArray, t_prev: FloatArray, prior: Prior, prior_cov: FloatArray
