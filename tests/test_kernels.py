@@ -154,6 +154,30 @@ def test_the_surface_table_is_the_surface_in_the_grids_order(pose, seed) -> None
     assert surface.table.shape == (len(surface), 5)
 
 
+def test_a_dense_scans_grid_keeps_few_points_a_cell() -> None:
+    """A surface sampled a millimetre apart (a scanner of 10,000 beams at a few metres) gets
+    cells of a few points, not the hundreds a 15 cm cell would hold (each query near a wall
+    would look at all of them: a scan's cost growing with the square of its beams), and its
+    nearest points are still the KD-tree's; a sparse one keeps the cell it was given."""
+    from fuzzypos._kernels.grid import POINTS_PER_CELL, build_grid, nearest
+
+    t = np.arange(0.0, 4.0, 0.001)
+    xy = np.concatenate([np.column_stack((t, 0.5 * t)), np.column_stack((t, 3.0 - 0.2 * t))])
+    grid = build_grid(xy, 0.15)
+    occupied = np.count_nonzero(np.diff(grid.start))
+    assert len(xy) / occupied <= 2 * POINTS_PER_CELL
+    assert grid.geometry[3] < 0.15
+    rng = np.random.default_rng(0)
+    queries = xy[rng.integers(0, len(xy), 200)] + rng.normal(0.0, 0.05, (200, 2))
+    d, j = cKDTree(xy).query(queries)
+    for q, dq, jq in zip(queries, d, j):
+        k, d2 = nearest(q[0], q[1], 0.5, grid.geometry, grid.shape, grid.start, grid.xy)
+        assert math.sqrt(d2) == pytest.approx(dq, abs=TOL)
+        assert np.allclose(xy[grid.order[k]], xy[jq])  # (the same point, or one as near)
+    sparse = xy[::100]  # 10 cm apart
+    assert build_grid(sparse, 0.15).geometry[3] == 0.15
+
+
 def test_an_empty_grid_finds_nothing() -> None:
     from fuzzypos._kernels.grid import any_within, build_grid, nearest, nearest_bounded
 

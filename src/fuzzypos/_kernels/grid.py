@@ -1,8 +1,10 @@
 """A uniform grid over a point set, built once per surface, for nearest-neighbour queries from
 compiled loops (the stand-in for a KD-tree query per iteration).
 
-Cells are squares of side ``cell``; the points are sorted by cell and ``start[c]:start[c + 1]``
-are cell ``c``'s (``c = ix · ny + iy``) in ``order``/``xy``: the cells of one column of the
+Cells are squares of side ``cell`` (smaller for a dense point set: about POINTS_PER_CELL
+points in an occupied cell, so that a dense scanner's query looks at as few points as a
+sparse one's, its scan's cost linear in its beams rather than quadratic); the points are
+sorted by cell and ``start[c]:start[c + 1]`` are cell ``c``'s (``c = ix · ny + iy``) in ``order``/``xy``: the cells of one column of the
 grid are contiguous, so a query scans one stretch of points per column of the square around
 it. It looks within one cell side first and, only where nothing lies that near, within its
 whole radius (or, from a guess, within twice the guess's distance). The cells it scanned
@@ -27,6 +29,10 @@ IntArray = NDArray[np.int64]
 #: cells rather than a grid larger than the points
 CELLS_PER_POINT = 64
 MIN_CELLS = 4096
+#: at most about this many points in an occupied cell: a dense point set (a scanner of
+#: thousands of beams puts hundreds of points in a cell of a 180-beam scan's size, each of
+#: which every query near them would look at) gets smaller cells, within the budget above
+POINTS_PER_CELL = 4
 #: a grid's geometry and shape as scalars (:func:`frame_of`)
 Frame = tuple[float, float, float, float, int, int]
 
@@ -66,11 +72,26 @@ def build_grid(xy: FloatArray, cell: float) -> Grid:
     budget = CELLS_PER_POINT * n + MIN_CELLS
     # the least side s with (w/s + 1)(h/s + 1) ≤ budget: budget·s² − (w + h)·s − w·h = 0
     least = ((w + h) + math.sqrt((w + h) ** 2 + 4.0 * budget * w * h)) / (2.0 * budget)
-    side = max(cell, least)
+    side = _dense_side(pts, lo, max(cell, least), least)
     nx, ny = int(w / side) + 1, int(h / side) + 1
     geometry = np.array([float(lo[0]), float(lo[1]), 1.0 / side, side])
     start, order = _sort_into_cells(pts, geometry, nx, ny)
     return Grid(geometry, np.array([nx, ny], dtype=np.int64), start, order, pts[order])
+
+
+def _dense_side(pts: FloatArray, lo: tuple[float, float], side: float, least: float) -> float:
+    """``side``, or where its occupied cells hold more than POINTS_PER_CELL points on average,
+    a side that many times smaller (points along surfaces: a cell's count goes with its side),
+    at least ``least``."""
+    if pts.shape[0] <= POINTS_PER_CELL:
+        return side
+    ix = np.floor((pts[:, 0] - lo[0]) / side).astype(np.int64)
+    iy = np.floor((pts[:, 1] - lo[1]) / side).astype(np.int64)
+    occupied = np.unique(ix * (int(iy.max()) + 1) + iy).size
+    per_cell = pts.shape[0] / occupied
+    if per_cell <= POINTS_PER_CELL:
+        return side
+    return float(max(side * POINTS_PER_CELL / per_cell, least))
 
 
 @kernel
