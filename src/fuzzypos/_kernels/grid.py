@@ -4,12 +4,13 @@ compiled loops (the stand-in for a KD-tree query per iteration).
 Cells are squares of side ``cell`` (smaller for a dense point set: about POINTS_PER_CELL
 points in an occupied cell, so that a dense scanner's query looks at as few points as a
 sparse one's, its scan's cost linear in its beams rather than quadratic); the points are
-sorted by cell and ``start[c]:start[c + 1]`` are cell ``c``'s (``c = ix · ny + iy``) in ``order``/``xy``: the cells of one column of the
-grid are contiguous, so a query scans one stretch of points per column of the square around
-it. It looks within one cell side first and, only where nothing lies that near, within its
-whole radius (or, from a guess, within twice the guess's distance). The cells it scanned
-also bound how far every other point lies: the refinement's iterations keep a point's nearest
-while it stays nearer than that (``nearest_bounded``).
+sorted by cell and ``start[c]:start[c + 1]`` are cell ``c``'s (``c = ix · ny + iy``) in
+``order``/``xy``: the cells of one column of the grid are contiguous, so a query scans one
+stretch of points per column of the square around it. It looks within one cell side first
+and, only where nothing lies that near, within its whole radius (or, from a guess, within
+twice the guess's distance). The cells it scanned also bound how far every other point lies:
+the refinement's iterations keep a point's nearest while it stays nearer than that
+(``nearest_bounded``).
 """
 
 from __future__ import annotations
