@@ -131,3 +131,32 @@ def test_help_texts_are_escaped_once():
     escape_markup(group)
     escape_markup(run)
     assert [p.help for p in run.params] == once
+
+
+def test_the_benchmark_table_keeps_every_number_at_80_columns() -> None:
+    """In an 80-column terminal the benchmark's table (the wide one would cut every number to
+    an ellipsis) shows each value's digits whole; a wide terminal keeps a line a row."""
+    from rich.console import Console
+
+    from fuzzypos._cli_tables import benchmark_table
+
+    row = {
+        "log": "fr-clinic", "config": "default+loop_closure online",
+        "all_trans_mean_m": 3.3478, "all_trans_std_m": 5.1234, "all_rot_mean_deg": 1.5812,
+        "all_rot_std_deg": 2.3456, "local_trans_mean_m": 0.0813, "local_trans_std_m": 0.1021,
+        "local_trans_median_m": 0.0534, "local_rot_mean_deg": 0.6931, "local_rot_std_deg": 0.9087,
+        "all_matched": 2615, "local_matched": 2489, "scans_per_second": 1234.4,
+        "scans_degraded": 603, "odometry_jumps_rejected": 17,
+    }  # fmt: skip
+    values = ["3.348", "5.123", "1.58", "2.35", "0.081", "0.102", "0.053", "0.69", "0.91"]
+    values += ["2615", "2489", "1234", "603", "17"]
+    for width in (80, 200):
+        table, _ = benchmark_table([row, {**row, "log": "intel", "config": "odometry"}], "t", width)
+        console = Console(width=width, record=True)
+        console.print(table)
+        text = console.export_text()
+        assert "…" not in text
+        for value in values:
+            assert text.count(value) >= 2, (width, value, text)
+        assert max(len(line) for line in text.splitlines()) <= width
+    assert "3.348±5.123" in text  # (the wide layout)

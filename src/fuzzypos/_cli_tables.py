@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any
 
+from rich import box
+from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
@@ -44,35 +46,103 @@ def pm(mean: float | None, std: float | None, fmt: str) -> str:
     return f"{mean:{fmt}}±{std:{fmt}}"
 
 
-def benchmark_table(rows: list[dict[str, Any]], title: str) -> tuple[Table, list[str]]:
-    """The benchmark's rows as a table, and a line per failed or unscored row."""
-    table = Table(title=title)
-    for col in _BENCHMARK_COLUMNS:
-        left = col in ("log", "config")
-        table.add_column(col, justify="left" if left else "right", no_wrap=left)
-    problems: list[str] = []
-    for r in rows:
-        if "error" in r:
-            table.add_row(r["log"], r["config"], Text("failed (below)", style="red"), *[""] * 7)
-            problems.append(f"{r['log']} {r['config']}: {r['error']}")
-            continue
-        if "not_scored" in r:
-            problems.append(f"{r['log']} {r['config']}: not scored: {r['not_scored']}")
-        sps = r.get("scans_per_second")
-        med = r.get("local_trans_median_m")
-        table.add_row(
-            r["log"],
-            r["config"],
+#: the narrow table's columns (each mean over its ± std on a second line)
+_NARROW_COLUMNS = (
+    "log",
+    "config",
+    "all m",
+    "all °",
+    "local m (median)",
+    "local °",
+    "matched all local",
+    "scans /s",
+    "degr- aded",
+    "jumps",
+)
+
+
+def _narrow(mean: float | None, std: float | None, fmt: str) -> str:
+    """:func:`pm` over two lines: the mean, then ``±std``."""
+    return pm(mean, std, fmt).replace("±", "\n±")
+
+
+def _cells(r: dict[str, Any], narrow: bool) -> list[str]:
+    """A scored row's cells after its log and config."""
+    sps = r.get("scans_per_second")
+    med = r.get("local_trans_median_m")
+    tail = [
+        "–" if sps is None else f"{sps:.0f}",
+        str(r.get("scans_degraded", "")),
+        str(r.get("odometry_jumps_rejected", "")),
+    ]
+    both = f"{r.get('all_matched', 0)}/{r.get('local_matched', 0)}"
+    if not narrow:
+        return [
             pm(r.get("all_trans_mean_m"), r.get("all_trans_std_m"), ".3f"),
             pm(r.get("all_rot_mean_deg"), r.get("all_rot_std_deg"), ".2f"),
             pm(r.get("local_trans_mean_m"), r.get("local_trans_std_m"), ".3f")
             + ("" if med is None else f" / {med:.3f}"),
             pm(r.get("local_rot_mean_deg"), r.get("local_rot_std_deg"), ".2f"),
-            f"{r.get('all_matched', 0)}/{r.get('local_matched', 0)}",
-            "–" if sps is None else f"{sps:.0f}",
-            str(r.get("scans_degraded", "")),
-            str(r.get("odometry_jumps_rejected", "")),
-        )
+            both,
+            *tail,
+        ]
+    return [
+        _narrow(r.get("all_trans_mean_m"), r.get("all_trans_std_m"), ".3f"),
+        _narrow(r.get("all_rot_mean_deg"), r.get("all_rot_std_deg"), ".2f"),
+        _narrow(r.get("local_trans_mean_m"), r.get("local_trans_std_m"), ".3f")
+        + ("" if med is None else f"\n({med:.3f})"),
+        _narrow(r.get("local_rot_mean_deg"), r.get("local_rot_std_deg"), ".2f"),
+        both.replace("/", "\n"),
+        *tail,
+    ]
+
+
+def _layout(rows: list[dict[str, Any]], title: str, narrow: bool) -> tuple[Table, list[str]]:
+    """The table in one layout: wide (a line a row) or narrow (values over two lines, headers
+    wrapped, log and config folded, no frame; each number column as wide as its longest
+    line, so that no number is cut)."""
+    columns = _NARROW_COLUMNS if narrow else _BENCHMARK_COLUMNS
+    cells: list[list[str | Text]] = []
+    problems: list[str] = []
+    for r in rows:
+        if "error" in r:
+            failed = Text("failed" if narrow else "failed (below)", style="red")
+            cells.append([r["log"], r["config"], failed, *[""] * (len(columns) - 3)])
+            problems.append(f"{r['log']} {r['config']}: {r['error']}")
+            continue
+        if "not_scored" in r:
+            problems.append(f"{r['log']} {r['config']}: not scored: {r['not_scored']}")
+        cells.append([r["log"], r["config"], *_cells(r, narrow)])
+    if not narrow:
+        table = Table(title=title)
+    else:
+        table = Table(title=title, box=box.SIMPLE_HEAD, padding=(0, 0))
+    for k, col in enumerate(columns):
+        left = k < 2
+        if not narrow:
+            table.add_column(col, justify="left" if left else "right", no_wrap=left)
+            continue
+        lines = [ln for row in cells for ln in str(row[k]).splitlines()] + col.split()
+        table.add_column(
+            col, justify="left" if left else "right", overflow="fold",
+            min_width=None if left else max(len(ln) for ln in lines), ratio=1 if left else None,
+        )  # fmt: skip
+    for row in cells:
+        table.add_row(*row)
+    return table, problems
+
+
+def benchmark_table(
+    rows: list[dict[str, Any]], title: str, width: int | None = None
+) -> tuple[Table, list[str]]:
+    """The benchmark's rows as a table, and a line per failed or unscored row. ``width``: the
+    columns it is printed in: where the wide layout (a line a row) would not fit, the narrow
+    one (each mean over its ± std, headers wrapped, no frame), whose numbers are never cut."""
+    table, problems = _layout(rows, title, narrow=False)
+    if width is not None:
+        needed = Console(width=10_000).measure(table).maximum
+        if needed > width:
+            table, problems = _layout(rows, title, narrow=True)
     return table, problems
 
 

@@ -847,8 +847,9 @@ def benchmark(
             raise typer.Exit(code=1)
         return
     title = "relations metric" + (f" (first {max_scans} scans of each log)" if max_scans else "")
-    table, problems = benchmark_table(result.data["rows"], title)
-    _wide().print(table)
+    wide = _wide()
+    table, problems = benchmark_table(result.data["rows"], title, wide.width)
+    wide.print(table)
     for line in problems:
         typer.echo(line)
     typer.echo(f"benchmark.json and the runs' results in {result.out_dir}/")
