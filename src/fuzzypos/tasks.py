@@ -11,6 +11,7 @@ without it, :func:`ray_installed` tells whether it is there.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -20,6 +21,7 @@ __all__ = [
     "ONE_THREAD_ENV",
     "RayMissingError",
     "TaskDone",
+    "quiet_ray_logging",
     "ray_installed",
     "require_ray",
     "run_tasks",
@@ -63,17 +65,45 @@ def ray_installed() -> bool:
     return True
 
 
-def start_ray(ray: Any, address: str | None, jobs: int) -> bool:
+class _QuietRay(logging.Filter):
+    """Drops Ray's records below ERROR (its start-up INFO lines, the token-authentication
+    WARNING printed at every start) from the handlers it is put on."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.levelno >= logging.ERROR
+
+
+_QUIET = _QuietRay()
+
+
+def quiet_ray_logging(quiet: bool = True) -> None:
+    """Ray's own log lines on this process's stderr below ERROR dropped (``quiet``), or let
+    through again: on the ``ray`` logger and its handlers, which Ray sets up on import."""
+    logger = logging.getLogger("ray")
+    for target in (logger, *logger.handlers):
+        if quiet:
+            target.addFilter(_QUIET)
+        else:
+            target.removeFilter(_QUIET)
+
+
+def start_ray(ray: Any, address: str | None, jobs: int, verbose: bool = False) -> bool:
     """Join ``address`` (or ``RAY_ADDRESS``), else start a local Ray with ``jobs`` CPUs; True
-    when started here (and to be shut down); nothing when Ray is already up in this process."""
+    when started here (and to be shut down); nothing when Ray is already up in this process.
+    Unless ``verbose``, Ray's own logging stays quiet: its lines below ERROR dropped
+    (:func:`quiet_ray_logging`) and the workers' output not forwarded here."""
     if ray.is_initialized():
         return False
+    quiet_ray_logging(not verbose)
+    quiet: dict[str, Any] = {}
+    if not verbose:
+        quiet = {"logging_level": logging.ERROR, "log_to_driver": False}
     address = address or os.environ.get("RAY_ADDRESS") or None
     if address:
-        ray.init(address=address)
+        ray.init(address=address, **quiet)
     else:
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-        ray.init(address="local", num_cpus=jobs, include_dashboard=False)
+        ray.init(address="local", num_cpus=jobs, include_dashboard=False, **quiet)
     return True
 
 
@@ -105,6 +135,7 @@ def run_tasks(
     jobs: int | None = None,
     address: str | None = None,
     on_done: TaskCallback | None = None,
+    verbose: bool = False,
 ) -> list[TaskDone]:
     """``fn(*args)`` for every ``args`` of ``calls``; the outcomes in the order of ``calls``.
 
@@ -114,7 +145,8 @@ def run_tasks(
     must pickle. Without ``ray``, the calls run here one after the other. An exception of a
     call is its outcome's ``error`` (:meth:`TaskDone.result` raises it), the other calls go
     on; an exception of ``on_done`` (``KeyboardInterrupt`` too) cancels the calls not
-    finished and propagates. Raises :class:`RayMissingError` and ``ValueError`` (``jobs``
+    finished and propagates. ``verbose``: Ray's own log lines too (:func:`start_ray`).
+    Raises :class:`RayMissingError` and ``ValueError`` (``jobs``
     below 1) before any call."""
     if jobs is not None and jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs}")
@@ -134,7 +166,8 @@ def run_tasks(
             else:
                 finish(TaskDone(k, value))
     else:
-        _on_ray(require_ray(), fn, calls, jobs or os.cpu_count() or 1, address, finish)
+        ray_module = require_ray()
+        _on_ray(ray_module, fn, calls, jobs or os.cpu_count() or 1, address, finish, verbose)
     return [d for d in done if d is not None]
 
 
@@ -145,8 +178,9 @@ def _on_ray(
     jobs: int,
     address: str | None,
     finish: TaskCallback,
+    verbose: bool = False,
 ) -> None:
-    started = start_ray(ray, address, jobs)
+    started = start_ray(ray, address, jobs, verbose)
     try:
         task = ray.remote(num_cpus=1, runtime_env={"env_vars": ONE_THREAD_ENV})(fn)
         pending = {task.remote(*args): k for k, args in enumerate(calls)}
