@@ -8,11 +8,15 @@ from __future__ import annotations
 
 import gzip
 import json
+import os
+import re
+import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -54,6 +58,8 @@ def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
         f.write((sub / "plain.clf").read_bytes())
     (sub / "plain.clf").unlink()
     (d / "broken.clf").write_text("# a comment\nFLASER 3 1.0 2.0\n")
+    # named as a log, but random bytes: a failed run, not passed over
+    (d / "noise.clf").write_bytes(np.random.default_rng(0).bytes(3000))
     (d / "README.md").write_text("# the data\nSome logs.\n")
     (d / "truth.tum").write_text("0.0 0 0 0 0 0 0 1\n")
     return d
@@ -69,7 +75,7 @@ def first(ray_session: None, data: Path, tmp_path_factory: pytest.TempPathFactor
 
 def test_find_logs_by_content(data: Path, tmp_path: Path) -> None:
     names = [p.name for p in find_logs([data])]
-    assert names == ["broken.clf", "good.clf", "zipped.clf.gz"]
+    assert names == ["broken.clf", "good.clf", "zipped.clf.gz", "noise.clf"]
     bag = make_bag(tmp_path, "ros2-sqlite3", standard)
     assert find_logs([tmp_path]) == [bag]  # a ROS2 bag directory, not the files in it
     results = tmp_path / "results" / "good.clf"
@@ -81,10 +87,11 @@ def test_find_logs_by_content(data: Path, tmp_path: Path) -> None:
 
 def test_a_failed_log_does_not_stop_the_others(first: Path) -> None:
     rows = _rows(first)
-    assert set(rows) == {"broken.clf", "good.clf", "zipped.clf.gz"}
-    broken = rows["broken.clf"]
-    assert broken["status"] == "failed"
-    assert "broken.clf" in broken["error"] and "\n" not in broken["error"]
+    assert set(rows) == {"broken.clf", "good.clf", "noise.clf", "zipped.clf.gz"}
+    for name in ("broken.clf", "noise.clf"):
+        broken = rows[name]
+        assert broken["status"] == "failed"
+        assert name in broken["error"] and "\n" not in broken["error"]
     for name, label in (("good.clf", "good.clf"), ("zipped.clf.gz", "zipped.clf")):
         row = rows[name]
         assert row["status"] == "ok", row
@@ -112,9 +119,17 @@ def test_rerun_skips_complete_runs_and_force_redoes_them(first: Path, data: Path
     assert res.exit_code == 1, res.output
     assert _rows(first)["good.clf"]["status"] == "ok"
     assert (first / "good.clf" / "default" / "summary.json").stat().st_mtime_ns != stamp
-    # other run options: not the same run
+    # other run options: a complete run is refused (kept) without --force, exit 1
+    stamp = (first / "good.clf" / "default" / "summary.json").stat().st_mtime_ns
     res = runner.invoke(app, [*args[:-1], "6"])
     assert res.exit_code == 1, res.output
+    rows = _rows(first)
+    assert rows["good.clf"]["status"] == rows["zipped.clf.gz"]["status"] == "refused"
+    assert f"--max-scans {MAX_SCANS} (now 6)" in rows["good.clf"]["error"]
+    assert "--force" in rows["good.clf"]["error"] and "refused" in res.output
+    assert (first / "good.clf" / "default" / "summary.json").stat().st_mtime_ns == stamp
+    res = runner.invoke(app, [*args[:-1], "6", "--force"])
+    assert res.exit_code == 1, res.output  # (the broken logs)
     rows = _rows(first)
     assert rows["good.clf"]["status"] == "ok" and rows["good.clf"]["scans"] == 6
 
@@ -170,7 +185,7 @@ def test_ctrl_c_keeps_what_finished(first: Path, data: Path, tmp_path: Path) -> 
     with pytest.raises(KeyboardInterrupt):
         run_batch([data], tmp_path, max_scans=4, progress=stop)
     kept = json.loads((tmp_path / "batch.json").read_text())
-    assert kept["interrupted"] is True and kept["runs"] == 3 and len(kept["rows"]) == 1
+    assert kept["interrupted"] is True and kept["runs"] == 4 and len(kept["rows"]) == 1
 
 
 def test_ctrl_c_exits_130(monkeypatch: pytest.MonkeyPatch, data: Path, tmp_path: Path) -> None:
@@ -180,3 +195,72 @@ def test_ctrl_c_exits_130(monkeypatch: pytest.MonkeyPatch, data: Path, tmp_path:
     monkeypatch.setattr("fuzzypos.batch.run_batch", interrupted)
     res = runner.invoke(app, ["batch", str(data), "--out", str(tmp_path)])
     assert res.exit_code == 130 and "interrupted" in res.output
+
+
+def test_preset_and_loop_closure_are_recorded_and_part_of_the_run(
+    ray_session: None, data: Path, tmp_path: Path
+) -> None:
+    pytest.importorskip("gtsam", reason="loop closure needs gtsam")
+    (tmp_path / "a.toml").write_text('[fuzzy]\ninference = "product"\n')
+    out = tmp_path / "out"
+    args = ["batch", str(data / "good.clf"), "--out", str(out), "--max-scans", "6"]
+    args += ["--config", str(tmp_path / "a.toml")]
+    res = runner.invoke(app, [*args, "--preset", "paper", "--loop-closure"])
+    assert res.exit_code == 0, res.output
+    (row,) = json.loads((out / "batch.json").read_text())["rows"]
+    assert (row["status"], row["preset"], row["loop_closure"]) == ("ok", "paper", True)
+    summary = json.loads((out / "good.clf" / "a" / "summary.json").read_text())
+    assert summary["config"]["preset"] == "paper" and "loop_closure" in summary
+    res = runner.invoke(app, [*args, "--preset", "paper", "--loop-closure"])
+    assert res.exit_code == 0 and _rows(out)["good.clf"]["status"] == "skipped"
+    res = runner.invoke(app, [*args, "--preset", "paper"])  # no loop closure: refused
+    assert res.exit_code == 1 and _rows(out)["good.clf"]["status"] == "refused"
+    assert "configuration" in _rows(out)["good.clf"]["error"]
+    res = runner.invoke(app, [*args, "--loop-closure"])  # the default preset: refused
+    assert res.exit_code == 1 and "preset paper" in _rows(out)["good.clf"]["error"]
+
+
+def test_batch_table_keeps_errors_readable_at_80_columns() -> None:
+    from rich.console import Console
+
+    from fuzzypos.batch import batch_table
+
+    why = "complete run with other --max-scans 2500 (now 200) kept (--force replaces it)"
+    rows = [{"log": "/data/intel.clf.gz", "config": "default", "status": "refused", "error": why}]
+    console = Console(width=80, record=True)
+    console.print(batch_table(rows))
+    text = "".join(console.export_text().split())
+    assert "".join(why.split()) in "".join(text.replace("│", "").split())
+
+
+RAY_QUIET = """
+import sys
+from fuzzypos.tasks import run_tasks
+
+
+def negative(x):
+    return -x
+
+
+done = run_tasks(negative, [(-1,), (-2,)], jobs=1, verbose=sys.argv[1] == "verbose")
+print(sorted(d.value for d in done))
+"""
+
+
+def test_ray_says_nothing_unless_verbose(tmp_path: Path) -> None:
+    """Ray's start-up lines (its INFO "Started a local Ray instance", the token-authentication
+    WARNING) are not printed but with verbose."""
+    pytest.importorskip("ray", reason="Ray (the ray extra) is not installed")
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    quiet = subprocess.run(
+        [sys.executable, "-c", RAY_QUIET, "quiet"], capture_output=True, text=True, env=env,
+        timeout=300, cwd=tmp_path,
+    )  # fmt: skip
+    assert quiet.returncode == 0, quiet.stderr
+    assert quiet.stdout.strip() == "[1, 2]"
+    assert not re.search(r"\b(INFO|WARNING)\b", quiet.stderr), quiet.stderr
+    loud = subprocess.run(
+        [sys.executable, "-c", RAY_QUIET, "verbose"], capture_output=True, text=True, env=env,
+        timeout=300, cwd=tmp_path,
+    )  # fmt: skip
+    assert loud.returncode == 0 and "INFO" in loud.stderr, loud.stderr

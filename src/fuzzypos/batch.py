@@ -2,16 +2,21 @@
 
 :func:`find_logs` tells logs by their content (:func:`~fuzzypos.logs.log_kind`: a ROS1 bag's
 magic, a ROS2 bag directory's ``metadata.yaml``; a CARMEN file, plain or gzip, only when its
-first non-comment line is a CARMEN message), passing over anything else silently.
+first non-comment line is a CARMEN message), passing over anything else silently, but for
+a file with a log's name (``.clf``, ``.clf.gz``, ``.log``, ``.bag``: :data:`LOG_SUFFIXES`)
+that it cannot read, which is kept, to fail as a run.
 :func:`run_batch` runs each log with each configuration as a Ray task with one thread
 (:func:`~fuzzypos.run.run_log`, results in ``<out>/<log label>/<config name>/``) and writes
 ``<out>/batch.json`` as runs finish: a row per run with its ``status`` (``ok``, ``failed``,
-``skipped``), the error's first line, ``seconds``, ``scans``, ``scans_per_second`` and the
+``skipped``, ``refused``), the error's first line (or why it was refused), ``seconds``,
+``scans``, ``scans_per_second``, the ``preset`` and ``loop_closure`` it ran with and the
 relations scores where a ``NAME.relations`` lies beside the log.
 
-A run whose folder already holds complete results of the same input (sha256), configuration,
-fuzzypos version and options is skipped unless ``force``. Ray is the ``ray`` extra; without
-it :class:`RayMissingError`.
+A run whose folder already holds complete results of the same input (sha256), configuration
+(preset, file, loop closure), fuzzypos version and options is skipped unless ``force``; one
+holding complete results that differ in any of them is refused (kept as it is) unless
+``force``; partial or missing results are (re)made. Ray is the ``ray`` extra; without it
+:class:`RayMissingError`.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from typing import Any
 from ._version import __version__
 from .config import Config
 from .folders import log_label
+from .graph import require_gtsam
 from .io import read_relations
 from .logs import UnknownLogError, log_kind
 from .provenance import file_sha256, write_json
@@ -53,6 +59,8 @@ CARMEN_MESSAGES = frozenset(
     | {f"RAWLASER{k}" for k in range(1, 5)}
     | {"NMEAGGA", "NMEARMC", "SONAR", "BUMPER", "SCANMARK", "POSITIONLASER"}
 )
+#: the names of files taken for logs even where their content is not one (then a failed run)
+LOG_SUFFIXES = (".clf", ".clf.gz", ".log", ".bag")
 #: ``progress(row, done, total)`` as each run finishes (first ``({}, 0, total)``)
 BatchProgress = Callable[[dict[str, Any], int, int], None]
 
@@ -100,7 +108,8 @@ def _walk(root: Path) -> Iterable[Path]:
 
 
 def find_logs(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
-    """Every log (:func:`is_log`) given or under the directories given, in order, once each.
+    """Every log (:func:`is_log`, or a file named as one: :data:`LOG_SUFFIXES`, whose run will
+    fail where it is none) given or under the directories given, in order, once each.
     ``FileNotFoundError`` for a path that does not exist; ``ValueError`` when there is no log
     or two have the same :func:`~fuzzypos.folders.log_label` (their folders would clash)."""
     found: dict[Path, None] = {}
@@ -109,7 +118,7 @@ def find_logs(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
         if not p.exists():
             raise FileNotFoundError(2, "No such file or directory", os.fspath(given))
         for cand in _walk(p) if p.is_dir() else [p]:
-            if is_log(cand):
+            if is_log(cand) or cand.name.lower().endswith(LOG_SUFFIXES):
                 found.setdefault(cand, None)
     logs = list(found)
     if not logs:
@@ -140,26 +149,36 @@ class _Run:
     folder: str
     max_scans: int | None
     force: bool
+    preset: str = "default"
+    loop_closure: bool = False
 
 
-def _complete(run: _Run) -> dict[str, Any] | None:
-    """The summary of the folder's earlier run when it is complete for the same input,
-    configuration, version and options; else None."""
+def _earlier(run: _Run) -> tuple[dict[str, Any] | None, list[str]]:
+    """The folder's earlier run: its summary where it is complete (not partial, its files
+    there), else None; and how it differs from ``run`` (empty: the same run)."""
     folder = Path(run.folder)
     try:
         summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
-        same = (
-            not summary.get("partial", True)
-            and summary.get("fuzzypos_version") == __version__
-            and summary.get("selection", {}).get("max_scans") == run.max_scans
-            and (summary.get("config") or {}).get("file") == run.config_file
-            and (folder / "config.toml").read_text(encoding="utf-8") == run.config.to_toml()
-            and all(Path(f).exists() for f in (summary.get("files") or {}).values())
-            and summary.get("input", {}).get("sha256") == file_sha256(run.log)
-        )
+        if summary.get("partial", True) or not all(
+            Path(f).exists() for f in (summary.get("files") or {}).values()
+        ):
+            return None, []
+        made = summary.get("config") or {}
+        old_scans = (summary.get("selection") or {}).get("max_scans")
+        checks = [
+            (summary.get("fuzzypos_version") == __version__, "fuzzypos version"),
+            (old_scans == run.max_scans, f"--max-scans {old_scans} (now {run.max_scans})"),
+            ((made.get("preset") or "default") == run.preset, f"preset {made.get('preset')}"),
+            (made.get("file") == run.config_file, f"config file {made.get('file')}"),
+            (
+                (folder / "config.toml").read_text(encoding="utf-8") == run.config.to_toml(),
+                "configuration (config.toml, loop closure)",
+            ),
+            (summary.get("input", {}).get("sha256") == file_sha256(run.log), "input"),
+        ]
     except (OSError, ValueError, AttributeError):
-        return None
-    return summary if same else None
+        return None, []
+    return summary, [what for same, what in checks if not same]
 
 
 def _error_line(exc: BaseException) -> str:
@@ -177,9 +196,14 @@ def _run_one(run: _Run) -> dict[str, Any]:
         "status": "ok",
         "error": None,
     }
-    summary = None if run.force else _complete(run)
-    if summary is not None:
+    row.update(preset=run.preset, loop_closure=run.loop_closure)
+    summary, differs = (None, []) if run.force else _earlier(run)
+    if summary is not None and not differs:
         row["status"] = "skipped"
+    elif summary is not None:
+        row.update(status="refused", error="complete run with other " + ", ".join(differs))
+        row["error"] += " kept (--force replaces it)"
+        summary = {}
     else:
         try:
             rel = relations_beside(Path(run.log))
@@ -189,7 +213,7 @@ def _run_one(run: _Run) -> dict[str, Any]:
                 results_dir=run.folder,
                 overwrite=True,
                 max_scans=run.max_scans,
-                preset=None if run.config_file else "default",
+                preset=run.preset,
                 config_file=run.config_file,
                 relations=None if rel is None else read_relations(rel),
             )
@@ -198,7 +222,7 @@ def _run_one(run: _Run) -> dict[str, Any]:
             row.update(status="failed", error=_error_line(exc))
     summary = summary or {}
     row.update(
-        seconds=time.perf_counter() - t0 if row["status"] != "skipped" else summary["seconds"],
+        seconds=summary["seconds"] if row["status"] == "skipped" else time.perf_counter() - t0,
         scans=summary.get("scans"),
         scans_per_second=summary.get("scans_per_second"),
         relations=summary.get("relations"),
@@ -218,19 +242,38 @@ class BatchResult:
     def failed(self) -> int:
         return sum(r["status"] == "failed" for r in self.rows)
 
+    @property
+    def refused(self) -> int:
+        return sum(r["status"] == "refused" for r in self.rows)
+
 
 def _runs(
-    logs: Sequence[Path], configs: Sequence[Path], out: Path, max_scans: int | None, force: bool
+    logs: Sequence[Path],
+    configs: Sequence[Path],
+    out: Path,
+    max_scans: int | None,
+    force: bool,
+    preset: str = "default",
+    loop_closure: bool = False,
 ) -> list[_Run]:
-    """Every log × every configuration (default: the default one)."""
+    """Every log × every configuration (default: the preset's), each file over ``preset``
+    (as ``fuzzypos run --preset P --config FILE`` loads it), loop closure on where asked."""
+    base = Config.preset(preset)
     loaded: list[tuple[str, str | None, Config]] = [
-        (c.stem, str(c), Config.from_toml(c)) for c in configs
-    ] or [("default", None, Config())]
+        (c.stem, str(c), Config.from_toml(c, base=None if preset == "default" else base))
+        for c in configs
+    ] or [(preset, None, base)]
     names = [name for name, _, _ in loaded]
     if len(set(names)) != len(names):
         raise ValueError(f"two configuration files with the same name: {names}")
+    if loop_closure:
+        loaded = [
+            (name, file, cfg.with_overrides({"loop_closure": {"enabled": True}}))
+            for name, file, cfg in loaded
+        ]
+    options = (max_scans, force, preset, loop_closure)
     return [
-        _Run(str(log), cfg, name, file, str(out / log_label(log) / name), max_scans, force)
+        _Run(str(log), cfg, name, file, str(out / log_label(log) / name), *options)
         for log in logs
         for name, file, cfg in loaded
     ]
@@ -251,11 +294,17 @@ def run_batch(
     jobs: int | None = None,
     force: bool = False,
     progress: BatchProgress | None = None,
+    preset: str = "default",
+    loop_closure: bool = False,
+    verbose: bool = False,
 ) -> BatchResult:
     """Run every log under ``paths`` (:func:`find_logs`) with every configuration file of
     ``configs`` (default: the default configuration), one Ray task each; ``batch.json`` in
     ``out`` is rewritten as each finishes. ``jobs``: the local Ray's CPUs (default: all);
-    ``address``: a cluster to join. Raises :class:`RayMissingError`, ``ValueError`` (bad
+    ``address``: a cluster to join. ``preset`` (``default``, ``paper``) is the configuration
+    the files override (alone, it names the runs' folders); ``loop_closure`` turns on
+    ``[loop_closure]`` in every run (gtsam needed); ``verbose`` lets Ray's own log lines
+    through. Raises :class:`RayMissingError`, ``ValueError`` (bad
     input, a configuration file's :class:`~fuzzypos.config.ConfigError`) or ``OSError``
     before any run; ``KeyboardInterrupt`` stops the tasks, keeping what finished."""
     if jobs is not None and jobs < 1:
@@ -263,8 +312,11 @@ def run_batch(
     if max_scans is not None and max_scans < 1:
         raise ValueError(f"max_scans must be at least 1, got {max_scans}")
     require_ray("fuzzypos batch")
+    if loop_closure:
+        require_gtsam()
     out_dir = Path(out)
-    runs = _runs(find_logs(paths), [Path(c) for c in configs], out_dir, max_scans, force)
+    logs, files = find_logs(paths), [Path(c) for c in configs]
+    runs = _runs(logs, files, out_dir, max_scans, force, preset, loop_closure)
     out_dir.mkdir(parents=True, exist_ok=True)
     json_path = out_dir / "batch.json"
     rows: list[dict[str, Any]] = []
@@ -275,6 +327,7 @@ def run_batch(
             row = done.value
         else:  # a crashed worker, an unexpected error in the task
             row = {"log": run.log, "config": run.config_name, "folder": run.folder}
+            row.update(preset=run.preset, loop_closure=run.loop_closure)
             row.update(status="failed", error=_error_line(done.error), seconds=None, scans=None)
             row.update(scans_per_second=None, relations=None)
         rows.append(row)
@@ -285,7 +338,8 @@ def run_batch(
     try:
         if progress is not None:
             progress({}, 0, len(runs))
-        run_tasks(_run_one, [(r,) for r in runs], jobs=jobs, address=address, on_done=finished)
+        calls = [(r,) for r in runs]
+        run_tasks(_run_one, calls, jobs=jobs, address=address, on_done=finished, verbose=verbose)
     except KeyboardInterrupt:
         _write(json_path, rows, len(runs), True)
         raise
@@ -317,11 +371,14 @@ def progress_bar(console: Any) -> Iterator[BatchProgress]:
 
 
 def batch_table(rows: Sequence[dict[str, Any]]) -> Any:
-    """The rows as a :class:`rich.table.Table`."""
+    """The rows as a :class:`rich.table.Table` (the error, or why a run was refused, folded
+    over lines rather than cut)."""
     from rich.table import Table
 
-    table = Table("log", "config", "status", "scans", "scans/s", "s", "rel. m")
-    table.add_column("error", no_wrap=True, overflow="ellipsis", max_width=60)
+    table = Table()
+    for name in ("log", "config", "status", "scans", "scans/s", "s", "rel. m"):
+        table.add_column(name, no_wrap=True)
+    table.add_column("error / why refused", overflow="fold", ratio=1)
     for r in rows:
         rel = r.get("relations") or {}
         score = rel.get("all_trans_mean_m") if isinstance(rel, dict) else None

@@ -862,24 +862,38 @@ def batch(
     paths: Annotated[list[Path], typer.Argument(help="logs or their folders", readable=False)],
     out: Annotated[Path, typer.Option(help="the results' folder", readable=False)] = Path("batch"),
     configs: Annotated[list[Path] | None, typer.Option("--config", help="config TOML")] = None,
+    preset: Annotated[str, _PRESET] = "default",
+    loop_closure: Annotated[
+        bool, typer.Option("--loop-closure", help="close loops in every run (as run's)")
+    ] = False,
     max_scans: Annotated[int | None, typer.Option("--max-scans", help="scans per run")] = None,
     address: Annotated[str | None, typer.Option(help="a Ray cluster to join (auto)")] = None,
     jobs: Annotated[int | None, typer.Option(help="local Ray's CPUs (default all)")] = None,
-    force: Annotated[bool, typer.Option("--force", help="redo complete runs")] = False,
+    force: Annotated[
+        bool, typer.Option("--force", help="redo complete runs, those made otherwise too")
+    ] = False,
+    verbose: Annotated[bool, typer.Option("--verbose", help="Ray's own log lines too")] = False,
 ) -> None:
-    """Every log under PATHS × every --config, a Ray task each: OUT/<log>/<config>/, batch.json."""
+    """Every log under PATHS × every --config, a Ray task each: OUT/<log>/<config>/, batch.json.
+
+    A complete run made with the same input, options and fuzzypos is skipped; one made
+    otherwise is refused (kept) unless --force. A file named as a log (.clf, .clf.gz, .log,
+    .bag) that cannot be read is a failed run. Exit code 1 where a run failed or was refused,
+    130 on Ctrl-C (batch.json's "interrupted"), 2 on bad input.
+    """
     from .batch import batch_table, progress_bar, run_batch
 
     try:
         with progress_bar(console) as report:
             result = run_batch(paths, out, configs=configs or (), max_scans=max_scans,
-                address=address, jobs=jobs, force=force, progress=report)  # fmt: skip
+                address=address, jobs=jobs, force=force, progress=report, preset=preset,
+                loop_closure=loop_closure, verbose=verbose)  # fmt: skip
     except KeyboardInterrupt:
         _fail(f"interrupted; the runs finished are in {out / 'batch.json'}", 130)
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
     console.print(batch_table(result.rows))
-    raise typer.Exit(code=1 if result.failed else 0)
+    raise typer.Exit(code=1 if result.failed or result.refused else 0)
 
 
 def _unwrap(doc: str) -> str:
