@@ -11,7 +11,7 @@ from typer.core import TyperArgument, TyperCommand, TyperGroup
 
 from ._version import __version__
 
-__all__ = ["VERSION", "Command", "Group", "escape_markup"]
+__all__ = ["BATCH_HELP", "BATCH_OPTIONS", "VERSION", "Command", "Group", "escape_markup"]
 
 
 def _print_version(value: bool) -> None:
@@ -78,3 +78,18 @@ class Command(_Plain, TyperCommand):
             else:
                 pieces.extend(p.get_usage_pieces(ctx))
         return pieces
+
+
+#: ``fuzzypos batch``'s help
+BATCH_HELP = (
+    "Every log under PATHS × every --config, a Ray task each: OUT/<log>/<config>/, batch.json."
+    "\n\nA complete run made alike is skipped, one made otherwise refused unless --force; an "
+    "unreadable file named as a log (.clf, .clf.gz, .log, .bag) fails. Exit 1 where a run "
+    'failed or was refused, 130 on Ctrl-C (batch.json\'s "interrupted"), 2 on bad input.'
+)
+#: ``fuzzypos batch``'s flags
+BATCH_OPTIONS = {
+    "loop_closure": typer.Option("--loop-closure", help="close loops in every run (as run's)"),
+    "force": typer.Option("--force", help="redo complete runs, those made otherwise too"),
+    "verbose": typer.Option("--verbose", help="Ray's own log lines too"),
+}

@@ -20,7 +20,7 @@ from rich.progress import Progress, TaskID
 from rich.table import Table
 from typer.core import TyperCommand
 
-from ._cli_help import VERSION, Command, Group
+from ._cli_help import BATCH_HELP, BATCH_OPTIONS, VERSION, Command, Group
 from ._cli_tables import (
     benchmark_table,
     found_rows,
@@ -841,15 +841,12 @@ def benchmark(
         _fail(_error_text(exc))
     _print_warnings(caught)
     failed = any("error" in r for r in result.data["rows"])
-    if json_out:
+    if json_out:  # a run failed (not bad input): exit 1
         typer.echo(json.dumps(result.data["rows"], indent=2))
-        if failed:  # a run failed (not bad input): exit 1
-            raise typer.Exit(code=1)
-        return
+        raise typer.Exit(code=1 if failed else 0)
     title = "relations metric" + (f" (first {max_scans} scans of each log)" if max_scans else "")
-    wide = _wide()
-    table, problems = benchmark_table(result.data["rows"], title, wide.width)
-    wide.print(table)
+    table, problems = benchmark_table(result.data["rows"], title, _wide().width)
+    _wide().print(table)
     for line in problems:
         typer.echo(line)
     typer.echo(f"benchmark.json and the runs' results in {result.out_dir}/")
@@ -857,30 +854,19 @@ def benchmark(
         raise typer.Exit(code=1)
 
 
-@app.command()
+@app.command(help=BATCH_HELP)
 def batch(
     paths: Annotated[list[Path], typer.Argument(help="logs or their folders", readable=False)],
     out: Annotated[Path, typer.Option(help="the results' folder", readable=False)] = Path("batch"),
     configs: Annotated[list[Path] | None, typer.Option("--config", help="config TOML")] = None,
     preset: Annotated[str, _PRESET] = "default",
-    loop_closure: Annotated[
-        bool, typer.Option("--loop-closure", help="close loops in every run (as run's)")
-    ] = False,
+    loop_closure: Annotated[bool, BATCH_OPTIONS["loop_closure"]] = False,
     max_scans: Annotated[int | None, typer.Option("--max-scans", help="scans per run")] = None,
     address: Annotated[str | None, typer.Option(help="a Ray cluster to join (auto)")] = None,
     jobs: Annotated[int | None, typer.Option(help="local Ray's CPUs (default all)")] = None,
-    force: Annotated[
-        bool, typer.Option("--force", help="redo complete runs, those made otherwise too")
-    ] = False,
-    verbose: Annotated[bool, typer.Option("--verbose", help="Ray's own log lines too")] = False,
+    force: Annotated[bool, BATCH_OPTIONS["force"]] = False,
+    verbose: Annotated[bool, BATCH_OPTIONS["verbose"]] = False,
 ) -> None:
-    """Every log under PATHS × every --config, a Ray task each: OUT/<log>/<config>/, batch.json.
-
-    A complete run made with the same input, options and fuzzypos is skipped; one made
-    otherwise is refused (kept) unless --force. A file named as a log (.clf, .clf.gz, .log,
-    .bag) that cannot be read is a failed run. Exit code 1 where a run failed or was refused,
-    130 on Ctrl-C (batch.json's "interrupted"), 2 on bad input.
-    """
     from .batch import batch_table, progress_bar, run_batch
 
     try:
