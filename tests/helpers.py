@@ -346,3 +346,27 @@ def compiled_and_staged(scan: Any, cfg: Any) -> tuple[Any, Any]:
         m.setattr(features_module, "_extract_compiled", lambda *args: None)
         staged = features_module.extract_features(scan, cfg)
     return compiled, staged
+
+
+# -- the command line ---------------------------------------------------------------------------
+def invoke(args: list[str], code: int) -> list[str]:
+    """``fuzzypos ARGS`` through typer's runner: the non-blank lines of the output, after
+    checking the exit code ``code`` and that no traceback was printed."""
+    from typer.testing import CliRunner
+
+    from fuzzypos.cli import app
+
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == code, (args, res.output, res.exception)
+    assert "Traceback" not in res.output
+    return [ln for ln in res.output.splitlines() if ln.strip()]
+
+
+def one_line_error(args: list[str], *expect: str) -> str:
+    """``fuzzypos ARGS`` fails with exit 2 and one line ``fuzzypos: error: …`` holding every
+    text in ``expect``."""
+    lines = invoke(args, 2)
+    assert len(lines) == 1 and lines[0].startswith("fuzzypos: error: "), lines
+    for text in expect:
+        assert text in lines[0], (text, lines[0])
+    return lines[0]

@@ -11,27 +11,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from fuzzypos.cli import app
 from fuzzypos.provenance import file_sha256
-from helpers import fifo_with, make_bag, scan_ranges, write_sim_log
+from helpers import fifo_with, invoke, make_bag, one_line_error, scan_ranges, write_sim_log
 
 runner = CliRunner()
-
-
-def invoke(args: list[str], code: int) -> list[str]:
-    """The non-blank lines of the output, after checking the exit code and no traceback."""
-    res = runner.invoke(app, args)
-    assert res.exit_code == code, (args, res.output, res.exception)
-    assert "Traceback" not in res.output
-    return [ln for ln in res.output.splitlines() if ln.strip()]
-
-
-def one_line_error(args: list[str], *expect: str) -> str:
-    lines = invoke(args, 2)
-    assert len(lines) == 1 and lines[0].startswith("fuzzypos: error: "), lines
-    for text in expect:
-        assert text in lines[0], (text, lines[0])
-    return lines[0]
 
 
 @pytest.fixture(scope="module")

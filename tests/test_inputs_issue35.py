@@ -18,25 +18,9 @@ from fuzzypos.cli import app
 from fuzzypos.config import Config
 from fuzzypos.io import CarmenReader
 from fuzzypos.logs import open_log
-from helpers import make_bag, write_sim_log
+from helpers import invoke, make_bag, one_line_error, write_sim_log
 
 runner = CliRunner()
-
-
-def invoke(args: list[str], code: int) -> list[str]:
-    """The non-blank lines of the output, after checking the exit code and no traceback."""
-    res = runner.invoke(app, args)
-    assert res.exit_code == code, (args, res.output, res.exception)
-    assert "Traceback" not in res.output
-    return [ln for ln in res.output.splitlines() if ln.strip()]
-
-
-def one_line_error(args: list[str], *expect: str) -> str:
-    lines = invoke(args, 2)
-    assert len(lines) == 1 and lines[0].startswith("fuzzypos: error: "), lines
-    for text in expect:
-        assert text in lines[0], (text, lines[0])
-    return lines[0]
 
 
 def flaser(ranges, odom, t: float) -> str:
