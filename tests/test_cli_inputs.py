@@ -9,12 +9,9 @@ import json
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from fuzzypos.provenance import file_sha256
 from helpers import fifo_with, invoke, make_bag, one_line_error, scan_ranges, write_sim_log
-
-runner = CliRunner()
 
 
 @pytest.fixture(scope="module")
