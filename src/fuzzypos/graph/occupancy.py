@@ -1,6 +1,8 @@
 """An occupancy grid from scans at their (optimised) poses (a run's: every scan that moved
 ``[loop_closure] map_scan_distance`` or turned ``map_scan_angle``; offline, the keyframes'),
-written as ROS map_server's ``map.pgm`` + ``map.yaml`` and as ``map.png``.
+written as ROS map_server's ``map.pgm`` + ``map.yaml`` and as ``map.png``. A run without loop
+closure draws the same scans at the front end's poses (``fuzzypos run --save-map``):
+:class:`MapScans` chooses them for both. Nothing here needs gtsam.
 
 Each scan's points (robot frame) are cast from the robot's position: the cells a beam
 crosses gather evidence of free space, the cell it ends in of an obstacle (log-odds, clamped);
@@ -15,9 +17,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ..geometry import transform_points
+from ..geometry import relative, transform_points
 
-__all__ = ["OccupancyGrid", "occupancy_grid"]
+__all__ = ["MapScans", "OccupancyGrid", "map_grid", "occupancy_grid"]
 
 FloatArray = NDArray[np.float64]
 
@@ -82,6 +84,43 @@ def occupancy_grid(
     for pose, pts in zip(poses, world):
         _cast(grid, pose[:2], pts, lo, resolution)
     return OccupancyGrid(np.clip(grid, -_CLAMP, _CLAMP), resolution, (float(lo[0]), float(lo[1])))
+
+
+class MapScans:
+    """The scans a map is drawn from, as they come: each whose pose (the front end's) moved
+    ``distance`` or turned ``angle`` since the last one kept (``[loop_closure]
+    map_scan_distance``, ``map_scan_angle``); ``scans``: its index and its points in the
+    robot frame."""
+
+    def __init__(self, distance: float, angle: float) -> None:
+        self.distance, self.angle = distance, angle
+        self.scans: list[tuple[int, FloatArray]] = []
+        self._last: FloatArray | None = None
+
+    def add(self, k: int, pose: FloatArray, points: FloatArray | None) -> bool:
+        """Keep scan ``k`` (its ``points``, None or none: never) where ``pose`` is far enough
+        from the last kept; whether it was kept."""
+        if points is None or not points.shape[0]:
+            return False
+        pose = np.asarray(pose, dtype=np.float64)
+        if self._last is not None:
+            d = relative(self._last, pose)
+            if math.hypot(d[0], d[1]) < self.distance and abs(d[2]) < self.angle:
+                return False
+        self._last = pose
+        self.scans.append((k, points))
+        return True
+
+
+def map_grid(
+    poses: FloatArray, scans: list[tuple[int, FloatArray]], resolution: float
+) -> OccupancyGrid:
+    """The grid of ``scans`` (:attr:`MapScans.scans`), each at its pose in ``poses`` (every
+    scan's, ``(scans, 3)``); without any, an unknown grid around the first pose."""
+    if not scans:
+        return occupancy_grid(poses[:1].reshape(-1, 3), [np.zeros((0, 2))], resolution)
+    at = poses[[k for k, _ in scans]].reshape(-1, 3)
+    return occupancy_grid(at, [points for _, points in scans], resolution)
 
 
 def _cast(

@@ -34,7 +34,6 @@ next update; every keyframe is kept, the poses stay finite, and the failures are
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, replace
 from typing import Any
@@ -48,6 +47,7 @@ from ..pipeline import Estimate, Positioner
 from ..scan import LaserScan
 from ._gtsam import gtsam
 from .closure import Closure, LoopCloser
+from .occupancy import MapScans
 from .outputs import LoopClosureResult, loop_closure_result
 from .pose_graph import Edge, PoseGraph
 from .realign import ScanStore
@@ -93,8 +93,7 @@ class OnlineMapper:
         #: the poses the closer predicts from: the last batch solution, the chain after it
         self._estimate: FloatArray = np.zeros((0, 3))
         self._online: list[FloatArray] = []
-        self._map_scans: list[tuple[int, FloatArray]] = []
-        self._last_drawn: FloatArray | None = None
+        self._map = MapScans(self.settings.map_scan_distance, self.settings.map_scan_angle)
         #: every scan's points, for the realignment after the last optimisation
         self._scans = ScanStore(self.config) if self.settings.realign else None
         self.batch_optimisations = 0
@@ -130,7 +129,7 @@ class OnlineMapper:
         front = est.pose.as_array()
         pose = compose(self._estimate[-1], relative(self.graph.keyframes[-1].pose, front))
         self._online.append(pose)
-        self._keep_for_map(k, est, front)
+        self._map.add(k, front, None if est.features is None else est.features.points)
         self.seconds += time.perf_counter() - t0
         return OnlineUpdate(
             Pose2D.from_array(pose), est, keyframe, found is not None, len(self.closures)
@@ -289,20 +288,6 @@ class OnlineMapper:
             "factorization": self.settings.isam_factorization,
         }
 
-    def _keep_for_map(self, k: int, est: Estimate, front: FloatArray) -> None:
-        """Keep the scan's points for the map where its front-end pose moved
-        ``map_scan_distance`` or turned ``map_scan_angle`` since the last scan kept."""
-        if est.features is None or not est.features.points.shape[0]:
-            return
-        last = self._last_drawn
-        if last is not None:
-            d = relative(last, front)
-            s = self.settings
-            if math.hypot(d[0], d[1]) < s.map_scan_distance and abs(d[2]) < s.map_scan_angle:
-                return
-        self._last_drawn = front
-        self._map_scans.append((k, est.features.points))
-
     def trajectory(self) -> FloatArray:
         """Every scan's pose so far, ``(scans, 3)``, at the graph's current poses (the
         correction blended between keyframes, :meth:`~.pose_graph.PoseGraph.trajectory`)."""
@@ -333,7 +318,7 @@ class OnlineMapper:
         self.seconds += time.perf_counter() - t0
         result = loop_closure_result(
             self.graph, self.closer, self.config, self.seconds,
-            online=self.online_poses(), map_scans=self._map_scans, scans=self._scans,
+            online=self.online_poses(), map_scans=self._map.scans, scans=self._scans,
         )  # fmt: skip
         result.summary.update(
             mode="online",

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from ..config import Config
 from ..io import write_tum
 from .closure import Closure, LoopCloser
-from .occupancy import occupancy_grid
+from .occupancy import map_grid, occupancy_grid
 from .pose_graph import PoseGraph
 from .realign import ScanStore, realign
 
@@ -74,15 +74,14 @@ class LoopClosureResult:
         files["graph.g2o"] = folder / "graph.g2o"
         self.graph.write_g2o(files["graph.g2o"])
         if self.map_scans is not None:
-            at = self.poses[[k for k, _ in self.map_scans]].reshape(-1, 3)
-            scans = [points for _, points in self.map_scans]
+            grid = map_grid(self.poses, self.map_scans, resolution)
         else:
-            at = self.graph.poses
             scans = [
                 kf.features.points if kf.features is not None else np.zeros((0, 2))
                 for kf in self.graph.keyframes
             ]
-        files.update(occupancy_grid(at, scans, resolution).write(folder))
+            grid = occupancy_grid(self.graph.poses, scans, resolution)
+        files.update(grid.write(folder))
         return files
 
 
