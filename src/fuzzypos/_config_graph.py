@@ -226,9 +226,11 @@ class LoopClosureConfig:
     )
     map_resolution: float = _field(
         0.05,
-        "the occupancy map's cells are 5 cm, ROS map_server's usual resolution for a 2D lidar",
+        "the occupancy map's cells are 5 cm, ROS map_server's usual resolution for a 2D lidar "
+        "(1 cm to 10 m: finer, a building's grid outgrows memory)",
         unit=M,
-        gt=0.0,
+        ge=0.01,
+        le=10.0,
     )
     map_scan_distance: float = _field(
         0.25,
