@@ -10,8 +10,17 @@ from rich.markup import escape
 from typer.core import TyperArgument, TyperCommand, TyperGroup
 
 from ._version import __version__
+from .config import Config, ConfigError
 
-__all__ = ["BATCH_HELP", "BATCH_OPTIONS", "VERSION", "Command", "Group", "escape_markup"]
+__all__ = [
+    "BATCH_HELP",
+    "BATCH_OPTIONS",
+    "RUN_OPTIONS",
+    "VERSION",
+    "Command",
+    "Group",
+    "escape_markup",
+]
 
 
 def _print_version(value: bool) -> None:
@@ -92,4 +101,41 @@ BATCH_OPTIONS = {
     "loop_closure": typer.Option("--loop-closure", help="close loops in every run (as run's)"),
     "force": typer.Option("--force", help="redo complete runs, those made otherwise too"),
     "verbose": typer.Option("--verbose", help="Ray's own log lines too"),
+}
+
+
+def _check_map_resolution(value: float | None) -> float | None:
+    """``--map-resolution`` within ``[loop_closure] map_resolution``'s bounds, else one line
+    and exit 2 (before the log is opened)."""
+    if value is not None:
+        try:
+            Config().with_overrides({"loop_closure": {"map_resolution": value}})
+        except ConfigError as exc:
+            why = str(exc).replace("loop_closure.map_resolution", "--map-resolution (m)")
+            typer.echo(f"fuzzypos: error: {why}", err=True)
+            raise typer.Exit(code=2) from None
+    return value
+
+
+#: ``fuzzypos run``'s map flags
+RUN_OPTIONS = {
+    "loop_closure": typer.Option(
+        "--loop-closure",
+        help="close loops online on a pose graph of the keyframes ([loop_closure], needs "
+        "pip install 'fuzzypos[graph]'): trajectory.tum optimised, trajectory_frontend.tum, "
+        "trajectory_online.tum (each scan's pose as first output), graph.g2o, "
+        "map.pgm/map.yaml/map.png (the optimised map), the closures in summary.json",
+    ),
+    "save_map": typer.Option(
+        "--save-map",
+        help="also write the occupancy map map.pgm/map.yaml (ROS map_server) and map.png, "
+        "drawn from the front end's poses (no gtsam needed; with --loop-closure its optimised "
+        "map is written)",
+    ),
+    "map_resolution": typer.Option(
+        "--map-resolution",
+        help="the map's cell size in metres (default [loop_closure] map_resolution, 0.05; "
+        "0.01 to 10)",
+        callback=_check_map_resolution,
+    ),
 }

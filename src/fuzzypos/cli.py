@@ -20,7 +20,7 @@ from rich.progress import Progress, TaskID
 from rich.table import Table
 from typer.core import TyperCommand
 
-from ._cli_help import BATCH_HELP, BATCH_OPTIONS, VERSION, Command, Group
+from ._cli_help import BATCH_HELP, BATCH_OPTIONS, RUN_OPTIONS, VERSION, Command, Group
 from ._cli_tables import (
     benchmark_table,
     found_rows,
@@ -602,16 +602,9 @@ def run(
         str | None,
         typer.Option("--bag-storage", help="ros1, sqlite3 or mcap (default: by --bag-out's name)"),
     ] = None,
-    loop_closure: Annotated[
-        bool,
-        typer.Option(
-            "--loop-closure",
-            help="close loops online on a pose graph of the keyframes ([loop_closure], needs "
-            "pip install 'fuzzypos[graph]'): trajectory.tum optimised, trajectory_frontend.tum, "
-            "trajectory_online.tum (each scan's pose as first output), graph.g2o, "
-            "map.pgm/map.yaml/map.png, the closures in summary.json",
-        ),
-    ] = False,
+    loop_closure: Annotated[bool, RUN_OPTIONS["loop_closure"]] = False,
+    save_map: Annotated[bool, RUN_OPTIONS["save_map"]] = False,
+    map_resolution: Annotated[float | None, RUN_OPTIONS["map_resolution"]] = None,
     relations: Annotated[
         Path | None,
         typer.Option(
@@ -640,8 +633,9 @@ def run(
     from .run import as_interrupt, is_interrupt, run_log
 
     cfg = _load_config(preset, config_file)
-    if loop_closure:
-        cfg = cfg.with_overrides({"loop_closure": {"enabled": True}})
+    lc: dict[str, object] = {"enabled": True} if loop_closure else {}
+    lc |= {} if map_resolution is None else {"map_resolution": map_resolution}
+    cfg = cfg.with_overrides({"loop_closure": lc})
     opened = _open(
         log,
         scan_topic=scan_topic,
@@ -679,6 +673,7 @@ def run(
                     bag_out=bag_out,
                     bag_storage=bag_storage,
                     relations=rel,
+                    save_map=save_map,
                 )
     except (KeyboardInterrupt, SystemError) as exc:
         if not is_interrupt(exc):  # numba's SystemError around Ctrl-C is Ctrl-C

@@ -91,6 +91,7 @@ from .folders import (
 )
 from .geometry import Pose2D
 from .graph import LoopClosureResult, OnlineMapper, require_gtsam
+from .graph.occupancy import MapScans, map_grid
 from .io import CarmenWriter, LogRecord, Relations, write_text_file, write_tum
 from .logs import (
     OpenLog,
@@ -272,6 +273,8 @@ class _Track:
     #: loop closure online (loop closure on): the pose graph of the keyframes, with their
     #: features, and the scans kept for the map
     mapper: OnlineMapper | None = None
+    #: ``save_map`` without loop closure: the scans the map is drawn from
+    map_scans: MapScans | None = None
 
     def __len__(self) -> int:
         return len(self.stamps)
@@ -286,12 +289,17 @@ def _position_along(
     map_every: int,
     progress: Progress | None,
     total: int | None,
+    save_map: bool = False,
 ) -> _Track:
     """Run ``positioner`` over ``records``, streaming the estimate into ``clf`` and
     ``outputs`` and keeping the :class:`_Track` of the scans done. An error or Ctrl-C stops
-    the run: it is kept in ``track.stopped`` (anything else aborts both and is raised)."""
+    the run: it is kept in ``track.stopped`` (anything else aborts both and is raised).
+    ``save_map`` (without loop closure, whose mapper keeps its own): keep the map's scans."""
     cfg = positioner.config
     track = _Track(mapper=OnlineMapper(cfg) if cfg.loop_closure.enabled else None)
+    lc = cfg.loop_closure
+    if save_map and track.mapper is None:
+        track.map_scans = MapScans(lc.map_scan_distance, lc.map_scan_angle)
     bands = positioner.config.scanner.no_return_bands  # the map shows what the positioner saw
     t_start = time.perf_counter()
     try:
@@ -304,6 +312,9 @@ def _position_along(
             outputs.write(k, est)
             if track.mapper is not None:
                 track.mapper.add(est, scan.angle_increment)
+            elif track.map_scans is not None:
+                points = None if est.features is None else est.features.points
+                track.map_scans.add(k, est.pose.as_array(), points)
             clf.write(scan, odom, rec.truth, pose=pose)
             track.stamps.append(scan.stamp)
             track.poses.append((pose.x, pose.y, pose.theta))
@@ -456,6 +467,11 @@ def _write_results(
         assert loop is not None
         return loop.write(out, a.stamps, log.name, cfg.loop_closure.map_resolution)
 
+    def map_files() -> dict[str, Path]:
+        assert track.map_scans is not None
+        grid = map_grid(a.poses, track.map_scans.scans, cfg.loop_closure.map_resolution)
+        return grid.write(out)
+
     for what, write, whole_runs_only in (
         ("trajectory.tum", tum, False),
         ("covariance.csv", outputs.close_csv, False),
@@ -465,6 +481,7 @@ def _write_results(
         ("config.toml", config_toml, False),
         ("path.png", path_png if plot else None, True),
         ("loop closure's files", loop_files if loop is not None else None, False),
+        ("the map", map_files if track.map_scans is not None else None, False),
     ):
         if write is not None and not (whole_runs_only and steps.partial):
             files.update(steps.run(f"while writing {what}", write) or {})
@@ -670,11 +687,14 @@ def run_log(
     hash_input: bool = True,
     bag_out: str | os.PathLike[str] | None = None,
     bag_storage: str | None = None,
+    save_map: bool = False,
 ) -> RunSummary:
     """Position the robot along ``log`` (an :class:`~fuzzypos.logs.OpenLog`, or a path opened
     with :func:`~fuzzypos.logs.open_log`'s defaults) and write a results folder:
     ``trajectory.tum``, ``trajectory.clf``, ``config.toml``, ``path.png`` (unless
-    ``plot=False``) and ``summary.json`` and ``covariance.csv`` (module docstring).
+    ``plot=False``) and ``summary.json`` and ``covariance.csv`` (module docstring); with
+    ``save_map``, the occupancy map from the front end's poses (:mod:`fuzzypos.graph.occupancy`;
+    loop closure's own is drawn from its optimised poses).
     ``results_dir``: the folder (one holding another run's results is a
     :class:`~fuzzypos.folders.ResultsFolderError` unless ``overwrite`` clears it); None: a new
     ``results/<log>/<date-time>/`` (:mod:`fuzzypos.folders`). ``out_tum``: also write the
@@ -719,8 +739,7 @@ def run_log(
     if not isinstance(log, OpenLog):
         log = open_log(log)
     cfg, found, coverage = _survey(log, config if config is not None else Config())
-    if isinstance(map_every, bool) or not isinstance(map_every, int) or map_every < 1:
-        raise ValueError(f"map_every must be a whole number >= 1, got {map_every!r}")
+    _check_map_every(map_every)
     stretch: dict[str, Any] = {"start": start, "end": end, "max_scans": max_scans}
     records = select_records(coverage.records(log.records()), **stretch)
     log.check_stamps(**stretch)  # corrupt stamps: StampError
@@ -733,7 +752,9 @@ def run_log(
     folder = ResultsFolder.make(log.name, given, overwrite)
     with folder:  # locked by this run until it ends
         clf, outputs = _open_outputs(folder, log.name, bag_out, bag_storage)
-        track = _position_along(records, positioner, clf, outputs, plot, map_every, progress, total)
+        track = _position_along(
+            records, positioner, clf, outputs, plot, map_every, progress, total, save_map
+        )
         if len(track) == 0:
             clf.abort()
             outputs.abort()
@@ -746,6 +767,11 @@ def run_log(
             progress=progress,
         )  # fmt: skip
         return _keep(finish, folder, track, clf, outputs)
+
+
+def _check_map_every(map_every: object) -> None:
+    if isinstance(map_every, bool) or not isinstance(map_every, int) or map_every < 1:
+        raise ValueError(f"map_every must be a whole number >= 1, got {map_every!r}")
 
 
 def _labels(
