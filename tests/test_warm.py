@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 
 import pytest
 
@@ -25,7 +26,7 @@ _SCRIPT = textwrap.dedent(
     from fuzzypos import sim
     from fuzzypos.geometry import Pose2D, compose
     from fuzzypos.pipeline import Positioner
-    from fuzzypos.pipeline.warm import warm_up
+    from fuzzypos.pipeline.warm import kernels_cold, warm_up
 
     def signatures():
         out = {}
@@ -37,7 +38,9 @@ _SCRIPT = textwrap.dedent(
                     out[key] = sorted(str(s) for s in value.signatures)
         return out
 
+    cold_before = kernels_cold()
     warm_up()
+    cold_after = kernels_cold()
     before = signatures()
     truth = sim.arc_path(Pose2D(-1.0, -0.5, 0.2), 16, 0.05, 1.0)
     jump = np.array([0.38, 0.0, math.radians(-60.6)])
@@ -64,9 +67,14 @@ _SCRIPT = textwrap.dedent(
         "twice": sorted(k for k, v in after.items() if len(v) > 1),
         "jumps": positioner.odometry_jumps,
         "reasons": reasons,
+        "cold_before": cold_before,
+        "cold_after": cold_after,
     }))
     """
 )
+
+#: whether a new process finds the cache cold
+_COLD = "from fuzzypos.pipeline.warm import kernels_cold; print(kernels_cold())"
 
 
 @pytest.mark.skipif(not compiled(), reason="the compiled kernels are off (FUZZYPOS_KERNELS)")
@@ -86,6 +94,13 @@ def test_after_warm_up_no_path_of_update_compiles_a_kernel(tmp_path) -> None:
     # one compiled version of each kernel: the update hands every kernel the same types (a
     # read-only array where it is otherwise writable would compile it, and its callees, again)
     assert out["twice"] == [], f"compiled for two sets of types: {out['twice']}"
+    # the cold cache was told (before warm_up), the warm one is not, in the next process too
+    assert out["cold_before"] is True and out["cold_after"] is False
+    again = subprocess.run(
+        [sys.executable, "-c", _COLD], capture_output=True, text=True, env=env, timeout=600
+    )
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert again.stdout.strip().splitlines()[-1] == "False"
 
 
 def test_every_kernels_cache_is_keyed_on_every_kernel_modules_source() -> None:
@@ -124,3 +139,31 @@ def test_the_sources_stamp_changes_with_any_kernel_module(tmp_path) -> None:
     (tmp_path / "b.py").write_text("y = 2\n")
     sources_stamp.cache_clear()
     assert sources_stamp(tmp_path) == before
+
+
+def test_a_runs_speed_figures_leave_out_the_kernels_compiling(tmp_path, monkeypatch) -> None:
+    """``run_log`` compiles the kernels before its clock starts: a warm-up of 2 s is in
+    ``compile_seconds``, not in the positioner's or the loop's seconds."""
+    from fuzzypos.pipeline import warm
+    from fuzzypos.run import run_log
+    from helpers import write_sim_log
+
+    warm.compile_kernels()  # the kernels really compiled (or loaded) in this process first
+    path = tmp_path / "sim.clf"
+    write_sim_log(path)
+
+    def slow_warm_up(config=None) -> float:
+        time.sleep(2.0)
+        return 2.0
+
+    monkeypatch.setattr(warm, "compiled", lambda: True)
+    monkeypatch.setattr(warm, "_compiled_in", None)  # as in a new process
+    monkeypatch.setattr(warm, "warm_up", slow_warm_up)
+    res = run_log(path, results_dir=tmp_path / "res", plot=False, hash_input=False)
+    s = json.loads((tmp_path / "res" / "summary.json").read_text())
+    assert 2.0 <= s["compile_seconds"] < 3.0 and res.compile_seconds == s["compile_seconds"]
+    assert s["positioner_seconds"] < 1.0 and s["seconds"] < 1.5, s
+    assert s["positioner_ms_per_scan"] < 1000.0 / s["scans"], s
+    # once per process: the next run compiles nothing
+    again = run_log(path, results_dir=tmp_path / "again", plot=False, hash_input=False)
+    assert again.summary["compile_seconds"] == 0.0

@@ -103,7 +103,7 @@ from .logs import (
 )
 from .no_returns import with_found_bands
 from .odometry_check import OdometryCoverage
-from .pipeline import Positioner, Reason
+from .pipeline import Positioner, Reason, warm
 from .provenance import file_sha256, git_hash, write_json
 from .scan import LaserScan
 
@@ -236,6 +236,8 @@ class RunSummary:
     #: with loop closure: each scan's pose as first output online, and the front end's
     online_poses: np.ndarray | None = None
     frontend_poses: np.ndarray | None = None
+    #: the kernels' compiling (or loading) before the first scan, not in the figures above
+    compile_seconds: float = 0.0
 
     @property
     def scans_per_second(self) -> float:
@@ -267,6 +269,7 @@ class _Track:
     reasons: dict[str, int] = field(default_factory=dict)
     positioner_seconds: float = 0.0
     seconds: float = 0.0
+    compile_seconds: float = 0.0
     #: what stopped the run before the end of the stretch (an error, Ctrl-C), and why
     stopped: BaseException | None = None
     partial_reason: str | None = None
@@ -532,6 +535,7 @@ def _summary(
         "scans_per_second": n / seconds if seconds > 0 else None,
         "positioner_seconds": track.positioner_seconds,
         "positioner_ms_per_scan": 1000.0 * track.positioner_seconds / n,
+        "compile_seconds": track.compile_seconds,
         "config": config,
         "bad_lines_skipped": log.bad_lines,
         "truncated": log.truncated,
@@ -589,13 +593,16 @@ def _finish(
     map_every: int,
     hash_input: bool,
     progress: Progress | None,
+    compile_seconds: float = 0.0,
 ) -> RunSummary:
     """After the loop: loop closure's final optimisation, the results folder
-    (``summary.json`` last), the run summed up. Each is a step (:class:`Steps`): one that
-    fails or is interrupted makes the run partial (``track.stopped``, ``partial_reason``) and
-    the rest is still done; where loop closure did not finish, its files are not written and
-    ``trajectory.tum`` and ``trajectory.clf`` hold the front end's poses."""
+    (``summary.json`` last), the run summed up (``compile_seconds``: the kernels' before the
+    loop). Each is a step (:class:`Steps`): one that fails or is interrupted makes the run
+    partial (``track.stopped``, ``partial_reason``) and the rest is still done; where loop
+    closure did not finish, its files are not written and ``trajectory.tum`` and
+    ``trajectory.clf`` hold the front end's poses."""
     jumps = int(positioner.odometry_jumps)
+    track.compile_seconds = compile_seconds
     notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
     steps = Steps(track.stopped, track.partial_reason, notes)
     n = len(track)
@@ -656,6 +663,7 @@ def _finish(
         odometry_jumps_rejected=jumps,
         seconds=track.seconds,
         positioner_seconds=track.positioner_seconds,
+        compile_seconds=track.compile_seconds,
         stamps=a.stamps,
         poses=a.poses,
         odometry=a.odometry,
@@ -688,6 +696,7 @@ def run_log(
     bag_out: str | os.PathLike[str] | None = None,
     bag_storage: str | None = None,
     save_map: bool = False,
+    compiling: Callable[[], contextlib.AbstractContextManager[object]] | None = None,
 ) -> RunSummary:
     """Position the robot along ``log`` (an :class:`~fuzzypos.logs.OpenLog`, or a path opened
     with :func:`~fuzzypos.logs.open_log`'s defaults) and write a results folder:
@@ -705,8 +714,9 @@ def run_log(
     ``start``, ``end``, ``max_scans`` choose a stretch (:func:`~fuzzypos.logs.select_records`).
     ``preset`` and ``config_file`` only label the configuration in ``summary.json``.
     ``relations``: also score the trajectory against them (``summary["relations"]``).
-    ``progress(done, total)`` is called every 25 scans and at the end (``total``: the scans
-    the stretch can have at most, when known: a bag's stretch by time is not).
+    ``progress(done, total)`` is called every 25 scans and at the end (``total``: the scans the
+    stretch can have at most, when known: a bag's stretch by time is not). The kernels compile
+    (or load) first, in ``compiling()`` if cold (:func:`~fuzzypos.pipeline.warm.compile_kernels`).
 
     ``summary.json`` holds: ``fuzzypos_version``, ``git_hash``
     (:func:`~fuzzypos.provenance.git_hash`), ``input`` (``path``, ``sha256``
@@ -714,7 +724,8 @@ def run_log(
     ``options``), ``selection``, ``scans``, ``scans_degraded``, ``reasons``, ``odometry_noise``
     (module docstring), ``odometry_jumps_rejected``, ``seconds`` (the whole loop: reading,
     positioning, writing), ``scans_per_second`` (``scans / seconds``), ``positioner_seconds``
-    and ``positioner_ms_per_scan`` (inside :meth:`Positioner.update` only), ``config``
+    and ``positioner_ms_per_scan`` (inside :meth:`Positioner.update` only), ``compile_seconds``
+    (the kernels' before the run, in neither), ``config``
     (``preset``, ``file``), ``bad_lines_skipped``, ``first_stamp``/``last_stamp``,
     ``has_odometry``, ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the
     estimate and of the odometry against the log's ``TRUEPOS``, where every scan has one; else
@@ -745,10 +756,8 @@ def run_log(
     log.check_stamps(**stretch)  # corrupt stamps: StampError
     total = _scans_in_stretch(log, start, end, max_scans) if progress is not None else None
     positioner = Positioner(cfg)
-    if cfg.loop_closure.enabled:
-        require_gtsam()  # before any output: a missing extra is a GraphDependencyError
     given = None if results_dir is None else Path(results_dir)
-    check_outputs(given, out_tum, bag_out)
+    compile_seconds = _before_the_run(cfg, given, out_tum, bag_out, compiling)
     folder = ResultsFolder.make(log.name, given, overwrite)
     with folder:  # locked by this run until it ends
         clf, outputs = _open_outputs(folder, log.name, bag_out, bag_storage)
@@ -764,9 +773,25 @@ def run_log(
             _finish, folder.path, log, cfg, track, clf, outputs, positioner=positioner,
             labels=_labels(stretch, preset, config_file, found, coverage), out_tum=out_tum,
             relations=relations, plot=plot, map_every=map_every, hash_input=hash_input,
-            progress=progress,
+            progress=progress, compile_seconds=compile_seconds,
         )  # fmt: skip
         return _keep(finish, folder, track, clf, outputs)
+
+
+def _before_the_run(
+    cfg: Config,
+    given: Path | None,
+    out_tum: str | os.PathLike[str] | None,
+    bag_out: str | os.PathLike[str] | None,
+    compiling: Callable[[], contextlib.AbstractContextManager[object]] | None,
+) -> float:
+    """Before any output: loop closure's extra (a missing one is a GraphDependencyError), the
+    output paths, then the kernels compiled (or loaded; inside ``compiling()`` where their cache
+    is cold) before the run's clock starts; returns the seconds that took."""
+    if cfg.loop_closure.enabled:
+        require_gtsam()
+    check_outputs(given, out_tum, bag_out)
+    return warm.compile_kernels(cfg, compiling)
 
 
 def _check_map_every(map_every: object) -> None:

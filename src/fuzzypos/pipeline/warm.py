@@ -5,12 +5,18 @@ machine code from the cache (``__pycache__`` beside the kernels)."""
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import math
+import pkgutil
 import time
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._kernels import compiled
 from ..config import Config
 from ..features import extract_features
 from ..geometry import Pose2D, compose
@@ -18,7 +24,7 @@ from ..matching import search_start, surface_points
 from ..scan import LaserScan
 from .positioner import Positioner
 
-__all__ = ["warm_up"]
+__all__ = ["compile_kernels", "kernels_cold", "warm_up"]
 
 FloatArray = NDArray[np.float64]
 
@@ -89,7 +95,7 @@ def warm_up(config: Config | None = None) -> float:
             surface, points, zero, zero, zero, max_distance=cfg.search.jump_distance,
             weak_prior=True,
         )  # fmt: skip
-    from .._kernels import compiled, f64
+    from .._kernels import f64
 
     if compiled():  # the CARMEN writer's and reader's ranges (fuzzypos.io.carmen*)
         from .._kernels.pipeline import move_surfaces
@@ -107,3 +113,53 @@ def warm_up(config: Config | None = None) -> float:
             np.array([0.1, 0.0, 0.02]), step, noise.covariance(step)
         )
     return time.perf_counter() - t0
+
+
+def kernels_cold() -> bool:
+    """Whether :func:`warm_up` will compile rather than load (quick: numba's cache indexes
+    read, nothing compiled): where some kernel module has no kernel whose cache index loads.
+    numba's index is stale, and reads as empty, where its module's file (size, time), the
+    kernels' sources (:func:`~fuzzypos._kernels._jit.sources_stamp`) or numba's version
+    changed; a kernel only ever called from another kernel keeps no index of its own, but
+    each module has one :func:`warm_up` calls from Python. False where the compiled kernels
+    are off, or numba's cache cannot be read so (not known to be cold)."""
+    if not compiled():
+        return False
+    from .. import _kernels
+
+    try:
+        for info in pkgutil.iter_modules(_kernels.__path__):
+            module = importlib.import_module(f"{_kernels.__name__}.{info.name}")
+            indexes = [
+                value._cache._cache_file
+                for value in vars(module).values()
+                if getattr(getattr(value, "py_func", None), "__module__", "") == module.__name__
+            ]
+            if indexes and not any(index._load_index() for index in indexes):
+                return True
+    except (AttributeError, OSError):  # another numba's cache, or none to read
+        return False
+    return False
+
+
+#: the seconds of this process's :func:`compile_kernels` (None: not yet)
+_compiled_in: float | None = None
+
+
+def compile_kernels(
+    config: Config | None = None,
+    announce: Callable[[], AbstractContextManager[object]] | None = None,
+) -> float:
+    """Compile (or load) every kernel once per process (:func:`warm_up`), inside
+    ``announce()`` where the cache is cold (:func:`kernels_cold`: its caller says why this
+    takes a while); returns the seconds it took, 0 after the first call and where the compiled
+    kernels are off."""
+    global _compiled_in
+    if _compiled_in is not None or not compiled():
+        return 0.0
+    t0 = time.perf_counter()
+    cold = announce is not None and kernels_cold()
+    with announce() if cold and announce is not None else contextlib.nullcontext():
+        warm_up(config)
+    _compiled_in = time.perf_counter() - t0
+    return _compiled_in
