@@ -160,3 +160,44 @@ def test_the_benchmark_table_keeps_every_number_at_80_columns() -> None:
             assert text.count(value) >= 2, (width, value, text)
         assert max(len(line) for line in text.splitlines()) <= width
     assert "3.348±5.123" in text  # (the wide layout)
+
+
+# -- the kernels compiling on first use ---------------------------------------------------------
+@pytest.mark.parametrize("cold", [True, False])
+def test_run_says_the_kernels_compile_only_where_the_cache_is_cold(
+    scored_log, tmp_path, monkeypatch, cold
+):
+    from fuzzypos._cli_help import COMPILING
+    from fuzzypos.pipeline import warm
+
+    warm.compile_kernels()  # compiled in this process: the warm-up below only pretends
+    calls: list[object] = []
+    monkeypatch.setattr(warm, "compiled", lambda: True)
+    monkeypatch.setattr(warm, "_compiled_in", None)
+    monkeypatch.setattr(warm, "kernels_cold", lambda: cold)
+    monkeypatch.setattr(warm, "warm_up", lambda config=None: calls.append(config) or 0.0)
+    path, _ = scored_log
+    res = runner.invoke(app, ["run", str(path), "--results", str(tmp_path / "res")])
+    assert res.exit_code == 0, res.output
+    assert len(calls) == 1  # compiled before the run, once
+    said = [ln for ln in res.stderr.splitlines() if ln == COMPILING]
+    assert said == ([COMPILING] if cold else []), res.stderr
+    assert COMPILING not in res.stdout
+    summary = json.loads((tmp_path / "res" / "summary.json").read_text())
+    assert summary["compile_seconds"] >= 0.0
+
+
+def test_demo_says_what_it_does_before_the_kernels_compile(tmp_path, monkeypatch):
+    from fuzzypos._cli_help import COMPILING
+    from fuzzypos.pipeline import warm
+
+    warm.compile_kernels()
+    monkeypatch.setattr(warm, "compiled", lambda: True)
+    monkeypatch.setattr(warm, "_compiled_in", None)
+    monkeypatch.setattr(warm, "kernels_cold", lambda: True)
+    monkeypatch.setattr(warm, "warm_up", lambda config=None: 0.0)
+    res = runner.invoke(app, ["demo", "--laps", "0.05", "--out", str(tmp_path / "demo")])
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    assert lines[0].startswith("fuzzypos demo: simulating"), lines
+    assert lines.index(COMPILING) > 0, lines

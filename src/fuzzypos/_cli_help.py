@@ -1,12 +1,17 @@
 """Part of the command line (:mod:`fuzzypos.cli`): its help as it is shown (the commands'
-classes), and ``--version``."""
+classes), ``--version``, ``run``'s map flags, and the notice while the kernels compile."""
 
 from __future__ import annotations
 
+import inspect
+from collections.abc import Iterator
+from contextlib import contextmanager, nullcontext
 from typing import Any
 
 import typer
+from rich.console import Console
 from rich.markup import escape
+from rich.progress import Progress
 from typer.core import TyperArgument, TyperCommand, TyperGroup
 
 from ._version import __version__
@@ -15,11 +20,14 @@ from .config import Config, ConfigError
 __all__ = [
     "BATCH_HELP",
     "BATCH_OPTIONS",
+    "COMPILING",
     "RUN_OPTIONS",
     "VERSION",
     "Command",
     "Group",
+    "compiling_shown",
     "escape_markup",
+    "finish_commands",
 ]
 
 
@@ -139,3 +147,42 @@ RUN_OPTIONS = {
         callback=_check_map_resolution,
     ),
 }
+
+
+def _unwrap(doc: str) -> str:
+    """A docstring as help text: the lines of each paragraph joined (typer's rich help keeps
+    the docstring's line breaks otherwise)."""
+    paragraphs = inspect.cleandoc(doc).split("\n\n")
+    return "\n\n".join(" ".join(p.split()) for p in paragraphs)
+
+
+def finish_commands(app: typer.Typer) -> None:
+    """Every command of ``app``: its help from its docstring, unwrapped (where not given), and
+    its class :class:`Command`."""
+    for command in app.registered_commands:
+        if command.help is None and command.callback is not None and command.callback.__doc__:
+            command.help = _unwrap(command.callback.__doc__)
+        if command.cls in (None, TyperCommand):
+            command.cls = Command
+
+
+#: said once, on stderr, where the kernels' cache is cold (before they compile)
+COMPILING = "compiling the kernels on first use (a minute or two; cached afterwards)…"
+
+
+@contextmanager
+def compiling_shown(console: Console, progress: Progress | None = None) -> Iterator[None]:
+    """While the kernels compile (``compiling`` of :func:`~fuzzypos.run.run_log`): the line
+    :data:`COMPILING` on ``console`` (stderr), then on a terminal a spinner: a task of
+    ``progress`` where that display is live (rich shows one live display at a time), else
+    the console's status."""
+    console.print(COMPILING, highlight=False, markup=False, soft_wrap=True)
+    if progress is None:
+        with console.status("compiling the kernels") if console.is_terminal else nullcontext():
+            yield
+        return
+    task = progress.add_task("compiling the kernels", total=None)
+    try:
+        yield
+    finally:
+        progress.remove_task(task)

@@ -6,7 +6,6 @@ code 2; nothing here does work the library could do.
 
 from __future__ import annotations
 
-import inspect
 import json
 import re
 import time
@@ -18,9 +17,16 @@ import typer
 from rich.console import Console
 from rich.progress import Progress, TaskID
 from rich.table import Table
-from typer.core import TyperCommand
 
-from ._cli_help import BATCH_HELP, BATCH_OPTIONS, RUN_OPTIONS, VERSION, Command, Group
+from ._cli_help import (
+    BATCH_HELP,
+    BATCH_OPTIONS,
+    RUN_OPTIONS,
+    VERSION,
+    Group,
+    compiling_shown,
+    finish_commands,
+)
 from ._cli_tables import (
     benchmark_table,
     found_rows,
@@ -103,10 +109,14 @@ def demo(
     believes in the circle); positions it with the default configuration and the paper
     preset; writes the paper's Figs. 13–20 and summary.json.
     """
+    console.print(f"fuzzypos demo: simulating {laps:g} laps of a 4 m circle in a gym, positioning "
+        f"with the paper preset and the default; figures into {out}/", highlight=False)  # fmt: skip
     from .demo import DemoSettings, run_demo
+    from .pipeline.warm import compile_kernels
 
     settings = DemoSettings(seed=seed, laps=laps)
     try:
+        compile_kernels(Config(), lambda: compiling_shown(err_console))
         with Progress(console=console, transient=True) as progress:
             tasks: dict[str, object] = {}
 
@@ -674,6 +684,7 @@ def run(
                     bag_storage=bag_storage,
                     relations=rel,
                     save_map=save_map,
+                    compiling=lambda: compiling_shown(err_console, progress),
                 )
     except (KeyboardInterrupt, SystemError) as exc:
         if not is_interrupt(exc):  # numba's SystemError around Ctrl-C is Ctrl-C
@@ -831,6 +842,7 @@ def benchmark(
                 result = run_benchmark(
                     data, out, max_scans=max_scans, progress=report, jobs=jobs,
                     loop_closure=loop_closure,
+                    compiling=lambda: compiling_shown(err_console, progress),
                 )  # fmt: skip
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
@@ -877,18 +889,7 @@ def batch(
     raise typer.Exit(code=1 if result.failed or result.refused else 0)
 
 
-def _unwrap(doc: str) -> str:
-    """A docstring as help text: the lines of each paragraph joined (typer's rich help keeps
-    the docstring's line breaks otherwise)."""
-    paragraphs = inspect.cleandoc(doc).split("\n\n")
-    return "\n\n".join(" ".join(p.split()) for p in paragraphs)
-
-
-for _command in app.registered_commands:  # every command's help from its docstring, unwrapped
-    if _command.help is None and _command.callback is not None and _command.callback.__doc__:
-        _command.help = _unwrap(_command.callback.__doc__)
-    if _command.cls in (None, TyperCommand):
-        _command.cls = Command
+finish_commands(app)  # every command's help from its docstring, unwrapped; usage lines
 
 
 def main() -> None:  # pragma: no cover - console entry point
