@@ -264,3 +264,37 @@ def test_ray_says_nothing_unless_verbose(tmp_path: Path) -> None:
         timeout=300, cwd=tmp_path,
     )  # fmt: skip
     assert loud.returncode == 0 and "INFO" in loud.stderr, loud.stderr
+
+
+def test_a_rows_seconds_leave_out_the_kernels_compiling(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A new worker compiles (or loads) the kernels once: a warm-up of 2 s is the row's
+    ``compile_seconds``, not part of its ``seconds``."""
+    import time
+
+    from fuzzypos.batch import _Run, _run_one
+    from fuzzypos.config import Config
+    from fuzzypos.pipeline import warm
+
+    warm.compile_kernels()
+    log = tmp_path / "sim.clf"
+    write_sim_log(log)
+
+    def slow_warm_up(config: Any = None) -> float:
+        time.sleep(2.0)
+        return 2.0
+
+    monkeypatch.setattr(warm, "compiled", lambda: True)
+    monkeypatch.setattr(warm, "_compiled_in", None)  # as in a new worker process
+    monkeypatch.setattr(warm, "warm_up", slow_warm_up)
+    run = _Run(str(log), Config(), "default", None, str(tmp_path / "out"), None, force=False)
+    t0 = time.perf_counter()
+    row = _run_one(run)
+    wall = time.perf_counter() - t0
+    assert row["status"] == "ok", row
+    assert 2.0 <= row["compile_seconds"] < 3.0
+    assert row["seconds"] == pytest.approx(wall - row["compile_seconds"], abs=0.2)
+    # the next run in this worker compiles nothing
+    again = _run_one(_Run(str(log), Config(), "default", None, str(tmp_path / "b"), None, False))
+    assert again["compile_seconds"] == 0.0

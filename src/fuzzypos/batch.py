@@ -8,7 +8,8 @@ that it cannot read, which is kept, to fail as a run.
 :func:`run_batch` runs each log with each configuration as a Ray task with one thread
 (:func:`~fuzzypos.run.run_log`, results in ``<out>/<log label>/<config name>/``) and writes
 ``<out>/batch.json`` as runs finish: a row per run with its ``status`` (``ok``, ``failed``,
-``skipped``, ``refused``), the error's first line (or why it was refused), ``seconds``,
+``skipped``, ``refused``), the error's first line (or why it was refused), ``seconds``
+(without ``compile_seconds``, the kernels' compiling or loading in a new worker process),
 ``scans``, ``scans_per_second``, the ``preset`` and ``loop_closure`` it ran with and the
 relations scores where a ``NAME.relations`` lies beside the log.
 
@@ -221,8 +222,12 @@ def _run_one(run: _Run) -> dict[str, Any]:
         except (ValueError, OSError) as exc:
             row.update(status="failed", error=_error_line(exc))
     summary = summary or {}
+    compiling = float(summary.get("compile_seconds") or 0.0)  # once per worker: not the run's
     row.update(
-        seconds=summary["seconds"] if row["status"] == "skipped" else time.perf_counter() - t0,
+        seconds=summary["seconds"]
+        if row["status"] == "skipped"
+        else time.perf_counter() - t0 - compiling,
+        compile_seconds=0.0 if row["status"] == "skipped" else compiling,
         scans=summary.get("scans"),
         scans_per_second=summary.get("scans_per_second"),
         relations=summary.get("relations"),
