@@ -7,6 +7,7 @@ LINT_PATHS := src tests benchmarks
 .PHONY: demo test bench lint clean
 
 $(STAMP): pyproject.toml
+	@echo 'fuzzypos: creating $(VENV) and installing fuzzypos and its dependencies (a few minutes, once)'
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test,lint]'
