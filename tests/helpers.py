@@ -159,7 +159,9 @@ class BagBuilder:
             **fields,
         )
 
-    def odom(self, t: float, pose: Sequence[float], child: str = "base_link") -> Any:
+    def odom(
+        self, t: float, pose: Sequence[float], child: str = "base_link", frame: str = "odom"
+    ) -> Any:
         T = self.T
         x, y, th = pose
         cov = np.zeros(36, dtype=np.float64)
@@ -168,7 +170,7 @@ class BagBuilder:
         )
         zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
         return T[ODOM](
-            header=self.header(t, "odom"),
+            header=self.header(t, frame),
             child_frame_id=child,
             pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=cov),
             twist=T["geometry_msgs/msg/TwistWithCovariance"](
@@ -249,6 +251,23 @@ def standard(
             msgs.append((topic, t + 0.005, b.scan(t, scan_ranges(k))))
     if odometry:
         msgs += [("/odom", t + 0.005, b.odom(t, truth(t))) for t in ODOM_T]
+    msgs.sort(key=lambda m: m[1])
+    return msgs
+
+
+def odd_frames(b: BagBuilder) -> list:
+    """A robot whose frames are not REP-105's names: odometry ``wheels`` → ``chassis``
+    (and a few messages with another child), ``world`` → ``wheels`` on /tf, the laser
+    mounted on the chassis."""
+    msgs: list = [("/tf_static", 0.0, b.tf([("chassis", "laser_mount", *MOUNT[0][2:]),
+                                             MOUNT[1]]))]  # fmt: skip
+    for k, t in enumerate(SCAN_T):
+        msgs.append(("/scan", t + 0.005, b.scan(t, scan_ranges(k))))
+    for k, t in enumerate(ODOM_T):
+        child = "chassis_old" if k % 10 == 5 else "chassis"
+        msgs.append(("/wheel_odom", t + 0.005, b.odom(t, truth(t), child=child, frame="wheels")))
+        if k % 4 == 0:
+            msgs.append(("/tf", t + 0.006, b.tf([("/world", "wheels", 1.0, 2.0, 0.5, 0.0)])))
     msgs.sort(key=lambda m: m[1])
     return msgs
 

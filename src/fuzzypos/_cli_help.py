@@ -125,7 +125,7 @@ def _check_map_resolution(value: float | None) -> float | None:
     return value
 
 
-#: ``fuzzypos run``'s map flags
+#: ``fuzzypos run``'s map and bag flags
 RUN_OPTIONS = {
     "loop_closure": typer.Option(
         "--loop-closure",
@@ -145,6 +145,32 @@ RUN_OPTIONS = {
         help="the map's cell size in metres (default [loop_closure] map_resolution, 0.05; "
         "0.01 to 10)",
         callback=_check_map_resolution,
+    ),
+    "bag_out": typer.Option(
+        "--bag-out",
+        help="also write the estimate into this new bag: nav_msgs/Odometry on /fuzzypos/odom "
+        "and odom → base on /tf; with --loop-closure the optimised poses on /fuzzypos/pose and "
+        "map → odom on /tf (a name ending .bag: ROS1, else a ROS2 directory); an existing path "
+        "is refused",
+        readable=False,
+    ),
+    "bag_storage": typer.Option(
+        "--bag-storage", help="ros1, sqlite3 or mcap (default: by --bag-out's name)"
+    ),
+    "base_frame": typer.Option(
+        "--base-frame",
+        help="--bag-out's robot frame (default: the input bag's odometry child_frame_id, else "
+        "base_link); a bag's laser mounting is looked up from it",
+    ),
+    "odom_frame": typer.Option(
+        "--odom-frame",
+        help="--bag-out's odometry frame (default: the input bag's odometry header.frame_id, "
+        "else odom)",
+    ),
+    "map_frame": typer.Option(
+        "--map-frame",
+        help="--bag-out's map frame (default: the odometry frame's parent on the input bag's "
+        "/tf, else map)",
     ),
 }
 

@@ -6,16 +6,20 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any
 
+import typer
 from rich import box
 from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
 if TYPE_CHECKING:
-    from .logs import LogInfo, NoReturnCount
+    from .io.bag_info import BagInfo, StreamInfo
+    from .logs import LogInfo, NoReturnCount, OpenLog
     from .no_returns import FoundNoReturn
 
 __all__ = [
+    "bag_overview",
+    "bag_tables",
     "benchmark_table",
     "found_rows",
     "loop_closure_lines",
@@ -218,3 +222,93 @@ def odometry_text(result: LogInfo) -> str:
     if result.has_odometry:
         return f"yes ({result.scans_with_odometry} scans); {missed} scans not covered (see note)"
     return f"none that covers the scans ({missed} scans not covered: see the note)"
+
+
+# -- info on a bag ---------------------------------------------------------------------------
+def _counts(counts: dict[str, int] | None, total: int) -> str:
+    """``laser`` where every message has it, else ``a (3), b (2)``."""
+    if not counts:
+        return ""
+    if len(counts) == 1 and next(iter(counts.values())) == total:
+        return next(iter(counts))
+    return ", ".join(f"{k or '(empty)'} ({n:,})" for k, n in counts.items())
+
+
+def _rate(s: StreamInfo) -> str:
+    if s.rate_hz is None:
+        return "–"
+    median = s.median_rate_hz
+    return f"{s.rate_hz:.2f} Hz" + ("" if median is None else f" (median {median:.2f})")
+
+
+def _span(s: StreamInfo) -> str:
+    if s.first_stamp is None or s.last_stamp is None or s.span_s is None:
+        return "–"
+    return f"{s.first_stamp!r} … {s.last_stamp!r} ({s.span_s:.1f} s)"
+
+
+def _pick_text(topic: str | None, candidates: list[str], kind: str, flag: str) -> str:
+    if topic is not None:
+        return topic if len(candidates) == 1 else f"{topic} ({flag}; of {', '.join(candidates)})"
+    if not candidates:
+        return f"none (no {kind} topic)"
+    return f"none: {len(candidates)} {kind} topics ({', '.join(candidates)}): pass {flag}"
+
+
+def bag_tables(info: BagInfo | None) -> list[Table]:
+    """``info``'s tables for a bag: its topics (with the frames, rate and span of the scan
+    and odometry topics), its transforms, and what fuzzypos reads and writes by default
+    (none for no bag)."""
+    if info is None:
+        return []
+    streams = {s.topic: s for s in info.streams}
+    topics = Table(title=f"{info.path}: ROS{info.ros_version} topics")
+    for col in ("topic", "type", "messages", "frame_id", "child_frame_id", "rate", "stamps"):
+        topics.add_column(col, justify="right" if col == "messages" else "left")
+    for t in info.topics:
+        s = streams.get(t.topic)
+        cells = ["", "", "", ""]
+        if s is not None:
+            children = _counts(s.child_frame_ids, s.messages)
+            cells = [_counts(s.frame_ids, s.messages), children, _rate(s), _span(s)]
+        topics.add_row(t.topic, t.msgtype or "(mixed types)", f"{t.messages:,}", *cells)
+    tables = [topics]
+    if info.tf:
+        tf = Table(title="transforms (tf2_msgs/TFMessage)")
+        for col in ("topic", "parent → child", "transforms"):
+            tf.add_column(col, justify="right" if col == "transforms" else "left")
+        for p in info.tf:
+            tf.add_row(p.topic, f"{p.parent} → {p.child}", f"{p.count:,}")
+        tables.append(tf)
+    picks = Table(title="fuzzypos's defaults", show_header=False)
+    picks.add_column("", style="bold")
+    picks.add_column("")
+    picks.add_row("scan topic", _pick_text(info.scan_topic, info.scan_candidates, "LaserScan",
+                                           "--scan-topic"))  # fmt: skip
+    picks.add_row("odometry topic", _pick_text(info.odom_topic, info.odom_candidates,
+                                               "Odometry", "--odom-topic"))  # fmt: skip
+    f = info.frames
+    for key, flag in (("base", "--base-frame"), ("odom", "--odom-frame"), ("map", "--map-frame")):
+        where = f.sources.get(key, "")
+        picks.add_row(f"run --bag-out {key} frame", f"{getattr(f, key)} ({where}; {flag})")
+    tables.append(picks)
+    return tables
+
+
+def bag_overview(log: OpenLog) -> BagInfo | None:
+    """``info``'s look into an opened bag (:func:`~fuzzypos.io.bag_info.describe_bag`, with
+    the topics its reader picked; :func:`bag_tables` shows it); None for a CARMEN log. An
+    error: one line, exit 2."""
+    from .io import BagReader
+    from .io.bag_info import describe_bag
+
+    reader = log.reader
+    if not isinstance(reader, BagReader):
+        return None
+    try:
+        info = describe_bag(reader.path, scan_topic=reader.scan_topic, odom_topic=reader.odom_topic)
+    except (ValueError, OSError) as exc:
+        typer.echo(f"fuzzypos: error: {' '.join(str(exc).split())}", err=True)
+        raise typer.Exit(code=2) from None
+    info.path = log.name
+    return info

@@ -1,5 +1,6 @@
 """The run job's streamed outputs (:mod:`fuzzypos.run`): ``covariance.csv`` and the bag,
-written scan by scan (:class:`_CovarianceOut`), and the steps after the loop
+written scan by scan (:class:`_CovarianceOut`; its frames: :func:`resolve_bag_frames`; loop
+closure's optimised poses appended at its end), and the steps after the loop
 (:class:`Steps`): each one that fails or is interrupted is noted and makes the run partial,
 and the others still run, so that what was done is kept."""
 
@@ -8,7 +9,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
@@ -16,8 +17,9 @@ from typing import Any, TypeVar
 import numpy as np
 
 from .geometry import Cov3Upper, covariance_to_parent3, propagate3
-from .io import OdometryBagWriter, OutputWriteError
+from .io import BagReader, OdometryBagWriter, OutputWriteError
 from .io._common import _naming
+from .io.bag_info import OutputFrames, output_frames, read_tf_pairs
 from .pipeline import Estimate
 
 __all__ = [
@@ -26,6 +28,7 @@ __all__ = [
     "STEP_COVARIANCE_COLUMNS",
     "Steps",
     "as_interrupt",
+    "resolve_bag_frames",
     "is_interrupt",
 ]
 
@@ -50,7 +53,12 @@ class _CovarianceOut:
     and no bag is asked for: then there is no ``covariance.csv`` (a note says so)."""
 
     def __init__(
-        self, out: Path, source: str, bag_out: str | os.PathLike[str] | None, storage: str | None
+        self,
+        out: Path,
+        source: str,
+        bag_out: str | os.PathLike[str] | None,
+        storage: str | None,
+        frames: OutputFrames | None = None,
     ) -> None:
         self.path, self.source = out / "covariance.csv", source
         self._tmp = out / ".covariance.csv.part"
@@ -58,7 +66,13 @@ class _CovarianceOut:
         self._reasons: dict[object, str] = {}  # reason → its CSV field
         self.has_covariance = True
         self.notes: list[str] = []
-        self.bag = None if bag_out is None else OdometryBagWriter(bag_out, storage)
+        self.frames = OutputFrames() if frames is None else frames
+        self.bag = None
+        if bag_out is not None:
+            f = self.frames
+            self.bag = OdometryBagWriter(
+                bag_out, storage, frame_id=f.odom, child_frame_id=f.base, map_frame_id=f.map
+            )
         self._bag_done = False
         self._pose_cov: Cov3Upper = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # in the pose's frame
         self._stamp = math.nan
@@ -144,12 +158,23 @@ class _CovarianceOut:
             raise
         return {"covariance.csv": self.path}
 
-    def close_bag(self, *, partial: bool = False) -> dict[str, Path]:
-        """Finish the bag; name → path where written. One that cannot be finished is removed:
+    def close_bag(
+        self,
+        *,
+        partial: bool = False,
+        optimised: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    ) -> dict[str, Path]:
+        """Finish the bag; name → path where written. ``optimised``: loop closure's
+        ``(stamps, optimised poses, front end's poses)``, appended first
+        (:meth:`~fuzzypos.io.OdometryBagWriter.write_optimised`; their covariance unknown:
+        the graph's marginals are not computed). One that cannot be finished is removed:
         noted in a ``partial`` run, else raised."""
         if self.bag is None:
             return {}
         try:
+            if optimised is not None:
+                for t, pose, front in zip(*optimised, strict=True):
+                    self.bag.write_optimised(float(t), pose, front)
             self.bag.close()
             self._bag_done = True
         except BaseException as exc:
@@ -159,6 +184,19 @@ class _CovarianceOut:
             self.notes.append(f"{self.bag.path}: not kept: {' '.join(str(exc).split())}")
             return {}
         return {"bag": self.bag.path}
+
+    def bag_summary(self) -> dict[str, Any] | None:
+        """``summary.json``'s ``bag_out``: the bag, its frames and topics (None: no bag)."""
+        if self.bag is None:
+            return None
+        b = self.bag
+        topics = {b.pose_topic: b.optimised_written} if b.optimised_written else {}
+        return {
+            "path": str(b.path),
+            "storage": b.storage,
+            "frames": self.frames.as_dict(),
+            "topics": {b.topic: b.written, "/tf": b.written + b.optimised_written, **topics},
+        }
 
     def close(self, *, partial: bool = False) -> dict[str, Path]:
         """Finish the files (:meth:`close_csv`, :meth:`close_bag`); name → path of those
@@ -174,6 +212,22 @@ class _CovarianceOut:
             self._tmp.unlink(missing_ok=True)
         if self.bag is not None and not self._bag_done:
             self.bag.abort()
+
+
+def resolve_bag_frames(reader: object, given: Mapping[str, str | None] | None) -> OutputFrames:
+    """The frames of ``run --bag-out`` (:func:`~fuzzypos.io.bag_info.output_frames`):
+    ``given`` (``"base"``, ``"odom"``, ``"map"`` → a name or None), else the input bag's (its
+    reader's base frame and odometry frames; ``/tf`` read where the map frame is not given),
+    else REP-105's."""
+    given = dict(given or {})
+    if not isinstance(reader, BagReader):
+        return output_frames(given)
+    if reader.base_frame != (reader.odom_child_frame or "base_link"):
+        given.setdefault("base", reader.base_frame)  # given to the reader: its estimate's frame
+    tf = read_tf_pairs(reader.path) if given.get("map") is None else []
+    return output_frames(
+        given, odom_frame=reader.odom_frame, odom_child=reader.odom_child_frame, tf=tf
+    )
 
 
 # -- after the loop --------------------------------------------------------------------------

@@ -28,6 +28,8 @@ from ._cli_help import (
     finish_commands,
 )
 from ._cli_tables import (
+    bag_overview,
+    bag_tables,
     benchmark_table,
     found_rows,
     loop_closure_lines,
@@ -303,6 +305,7 @@ def _open(
     max_range: float | None = None,
     convention: str = "auto",
     scan_rate: float | None = None,
+    base_frame: str | None = None,
 ) -> OpenLog:
     from .logs import open_log, parse_laser_offset
 
@@ -319,6 +322,7 @@ def _open(
             max_range=max_range,
             convention=convention,
             scan_rate_hz=scan_rate,
+            base_frame=base_frame,
         )
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
@@ -469,16 +473,17 @@ def info(
 ) -> None:
     """Describe a log (CARMEN, ROS1 bag or ROS2 bag): what it holds.
 
-    Reads the log once and prints its kind, scans, beam counts and angles, field of view,
-    duration (first and last stamp, and how often stamps go backwards), whether it has
-    odometry and truth (TRUEPOS), the malformed lines skipped, how many readings each
-    "no return" band of the configuration's scanner section (from --config) removes, and the
-    "no return" codes found in the readings (which a run adds to those bands).
+    A bag's topics first: each with its type and count, the scan and odometry topics' frames,
+    rates and stamps, the transforms on /tf and /tf_static, the topics and --bag-out frames
+    used by default. Then reads the log once and prints its kind, scans, beam counts and
+    angles, field of view, duration (first and last stamp, and how often stamps go
+    backwards), whether it has odometry and truth (TRUEPOS), the malformed lines skipped, how
+    many readings each "no return" band of the configuration's scanner section (from
+    --config) removes, and the "no return" codes found (which a run adds to those bands).
     """
     from .logs import describe_log
 
     scanner = _load_config("default", config_file).scanner
-
     opened = _open(
         log,
         scan_topic=scan_topic,
@@ -488,6 +493,7 @@ def info(
         convention=convention,
         scan_rate=scan_rate,
     )
+    bag = bag_overview(opened)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -505,7 +511,7 @@ def info(
         _fail(_error_text(exc))
     _print_warnings(caught)
     if json_out:
-        typer.echo(json.dumps(result.as_dict(), indent=2))
+        typer.echo(json.dumps(result.as_dict() | ({"bag": bag.as_dict()} if bag else {}), indent=2))
         return
     table = Table(title=f"{log}", show_header=False)
     table.add_column("", style="bold")
@@ -543,7 +549,7 @@ def info(
     ]
     for k, v in rows:
         table.add_row(k, v)
-    _wide().print(table)
+    _wide().print(*bag_tables(bag), table)  # a bag's topics, transforms and defaults first
     for note in result.notes:
         typer.echo(f"note: {note}", err=True)
 
@@ -598,20 +604,11 @@ def run(
     max_range: Annotated[float | None, _MAX_RANGE] = None,
     convention: Annotated[str, _CONVENTION] = "auto",
     scan_rate: Annotated[float | None, _SCAN_RATE] = None,
-    bag_out: Annotated[
-        Path | None,
-        typer.Option(
-            "--bag-out",
-            help="also write the estimate into this new bag: nav_msgs/Odometry on "
-            "/fuzzypos/odom and /tf (a name ending .bag: ROS1, else a ROS2 directory); "
-            "an existing path is refused",
-            readable=False,
-        ),
-    ] = None,
-    bag_storage: Annotated[
-        str | None,
-        typer.Option("--bag-storage", help="ros1, sqlite3 or mcap (default: by --bag-out's name)"),
-    ] = None,
+    bag_out: Annotated[Path | None, RUN_OPTIONS["bag_out"]] = None,
+    bag_storage: Annotated[str | None, RUN_OPTIONS["bag_storage"]] = None,
+    base_frame: Annotated[str | None, RUN_OPTIONS["base_frame"]] = None,
+    odom_frame: Annotated[str | None, RUN_OPTIONS["odom_frame"]] = None,
+    map_frame: Annotated[str | None, RUN_OPTIONS["map_frame"]] = None,
     loop_closure: Annotated[bool, RUN_OPTIONS["loop_closure"]] = False,
     save_map: Annotated[bool, RUN_OPTIONS["save_map"]] = False,
     map_resolution: Annotated[float | None, RUN_OPTIONS["map_resolution"]] = None,
@@ -635,7 +632,8 @@ def run(
     odometry jumps, speed, errors against the log's truth where it has some, the scans per
     reason, the learned odometry noise), and covariance.csv (each scan's step and pose
     covariance, reason and whether degraded).
-    --bag-out also writes the estimate with its covariance into a bag. Prints the scan rate
+    --bag-out also writes the estimate with its covariance into a bag (REP-105 frames,
+    --base-frame, --odom-frame, --map-frame). Prints the scan rate
     and where the results are. A run stopped by an error or Ctrl-C keeps the scans done,
     marked "partial" in summary.json.
     """
@@ -646,8 +644,12 @@ def run(
     lc: dict[str, object] = {"enabled": True} if loop_closure else {}
     lc |= {} if map_resolution is None else {"map_resolution": map_resolution}
     cfg = cfg.with_overrides({"loop_closure": lc})
+    frames = {"base": base_frame, "odom": odom_frame, "map": map_frame}
+    if bag_out is None and any(frames.values()):
+        _fail("--base-frame, --odom-frame and --map-frame name --bag-out's frames: give --bag-out")
     opened = _open(
         log,
+        base_frame=base_frame,
         scan_topic=scan_topic,
         odom_topic=odom_topic,
         laser_offset=laser_offset,
@@ -682,6 +684,7 @@ def run(
                     config_file=config_file,
                     bag_out=bag_out,
                     bag_storage=bag_storage,
+                    bag_frames=frames,
                     relations=rel,
                     save_map=save_map,
                     compiling=lambda: compiling_shown(err_console, progress),

@@ -319,6 +319,7 @@ def open_log(
     max_range: float | None = None,
     convention: str = "auto",
     scan_rate_hz: float | None = None,
+    base_frame: str | None = None,
 ) -> OpenLog:
     """Open a CARMEN log or a ROS1/ROS2 bag, telling which by content (module docstring).
 
@@ -330,8 +331,9 @@ def open_log(
     odometry fields; ``"interpolated"``: the ODOM stream at the scan's stamp),
     ``field_of_view_deg``, ``max_range``, ``convention`` and ``laser_offset``
     (:class:`~fuzzypos.io.CarmenReader`). Bags take ``scan_topic``, ``odom_topic`` and
-    ``laser_offset`` (:class:`~fuzzypos.io.BagReader`; their odometry is always the odometry
-    topic interpolated at the scan's stamp). An option given that does not apply to the kind
+    ``laser_offset`` and ``base_frame`` (the robot's frame, whose pose is estimated:
+    :class:`~fuzzypos.io.BagReader`; their odometry is always the odometry topic interpolated
+    at the scan's stamp). An option given that does not apply to the kind
     found is ignored with a note in :attr:`OpenLog.notes`.
 
     Raises :class:`FileNotFoundError` for a missing path, :class:`UnknownLogError` for what
@@ -383,7 +385,11 @@ def open_log(
         for what in ignored:
             notes.append(f"{what}: applies to CARMEN logs only; ignored for this bag")
         reader = BagReader(
-            path, scan_topic=scan_topic, odom_topic=odom_topic, laser_offset=laser_offset
+            path,
+            scan_topic=scan_topic,
+            odom_topic=odom_topic,
+            laser_offset=laser_offset,
+            base_frame=base_frame,
         )
         notes.extend(reader.notes)
         options.update(

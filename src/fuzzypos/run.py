@@ -44,11 +44,14 @@ after the loop a :class:`~fuzzypos._run_outputs.Steps` step.
 
 With ``bag_out=`` the estimate also goes into a bag as it runs (:class:`_CovarianceOut`,
 :class:`~fuzzypos.io.OdometryBagWriter`): ``nav_msgs/Odometry`` on ``/fuzzypos/odom`` and
-``/tf``. The pose's covariance is the increments' propagated from the first scan
-(:func:`~fuzzypos.geometry.propagate`; the first pose's covariance is the first estimate's),
-turned into the ``odom`` frame (:func:`~fuzzypos.geometry.covariance_to_parent`); the twist
-is the increment over the time since the previous scan (its covariance the increment's over
-dt²), zero with unknown covariance at the first scan and where dt <= 0.
+``/tf`` (odom → base), in REP-105 frames (``bag_frames``, else the input bag's, else
+``base_link``, ``odom``, ``map``; ``summary.json``'s ``bag_out``). The pose's covariance is
+the increments' propagated from the first scan (:func:`~fuzzypos.geometry.propagate`; the
+first pose's covariance is the first estimate's), turned into the odom frame
+(:func:`~fuzzypos.geometry.covariance_to_parent`); the twist is the increment over the time
+since the previous scan (its covariance the increment's over dt²), zero with unknown
+covariance at the first scan and where dt <= 0. With loop closure the optimised poses follow
+on ``/fuzzypos/pose`` (map frame) with map → odom on ``/tf``.
 
 Memory stays small on long logs: only the stamps and poses (estimate, odometry, truth)
 and the points of every ``map_every``-th scan are kept, never the scans.
@@ -61,7 +64,7 @@ import functools
 import math
 import os
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -77,6 +80,7 @@ from ._run_outputs import (
     as_interrupt,
     is_interrupt,
     one_line,
+    resolve_bag_frames,
 )
 from ._version import __version__
 from .config import Config
@@ -93,6 +97,7 @@ from .geometry import Pose2D
 from .graph import LoopClosureResult, OnlineMapper, require_gtsam
 from .graph.occupancy import MapScans, map_grid
 from .io import CarmenWriter, LogRecord, Relations, write_text_file, write_tum
+from .io.bag_info import OutputFrames
 from .logs import (
     OpenLog,
     empty_stretch,
@@ -440,6 +445,7 @@ def _write_results(
     ``out_tum``, which a partial run does not get. ``loop``: loop closure's result, whose
     poses ``a.poses`` are and ``trajectory.clf`` then carries."""
     files: dict[str, Path] = {}
+    optimised = None if loop is None else (a.stamps, loop.poses, loop.frontend)
 
     def tum() -> dict[str, Path]:
         what = "part of the" if steps.partial else "the"
@@ -478,7 +484,7 @@ def _write_results(
     for what, write, whole_runs_only in (
         ("trajectory.tum", tum, False),
         ("covariance.csv", outputs.close_csv, False),
-        ("the bag", lambda: outputs.close_bag(partial=steps.partial), False),
+        ("the bag", lambda: outputs.close_bag(partial=steps.partial, optimised=optimised), False),
         (os.fspath(out_tum or ""), out_file if out_tum is not None else None, True),
         ("trajectory.clf", trajectory_clf, False),
         ("config.toml", config_toml, False),
@@ -572,7 +578,8 @@ def _final_optimisation(track: _Track, steps: Steps) -> tuple[_Arrays, LoopClosu
     steps.notes.append(
         "loop closure: trajectory.tum holds the optimised poses (trajectory_frontend.tum "
         "the front end's, trajectory_online.tum each scan's as first output online) and "
-        "so does trajectory.clf; covariance.csv and the bag are the front end's"
+        "so does trajectory.clf; covariance.csv and the bag's odometry are the front end's "
+        "(a bag gets the optimised poses and map -> odom too)"
     )
     return replace(a, poses=loop.poses), loop
 
@@ -645,6 +652,7 @@ def _finish(
         odometry_noise=positioner.odometry_noise.as_dict(),
     )
     summary["no_return_values_found"] = labels["no_return_values_found"]
+    summary["bag_out"] = outputs.bag_summary()
     coverage = labels["odometry_coverage"]
     summary["odometry_coverage"] = coverage.as_dict()
     if coverage.note() is not None and coverage.note() not in notes:
@@ -695,6 +703,7 @@ def run_log(
     hash_input: bool = True,
     bag_out: str | os.PathLike[str] | None = None,
     bag_storage: str | None = None,
+    bag_frames: Mapping[str, str | None] | None = None,
     save_map: bool = False,
     compiling: Callable[[], contextlib.AbstractContextManager[object]] | None = None,
 ) -> RunSummary:
@@ -702,14 +711,13 @@ def run_log(
     with :func:`~fuzzypos.logs.open_log`'s defaults) and write a results folder:
     ``trajectory.tum``, ``trajectory.clf``, ``config.toml``, ``path.png`` (unless
     ``plot=False``) and ``summary.json`` and ``covariance.csv`` (module docstring); with
-    ``save_map``, the occupancy map from the front end's poses (:mod:`fuzzypos.graph.occupancy`;
-    loop closure's own is drawn from its optimised poses).
+    ``save_map``, the front end's occupancy map (:mod:`fuzzypos.graph.occupancy`).
     ``results_dir``: the folder (one holding another run's results is a
     :class:`~fuzzypos.folders.ResultsFolderError` unless ``overwrite`` clears it); None: a new
     ``results/<log>/<date-time>/`` (:mod:`fuzzypos.folders`). ``out_tum``: also write the
-    trajectory there. ``bag_out``: also write the estimate into a new bag there (an existing
-    path is a :class:`FileExistsError`; ``bag_storage``: ``"ros1"``, ``"sqlite3"``, ``"mcap"``
-    or None, :func:`~fuzzypos.io.rosbag_write.bag_storage_for`). All checked before the run.
+    trajectory there. ``bag_out``: also write the estimate into a new bag there (module
+    docstring; an existing path is a :class:`FileExistsError`), ``bag_storage`` and
+    ``bag_frames`` (:func:`~fuzzypos._run_outputs.resolve_bag_frames`). All checked first.
 
     ``start``, ``end``, ``max_scans`` choose a stretch (:func:`~fuzzypos.logs.select_records`).
     ``preset`` and ``config_file`` only label the configuration in ``summary.json``.
@@ -725,16 +733,16 @@ def run_log(
     (module docstring), ``odometry_jumps_rejected``, ``seconds`` (the whole loop: reading,
     positioning, writing), ``scans_per_second`` (``scans / seconds``), ``positioner_seconds``
     and ``positioner_ms_per_scan`` (inside :meth:`Positioner.update` only), ``compile_seconds``
-    (the kernels' before the run, in neither), ``config``
-    (``preset``, ``file``), ``bad_lines_skipped``, ``first_stamp``/``last_stamp``,
+    (the kernels' before the run, in neither), ``config`` (``preset``, ``file``),
+    ``bad_lines_skipped``, ``first_stamp``/``last_stamp``,
     ``has_odometry``, ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the
     estimate and of the odometry against the log's ``TRUEPOS``, where every scan has one; else
     None), ``relations`` (or None), ``no_return_values_found``, ``notes``, ``files``, and
     ``partial`` (False) with ``partial_reason`` (None), ``scan_rate_hz`` (the log's
     :attr:`~fuzzypos.logs.OpenLog.scan_rate_hz`), ``odometry_coverage``
     (:meth:`~fuzzypos.odometry_check.OdometryCoverage.as_dict`: the scans the odometry does
-    not cover are positioned without it, with a note). Loop closure (online, ``OnlineMapper``):
-    the optimised poses, ``loop_closure`` with ``relations_frontend`` and ``relations_online``.
+    not cover are positioned without it, with a note), ``bag_out`` (the bag's frames and
+    topics, or None). Loop closure: ``loop_closure``, the optimised poses.
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
     log) or ``OSError`` (an output path refused before the run:
@@ -743,9 +751,8 @@ def run_log(
     (numba's ``SystemError`` around one too) after some scans is raised once what was done is
     written (``"partial": true``, ``"partial_reason"``: ``"interrupted at scan N"``, ``"failed
     at scan N: …"``, or after the loop ``"interrupted in loop closure's final optimisation"``,
-    ``"failed while writing F: cannot write F: No space left on device"`` …; no ``path.png`` or
-    ``out_tum`` after it; their :class:`RunSummary`: :func:`partial_results`); before the
-    first, nothing is kept.
+    ``"failed while writing F: No space left on device"`` …; no ``path.png`` or ``out_tum``
+    after it; their :class:`RunSummary`: :func:`partial_results`); before it, nothing kept.
     """
     if not isinstance(log, OpenLog):
         log = open_log(log)
@@ -757,10 +764,11 @@ def run_log(
     total = _scans_in_stretch(log, start, end, max_scans) if progress is not None else None
     positioner = Positioner(cfg)
     given = None if results_dir is None else Path(results_dir)
+    frames = None if bag_out is None else resolve_bag_frames(log.reader, bag_frames)
     compile_seconds = _before_the_run(cfg, given, out_tum, bag_out, compiling)
     folder = ResultsFolder.make(log.name, given, overwrite)
     with folder:  # locked by this run until it ends
-        clf, outputs = _open_outputs(folder, log.name, bag_out, bag_storage)
+        clf, outputs = _open_outputs(folder, log.name, bag_out, bag_storage, frames)
         track = _position_along(
             records, positioner, clf, outputs, plot, map_every, progress, total, save_map
         )
@@ -831,14 +839,18 @@ def _survey(log: OpenLog, cfg: Config) -> tuple[Config, list[dict[str, Any]], Od
 
 
 def _open_outputs(
-    folder: ResultsFolder, source: str, bag_out: str | os.PathLike[str] | None, storage: str | None
+    folder: ResultsFolder,
+    source: str,
+    bag_out: str | os.PathLike[str] | None,
+    storage: str | None,
+    frames: OutputFrames | None = None,
 ) -> tuple[CarmenWriter, _CovarianceOut]:
     """The streamed outputs of a run: ``trajectory.clf``, ``covariance.csv`` and the bag (on
     failure, none, and the folders the run created are removed)."""
     clf: CarmenWriter | None = None
     try:
         clf = CarmenWriter(folder.path / "trajectory.clf", estimate_of=source)
-        return clf, _CovarianceOut(folder.path, source, bag_out, storage)
+        return clf, _CovarianceOut(folder.path, source, bag_out, storage, frames)
     except BaseException:
         if clf is not None:
             clf.abort()

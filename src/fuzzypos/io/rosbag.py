@@ -117,6 +117,7 @@ __all__ = [
     "interpolate_poses",
     "is_ros1_bag",
     "is_ros2_bag",
+    "open_bag",
     "read_bag",
 ]
 
@@ -296,6 +297,41 @@ class _Bag:
         return out
 
 
+def open_bag(path: PathLike, stack: ExitStack, name: str | None = None) -> _Bag:
+    """Open the bag at ``path`` (closed with ``stack``), sniffing its kind from the content:
+    :class:`FileNotFoundError` where nothing is there (``name``: how to call it), else
+    :class:`BagFormatError` for what is no bag or a bag ``rosbags`` cannot open."""
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{name or p}: no such file or directory")
+    if is_ros1_bag(p):
+        is2 = False
+    elif is_ros2_bag(p):
+        is2 = True
+    else:
+        what = "a directory without metadata.yaml" if p.is_dir() else "a file"
+        raise BagFormatError(
+            path,
+            0,
+            f"not a bag: {what} that is neither a ROS1 bag (starting with "
+            f"{ROS1_MAGIC.decode()!r}) nor a ROS2 bag directory (holding metadata.yaml)",
+        )
+    try:
+        reader: Reader1 | Reader2 = Reader2(p) if is2 else Reader1(p)
+        reader.open()
+    except _READ_ERRORS as exc:
+        hint = (
+            " (a truncated or unindexed ROS1 bag: `rosbag reindex` may repair it)"
+            if not is2 and "index" in str(exc).lower()
+            else ""
+        )
+        raise BagFormatError(
+            path, 0, f"cannot open the {'ROS2' if is2 else 'ROS1'} bag: {exc}{hint}"
+        ) from exc
+    stack.callback(reader.close)
+    return _Bag(reader, is2)
+
+
 def _typestore(connections: Sequence[Connection], is2: bool) -> Any:
     """A typestore for the messages of ``connections``: the definitions the bag stores for
     them (as AnyReader reads them), else the Noetic/Humble ones."""
@@ -334,7 +370,9 @@ class BagReader:
       ``scan_count`` (messages on it, from the bag's index), :meth:`scan_stamps`;
     - ``odom_topic`` (None without odometry), ``has_odometry``, ``odometry_stamps`` ``(m,)``
       and ``odometry_poses`` ``(m, 3)`` (sorted by stamp; read-only);
-    - ``base_frame``, ``scan_frame`` (of the first scan), ``sensor_pose`` (the mounting pose
+    - ``base_frame``, ``odom_frame`` and ``odom_child_frame`` (the odometry's
+      ``header.frame_id`` and ``child_frame_id``, None without them),
+      ``scan_frame`` (of the first scan), ``sensor_pose`` (the mounting pose
       of ``scan_frame``) and ``sensor_pose_source`` (``"laser_offset"``, ``"tf_static"`` or
       ``"identity"``);
     - ``notes``: what the reader assumed or found odd, as sentences.
@@ -401,6 +439,7 @@ class BagReader:
                 f"{why}: every record has odometry=None and the positioner runs without an "
                 "odometry prior"
             )
+        self.odom_child_frame = None if child_frame is None else _frame(child_frame)
         self.base_frame = _frame(base_frame or child_frame or DEFAULT_BASE_FRAME)
         self.sensor_pose_source = "identity" if laser_offset is None else "laser_offset"
         if self.scan_frame is not None:
@@ -425,33 +464,7 @@ class BagReader:
 
     def _open(self, stack: ExitStack) -> _Bag:
         """Open the bag (closed with ``stack``), sniffing its kind from the content."""
-        p = Path(self.path)
-        if not p.exists():
-            raise FileNotFoundError(f"{self.name}: no such file or directory")
-        if is_ros1_bag(p):
-            is2 = False
-        elif is_ros2_bag(p):
-            is2 = True
-        else:
-            what = "a directory without metadata.yaml" if p.is_dir() else "a file"
-            raise self._error(
-                f"not a bag: {what} that is neither a ROS1 bag (starting with "
-                f"{ROS1_MAGIC.decode()!r}) nor a ROS2 bag directory (holding metadata.yaml)"
-            )
-        try:
-            reader: Reader1 | Reader2 = Reader2(p) if is2 else Reader1(p)
-            reader.open()
-        except _READ_ERRORS as exc:
-            hint = (
-                " (a truncated or unindexed ROS1 bag: `rosbag reindex` may repair it)"
-                if not is2 and "index" in str(exc).lower()
-                else ""
-            )
-            raise self._error(
-                f"cannot open the {'ROS2' if is2 else 'ROS1'} bag: {exc}{hint}"
-            ) from exc
-        stack.callback(reader.close)
-        return _Bag(reader, is2)
+        return open_bag(self.path, stack, self.name)
 
     def _pick(
         self,
@@ -562,6 +575,7 @@ class BagReader:
         child_frame: str | None = None
         zero = 0
         self.scan_frame: str | None = None
+        self.odom_frame: str | None = None  # the odometry's header.frame_id (its first message)
         scan_topics = {c.topic for c in scan_conns}
         for conn, t_ns, raw, k in self._raw_messages(bag, [*odom_conns, *tf_conns, *scan_conns]):
             if conn.topic in scan_topics:
@@ -588,6 +602,8 @@ class BagReader:
                     raise self._error(f"odometry not finite: stamp {t}, pose {pose}", k, conn.topic)
                 if child_frame is None and msg.child_frame_id:
                     child_frame = str(msg.child_frame_id)
+                if self.odom_frame is None and msg.header.frame_id:
+                    self.odom_frame = _frame(str(msg.header.frame_id))
             stamps.append(t)
             poses.append(pose)
         self._scan_stamps = np.asarray(scan_stamps, dtype=np.float64)

@@ -4,17 +4,28 @@
 (a directory, sqlite3 or mcap storage) through the ``rosbags`` package's writers: memory
 stays flat however long the trajectory.
 
-Each :meth:`OdometryBagWriter.write` adds, with the record time = the stamp:
+The frames follow REP-105 and are named by the caller: ``frame_id`` (the odometry frame,
+default ``odom``), ``child_frame_id`` (the robot's base, default ``base_link``) and
+``map_frame_id`` (default ``map``). Each :meth:`OdometryBagWriter.write` adds, with the record
+time = the stamp:
 
-- on ``/fuzzypos/odom`` (``topic=``) a ``nav_msgs/msg/Odometry``: ``header.frame_id``
-  ``odom``, ``child_frame_id`` ``base_link``; ``pose.pose`` the pose (z = 0, the quaternion of
-  the yaw), ``pose.covariance`` the 6×6 (:func:`covariance6`) of the pose's 3×3 covariance,
-  which the caller gives in the header's frame (``odom``) as ROS expects;
-  ``twist.twist`` the velocity (linear x, y in ``base_link``, angular z) and
+- on ``/fuzzypos/odom`` (``topic=``) a ``nav_msgs/msg/Odometry``: ``header.frame_id`` the
+  odometry frame, ``child_frame_id`` the base; ``pose.pose`` the pose (z = 0, the quaternion
+  of the yaw), ``pose.covariance`` the 6×6 (:func:`covariance6`, ROS's order x, y, z, roll,
+  pitch, yaw) of the pose's 3×3 covariance, which the caller gives in the header's frame as
+  ROS expects; ``twist.twist`` the velocity (linear x, y in the base frame, angular z) and
   ``twist.covariance`` the 6×6 of its 3×3 (unknown when None: every variance
   :data:`UNUSED_VARIANCE`);
-- on ``/tf`` a ``tf2_msgs/msg/TFMessage`` with one ``odom`` → ``base_link`` transform, the
-  same pose.
+- on ``/tf`` a ``tf2_msgs/msg/TFMessage`` with one odometry frame → base transform, the same
+  pose (continuous, as REP-105 wants the odometry frame).
+
+Each :meth:`OdometryBagWriter.write_optimised` (loop closure's poses, known at the end of a
+run and written after the stream above, stamped as their scans) adds:
+
+- on ``/fuzzypos/pose`` (``pose_topic=``) a ``geometry_msgs/msg/PoseWithCovarianceStamped``
+  in the map frame: the optimised pose, its 6×6 covariance (unknown when None);
+- on ``/tf`` one map → odometry frame transform, ``optimised ∘ front_end⁻¹``: composed with
+  the odometry frame → base transform of the same stamp it gives the optimised pose.
 
 Messages carry Noetic (ROS1) or Humble (ROS2) definitions, stored in the bag. The kind is
 :func:`bag_storage_for`: ``"ros1"`` for a path ending ``.bag``, else ``"sqlite3"``, unless
@@ -45,12 +56,13 @@ from rosbags.rosbag2 import Writer as Writer2
 from rosbags.rosbag2 import WriterError as WriterError2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from ..geometry import Pose2D
+from ..geometry import Pose2D, compose, inverse
 from ._common import FloatArray, LogFormatError, PathLike
 
 __all__ = [
     "BAG_STORAGES",
     "ODOM_OUT_TOPIC",
+    "POSE_OUT_TOPIC",
     "TF_TOPIC",
     "UNUSED_VARIANCE",
     "BagWriteError",
@@ -62,6 +74,8 @@ __all__ = [
 #: the kinds of bag :class:`OdometryBagWriter` writes
 BAG_STORAGES = ("ros1", "sqlite3", "mcap")
 ODOM_OUT_TOPIC = "/fuzzypos/odom"
+#: where :meth:`OdometryBagWriter.write_optimised` puts the optimised poses
+POSE_OUT_TOPIC = "/fuzzypos/pose"
 TF_TOPIC = "/tf"
 #: the variance of an axis the estimate says nothing about (z, roll, pitch; unknown twists)
 UNUSED_VARIANCE = 1e6
@@ -70,6 +84,7 @@ _ROS_AXES = (0, 1, 5)
 
 _ODOM = "nav_msgs/msg/Odometry"
 _TF = "tf2_msgs/msg/TFMessage"
+_POSE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 _WRITER_ERRORS = (WriterError1, WriterError2)
 
 
@@ -119,8 +134,9 @@ class OdometryBagWriter:
     """Stream an estimated trajectory into a new bag at ``path`` (module docstring).
 
     ``storage``: ``"ros1"``, ``"sqlite3"`` or ``"mcap"``, or None to choose by the name
-    (:func:`bag_storage_for`). ``written`` counts the poses written. Use as a context
-    manager, or call :meth:`close` (or :meth:`abort`) at the end.
+    (:func:`bag_storage_for`). ``written`` counts the poses written, ``optimised_written``
+    the optimised ones. Use as a context manager, or call :meth:`close` (or :meth:`abort`)
+    at the end.
     """
 
     def __init__(
@@ -131,6 +147,8 @@ class OdometryBagWriter:
         topic: str = ODOM_OUT_TOPIC,
         frame_id: str = "odom",
         child_frame_id: str = "base_link",
+        map_frame_id: str = "map",
+        pose_topic: str = POSE_OUT_TOPIC,
     ) -> None:
         self.path = Path(path)
         self.storage = bag_storage_for(path, storage)
@@ -139,7 +157,9 @@ class OdometryBagWriter:
                 errno.EEXIST, "exists already; a bag is never overwritten", os.fspath(path)
             )
         self.frame_id, self.child_frame_id = frame_id, child_frame_id
-        self.written = 0
+        self.map_frame_id, self.topic, self.pose_topic = map_frame_id, topic, pose_topic
+        self.written = self.optimised_written = 0
+        self._pose: Any = None  # the optimised poses' connection, added with the first
         self._ros1 = self.storage == "ros1"
         self._store = _typestore(self._ros1)
         self._T = self._store.types
@@ -170,10 +190,11 @@ class OdometryBagWriter:
             self.abort()
 
     # -- messages ----------------------------------------------------------------------------
-    def _header(self, sec: int, nsec: int, frame: str) -> Any:
+    def _header(self, sec: int, nsec: int, frame: str, seq: int | None = None) -> Any:
         stamp = self._T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
         if self._ros1:
-            return self._T["std_msgs/msg/Header"](seq=self.written, stamp=stamp, frame_id=frame)
+            seq = self.written if seq is None else seq
+            return self._T["std_msgs/msg/Header"](seq=seq, stamp=stamp, frame_id=frame)
         return self._T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
 
     def _vector(self, x: float, y: float, z: float) -> Any:
@@ -271,6 +292,63 @@ class OdometryBagWriter:
         except _WRITER_ERRORS as exc:
             raise self._fail(f"cannot write: {exc}") from exc
         self.written += 1
+
+    def _optimised_messages(
+        self, when: tuple[int, int], pose: tuple[float, ...], correction: FloatArray, cov: Any
+    ) -> tuple[Any, Any]:
+        T, seq = self._T, self.optimised_written
+        x, y, th = pose
+        p = T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0), orientation=self._quat(th)
+        )
+        stamped = T[_POSE](
+            header=self._header(*when, self.map_frame_id, seq),
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=cov),
+        )
+        cx, cy, cth = (float(v) for v in correction)
+        transform = T["geometry_msgs/msg/TransformStamped"](
+            header=self._header(*when, self.map_frame_id, seq),
+            child_frame_id=self.frame_id,
+            transform=T["geometry_msgs/msg/Transform"](
+                translation=self._vector(cx, cy, 0.0), rotation=self._quat(cth)
+            ),
+        )
+        return stamped, T[_TF](transforms=[transform])
+
+    def write_optimised(
+        self,
+        stamp: float,
+        pose: Pose2D | Sequence[float],
+        frontend_pose: Pose2D | Sequence[float],
+        pose_cov3: ArrayLike | None = None,
+    ) -> None:
+        """Add one optimised pose at ``stamp``: ``pose`` ``(x, y, θ)`` in the map frame, the
+        front end's pose ``frontend_pose`` of the same scan (in the odometry frame, as given
+        to :meth:`write`) and the optimised pose's 3×3 covariance in the map frame (None:
+        unknown). Writes the pose and the map → odometry frame transform
+        ``pose ∘ frontend_pose⁻¹`` (module docstring)."""
+        if not self._open:
+            raise ValueError(f"{self.path}: the bag writer is closed")
+        t = float(stamp)
+        if not math.isfinite(t) or t < 0.0:
+            raise self._fail(f"the stamp must be a finite number >= 0 s, got {stamp!r}")
+        p = self._triple(pose, "the optimised pose")
+        f = self._triple(frontend_pose, "the front end's pose")
+        cov = self._cov(pose_cov3, "the optimised pose's covariance", False)
+        correction = compose(np.asarray(p), inverse(np.asarray(f)))
+        sec, nsec = _split_stamp(t)
+        stamped, tf = self._optimised_messages((sec, nsec), p, correction, cov)
+        ns = sec * 1_000_000_000 + nsec
+        try:
+            if self._pose is None:
+                self._pose = self._writer.add_connection(
+                    self.pose_topic, _POSE, typestore=self._store
+                )
+            self._writer.write(self._pose, ns, self._serialize(stamped))
+            self._writer.write(self._tf, ns, self._serialize(tf))
+        except _WRITER_ERRORS as exc:
+            raise self._fail(f"cannot write: {exc}") from exc
+        self.optimised_written += 1
 
     def close(self) -> None:
         """Finish the bag (its index, its metadata); a second call does nothing."""
