@@ -137,3 +137,26 @@ def test_info_on_the_fr079_bag():
     assert streams["/odom"].child_frame_ids == {"base_link": 8951}
     assert 4.0 < streams["/scan"].rate_hz < 5.0
     assert ("/tf_static", "base_link", "laser") in {(p.topic, p.parent, p.child) for p in info.tf}
+
+
+@pytest.mark.parametrize("scan_topics", [(), ("/a", "/b")], ids=["no scans", "two scan topics"])
+def test_cli_info_on_a_bag_without_one_scan_topic_shows_the_bag(tmp_path, scan_topics):
+    """A bag ``run --bag-out`` wrote (no LaserScan) or one with two scan topics is still
+    described (exit 0): its topics and defaults, and a note of what ``run`` needs."""
+    from helpers import standard
+
+    bag = make_bag(tmp_path, "ros1", lambda b: standard(b, scan_topics=scan_topics))
+    r = runner.invoke(app, ["info", str(bag)], terminal_width=250)
+    assert r.exit_code == 0, r.output
+    assert "nav_msgs/msg/Odometry" in r.stdout and "Traceback" not in r.output
+    for t in scan_topics:
+        assert t in r.stdout
+    note = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(note) == 1 and note[0].startswith("note: ")
+    assert ("pass --scan-topic" in note[0]) == bool(scan_topics)
+    data = json.loads(runner.invoke(app, ["info", str(bag), "--json"]).stdout)
+    assert data["bag"]["scan_candidates"] == sorted(scan_topics)
+    assert "scans" not in data  # no scans read
+    # naming a topic that is not there is the user's error: one line, exit 2
+    r = runner.invoke(app, ["info", str(bag), "--scan-topic", "/nope"])
+    assert r.exit_code == 2 and "/nope" in r.stderr

@@ -61,7 +61,7 @@ def test_run_errors_name_the_flag(sim_log, tmp_path, args, expect, library_word)
 
 def test_bag_topic_errors_name_the_flag(tmp_path) -> None:
     bag = make_bag(tmp_path, "ros1", lambda b: standard(b, scan_topics=("/a", "/b")))
-    line = one_line_error(["info", str(bag)])
+    line = one_line_error(["run", str(bag), "--results", str(tmp_path / "r")])
     assert "pass --scan-topic to pick one" in line and "scan_topic" not in line
     line = one_line_error(["info", str(bag), "--scan-topic", "/nope"])
     assert f"{bag}: --scan-topic '/nope': no such topic" in line and "scan_topic" not in line

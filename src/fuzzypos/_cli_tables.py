@@ -3,7 +3,9 @@ library's results, kept apart so the commands stay short."""
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import typer
@@ -13,6 +15,7 @@ from rich.table import Table
 from rich.text import Text
 
 if TYPE_CHECKING:
+    from .config import ScannerConfig
     from .io.bag_info import BagInfo, StreamInfo
     from .logs import LogInfo, NoReturnCount, OpenLog
     from .no_returns import FoundNoReturn
@@ -312,3 +315,78 @@ def bag_overview(log: OpenLog) -> BagInfo | None:
         raise typer.Exit(code=2) from None
     info.path = log.name
     return info
+
+
+def bag_alone(path: Path, odom_topic: str | None, json_out: bool, console: Console) -> bool:
+    """``info`` on a bag without one LaserScan topic to read (none, as in a bag that
+    ``run --bag-out`` wrote, or several without ``--scan-topic``): its topics, transforms and
+    defaults (:func:`bag_tables`; ``{"bag": …}`` with ``json_out``) and a note on stderr of
+    what ``run`` needs; True. False for anything else (a CARMEN log, a bag with one scan
+    topic, a path that is no bag): ``info`` goes on as before."""
+    from .io.bag_info import describe_bag
+    from .logs import log_kind
+
+    try:
+        if not (path.is_file() or path.is_dir()):  # a pipe is read once, by info itself
+            return False
+        if log_kind(path) not in ("ros1", "ros2"):
+            return False
+        info = describe_bag(path, odom_topic=odom_topic)
+    except (ValueError, OSError):
+        return False  # info's own reading says what is wrong, in one line
+    if info.scan_topic is not None:
+        return False
+    if json_out:
+        typer.echo(json.dumps({"bag": info.as_dict()}, indent=2))
+    else:
+        console.print(*bag_tables(info))
+    why = (
+        "no sensor_msgs/msg/LaserScan topic, so no scans to describe or run"
+        if not info.scan_candidates
+        else "LaserScan topics " + ", ".join(info.scan_candidates) + ": pass --scan-topic to "
+        "pick one for its scans (and for run)"
+    )
+    typer.echo(f"note: {path}: {why}", err=True)
+    return True
+
+
+def log_table(title: str, result: LogInfo, scanner: ScannerConfig) -> Table:
+    """``info``'s table of what a log holds (:func:`~fuzzypos.logs.describe_log`'s
+    ``result``; the "no return" rows judged by ``scanner``)."""
+    table = Table(title=title, show_header=False)
+    table.add_column("", style="bold")
+    table.add_column("")
+
+    def stamp(t: float | None) -> str:
+        return "–" if t is None else repr(t)
+
+    angles = fov_text = duration = "–"
+    if result.angle_min_deg is not None and result.angle_max_deg is not None:
+        angles = f"{result.angle_min_deg:.3f}° … {result.angle_max_deg:.3f}°"
+    if result.field_of_view_deg is not None:
+        fov_text = f"{result.field_of_view_deg:.3f}° (beams × increment)"
+    if result.duration_s is not None:
+        duration = f"{result.duration_s:.3f} s"
+    elif result.stamp_problem is not None:
+        duration = "unknown: the stamps are corrupt (see the warning)"
+    rows = [
+        ("kind", result.kind),
+        ("scans", str(result.scans)),
+        ("beams", ", ".join(map(str, result.beams)) or "–"),
+        ("beam angles", angles),
+        ("field of view", fov_text),
+        ("range_max", ", ".join(f"{r:g} m" for r in result.range_max) or "none finite"),
+        ("first stamp", stamp(result.first_stamp)),
+        ("last stamp", stamp(result.last_stamp)),
+        ("duration", duration),
+        ("stamps going backwards", str(result.stamps_backwards)),
+        ("stamps repeated", str(result.stamps_repeated)),
+        ("odometry", odometry_text(result)),
+        ("truth (TRUEPOS)", f"yes ({result.scans_with_truth} scans)" if result.has_truth else "no"),
+        ("bad lines skipped", str(result.bad_lines) + (" (truncated)" if result.truncated else "")),
+        *no_return_rows(result.no_returns),
+        *found_rows(result.no_return_values_found, scanner.find_no_return_values),
+    ]
+    for k, v in rows:
+        table.add_row(k, v)
+    return table

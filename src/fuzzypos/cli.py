@@ -28,13 +28,12 @@ from ._cli_help import (
     finish_commands,
 )
 from ._cli_tables import (
+    bag_alone,
     bag_overview,
     bag_tables,
     benchmark_table,
-    found_rows,
+    log_table,
     loop_closure_lines,
-    no_return_rows,
-    odometry_text,
     relations_line,
 )
 from ._config_docs import settings_lines, settings_markdown
@@ -484,6 +483,8 @@ def info(
     from .logs import describe_log
 
     scanner = _load_config("default", config_file).scanner
+    if scan_topic is None and bag_alone(log, odom_topic, json_out, _wide()):
+        return
     opened = _open(
         log,
         scan_topic=scan_topic,
@@ -513,42 +514,7 @@ def info(
     if json_out:
         typer.echo(json.dumps(result.as_dict() | ({"bag": bag.as_dict()} if bag else {}), indent=2))
         return
-    table = Table(title=f"{log}", show_header=False)
-    table.add_column("", style="bold")
-    table.add_column("")
-
-    def stamp(t: float | None) -> str:
-        return "–" if t is None else repr(t)
-
-    angles = fov_text = duration = "–"
-    if result.angle_min_deg is not None and result.angle_max_deg is not None:
-        angles = f"{result.angle_min_deg:.3f}° … {result.angle_max_deg:.3f}°"
-    if result.field_of_view_deg is not None:
-        fov_text = f"{result.field_of_view_deg:.3f}° (beams × increment)"
-    if result.duration_s is not None:
-        duration = f"{result.duration_s:.3f} s"
-    elif result.stamp_problem is not None:
-        duration = "unknown: the stamps are corrupt (see the warning)"
-    rows = [
-        ("kind", result.kind),
-        ("scans", str(result.scans)),
-        ("beams", ", ".join(map(str, result.beams)) or "–"),
-        ("beam angles", angles),
-        ("field of view", fov_text),
-        ("range_max", ", ".join(f"{r:g} m" for r in result.range_max) or "none finite"),
-        ("first stamp", stamp(result.first_stamp)),
-        ("last stamp", stamp(result.last_stamp)),
-        ("duration", duration),
-        ("stamps going backwards", str(result.stamps_backwards)),
-        ("stamps repeated", str(result.stamps_repeated)),
-        ("odometry", odometry_text(result)),
-        ("truth (TRUEPOS)", f"yes ({result.scans_with_truth} scans)" if result.has_truth else "no"),
-        ("bad lines skipped", str(result.bad_lines) + (" (truncated)" if result.truncated else "")),
-        *no_return_rows(result.no_returns),
-        *found_rows(result.no_return_values_found, scanner.find_no_return_values),
-    ]
-    for k, v in rows:
-        table.add_row(k, v)
+    table = log_table(str(log), result, scanner)
     _wide().print(*bag_tables(bag), table)  # a bag's topics, transforms and defaults first
     for note in result.notes:
         typer.echo(f"note: {note}", err=True)
