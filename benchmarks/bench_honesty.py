@@ -68,7 +68,7 @@ from scipy.spatial import cKDTree
 
 from fuzzypos.config import Config
 from fuzzypos.evaluation import nearest_stamps
-from fuzzypos.geometry import compose, inverse, relative
+from fuzzypos.geometry import compose_steps, inverse_covariance, relative
 from fuzzypos.io import Relations, read_relations
 from fuzzypos.io.tum import read_tum
 from fuzzypos.logs import open_log
@@ -106,41 +106,6 @@ COV_COLUMNS = {
     "ytheta": (1, 2),
     "thetatheta": (2, 2),
 }
-
-
-# -- SE(2) covariance composition ------------------------------------------------------------
-def adjoint(pose: np.ndarray) -> np.ndarray:
-    """The adjoint of an SE(2) element ``(x, y, θ)`` for right perturbations ``(x, y, θ)``:
-    ``T ⊕ ε ⊕ ⊖T ≈ Ad(T)·ε`` to first order, ``[[c, −s, y], [s, c, −x], [0, 0, 1]]``."""
-    x, y, th = (float(v) for v in np.asarray(pose, dtype=float).reshape(3))
-    c, s = math.cos(th), math.sin(th)
-    return np.array([[c, -s, y], [s, c, -x], [0.0, 0.0, 1.0]])
-
-
-def compose_steps(steps: np.ndarray, covariances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The composition ``T = s₁ ⊕ s₂ ⊕ … ⊕ sₙ`` of ``steps`` ``(n, 3)`` and the covariance
-    of its right-perturbation error from the steps' ``covariances`` ``(n, 3, 3)`` (each in its
-    own step's frame, independent): step by step, for ``T ⊕ s``,
-    ``Σ ← Ad(⊖s)·Σ·Ad(⊖s)ᵀ + Σ_s`` (first order). No steps: the identity and zeros."""
-    s = np.asarray(steps, dtype=float).reshape(-1, 3)
-    c = np.asarray(covariances, dtype=float).reshape(-1, 3, 3)
-    if s.shape[0] != c.shape[0]:
-        raise ValueError(f"{s.shape[0]} steps but {c.shape[0]} covariances")
-    total = np.zeros(3)
-    sigma = np.zeros((3, 3))
-    for step, cov in zip(s, c):
-        a = adjoint(inverse(step))
-        sigma = a @ sigma @ a.T + cov
-        total = compose(total, step)
-    return total, 0.5 * (sigma + sigma.T)
-
-
-def inverse_covariance(motion: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """The covariance of ``⊖T``'s right-perturbation error from ``T``'s (first order):
-    ``⊖(T ⊕ ε) = ⊖T ⊕ (−Ad(T)·ε)``, so ``Ad(T)·Σ·Ad(T)ᵀ``."""
-    a = adjoint(motion)
-    out = a @ np.asarray(sigma, dtype=float) @ a.T
-    return 0.5 * (out + out.T)
 
 
 # -- reading a run ---------------------------------------------------------------------------

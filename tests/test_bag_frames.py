@@ -72,8 +72,8 @@ def _check_map_to_odom(msgs: dict[str, list[Any]], frames: tuple[str, str, str])
     for m in optimised:
         t = _stamp(m.header)
         _same_pose(compose(tf[(map_, odom)][t], tf[(odom, base)][t]), _pose(m.pose.pose))
-        c = np.asarray(m.pose.covariance).reshape(6, 6)  # the graph's marginals: unknown
-        np.testing.assert_array_equal(c, np.eye(6) * UNUSED_VARIANCE)
+        c = np.asarray(m.pose.covariance).reshape(6, 6)  # z, roll, pitch: unknown
+        np.testing.assert_array_equal(c[[2, 3, 4], [2, 3, 4]], UNUSED_VARIANCE)
     return np.array([_pose(m.pose.pose) for m in optimised])
 
 
@@ -104,6 +104,8 @@ def test_writer_frames_covariance_and_map_to_odom(tmp_path, kind):
         assert np.all(c6[2:5, [0, 1, 5]] == 0.0) and np.all(c6[[0, 1, 5], 2:5] == 0.0)
     got = _check_map_to_odom(msgs, frames)
     _same_pose(got, np.array(optimised))
+    for m in msgs["/fuzzypos/pose"]:  # written without a covariance: unknown
+        np.testing.assert_array_equal(np.reshape(m.pose.covariance, (6, 6)), np.eye(6) * 1e6)
 
 
 def test_writer_without_optimised_poses_has_no_pose_topic(tmp_path):
@@ -187,3 +189,12 @@ def test_run_with_loop_closure_writes_the_optimised_poses_and_map_to_odom(tmp_pa
     assert np.abs(got - frontend).max() > 1e-4  # loop closure moved the poses
     s = json.loads((res / "summary.json").read_text())["bag_out"]
     assert s["frames"]["map"] == "world" and s["topics"]["/fuzzypos/pose"] == len(stamps)
+    # the optimised poses' covariance: covariance_optimised.csv's (map frame), in ROS's order
+    rows = np.loadtxt(res / "covariance_optimised.csv", delimiter=",", skiprows=1, ndmin=2)
+    np.testing.assert_allclose(rows[:, 0], stamps, atol=1e-6)
+    in_bag = np.array([np.reshape(m.pose.covariance, (6, 6)) for m in msgs["/fuzzypos/pose"]])
+    upper = in_bag[:, [0, 0, 0, 1, 1, 5], [0, 1, 5, 1, 5, 5]]
+    np.testing.assert_array_equal(upper, rows[:, 1:])
+    np.testing.assert_array_equal(in_bag[:, [2, 3, 4], [2, 3, 4]], UNUSED_VARIANCE)
+    assert np.all(np.linalg.eigvalsh(in_bag[:, [0, 1, 5]][:, :, [0, 1, 5]]) > 0.0)
+    assert rows[:, [1, 4]].max() < 1.0  # known: metres at most, not UNUSED_VARIANCE

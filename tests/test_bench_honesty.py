@@ -1,7 +1,8 @@
 """The covariance honesty benchmark (``benchmarks/bench_honesty.py``): the SE(2) composition of
-step covariances against finite differences, ``geometry.propagate`` and a Monte-Carlo; the
-relations it takes and matches; the counting of gross and confident gross errors on a
-synthetic run with injected errors; a missing covariance row; the written report."""
+step covariances (``fuzzypos.geometry``'s, which the benchmark uses) against finite
+differences, ``geometry.propagate`` and a Monte-Carlo; the relations it takes and matches;
+the counting of gross and confident gross errors on a synthetic run with injected errors; a
+missing covariance row; the written report."""
 
 from __future__ import annotations
 
@@ -15,7 +16,15 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fuzzypos.geometry import compose, inverse, propagate, relative
+from fuzzypos.geometry import (
+    adjoint,
+    compose,
+    compose_steps,
+    inverse,
+    inverse_covariance,
+    propagate,
+    relative,
+)
 from fuzzypos.io import Relations, read_tum, write_tum
 from fuzzypos.logs import open_log
 from fuzzypos.run import run_log
@@ -49,14 +58,14 @@ def test_the_adjoint_moves_a_right_perturbation_through_the_pose(bench, t) -> No
         plus = compose(compose(t, eps), inverse(t))
         minus = compose(compose(t, -eps), inverse(t))
         jac[:, k] = (plus - minus) / (2 * h)
-    np.testing.assert_allclose(bench.adjoint(t), jac, atol=1e-6)
+    np.testing.assert_allclose(adjoint(t), jac, atol=1e-6)
 
 
 @given(st.lists(poses, min_size=1, max_size=6), st.integers(0, 2**32 - 1))
 def test_the_composition_is_geometry_propagate_step_by_step(bench, steps, seed) -> None:
     rng = np.random.default_rng(seed)
     covs = np.array([random_cov(rng, np.array([0.1, 0.1, 0.05])) for _ in steps])
-    motion, sigma = bench.compose_steps(np.array(steps), covs)
+    motion, sigma = compose_steps(np.array(steps), covs)
     pose, expected = steps[0], covs[0]
     for step, cov in zip(steps[1:], covs[1:]):
         expected = propagate(expected, step, cov)
@@ -83,14 +92,14 @@ def test_the_composition_matches_a_monte_carlo(bench) -> None:
     rng = np.random.default_rng(3)
     steps = np.array([[0.3, 0.05, 0.2], [0.25, -0.1, -0.35], [0.4, 0.0, 0.5], [0.1, 0.2, 1.2]])
     covs = np.array([random_cov(rng, np.array([0.01, 0.01, 0.005])) for _ in steps])
-    _, sigma = bench.compose_steps(steps, covs)
+    _, sigma = compose_steps(steps, covs)
     empirical = monte_carlo(steps, covs, 200_000, 4)
     scale = np.sqrt(np.outer(np.diag(sigma), np.diag(sigma)))
     np.testing.assert_allclose(empirical / scale, sigma / scale, atol=0.02)
     # the sign matters: the composition with the adjoint's off-diagonal flipped disagrees
     flipped = np.zeros((3, 3))
     for step, cov in zip(steps, covs):
-        a = bench.adjoint(inverse(step))
+        a = adjoint(inverse(step))
         a[:2, 2] *= -1
         flipped = a @ flipped @ a.T + cov
     assert np.max(np.abs(empirical - flipped) / scale) > 0.1
@@ -103,7 +112,7 @@ def test_the_inverse_covariance_matches_a_monte_carlo(bench) -> None:
     eps = rng.multivariate_normal(np.zeros(3), cov, size=200_000)
     noisy_inv = inverse(compose(t, eps))
     err = relative(np.broadcast_to(inverse(t), noisy_inv.shape), noisy_inv)
-    expected = bench.inverse_covariance(t, cov)
+    expected = inverse_covariance(t, cov)
     scale = np.sqrt(np.outer(np.diag(expected), np.diag(expected)))
     np.testing.assert_allclose(np.cov(err.T) / scale, expected / scale, atol=0.02)
 
@@ -177,11 +186,11 @@ def test_the_d2_is_the_mahalanobis_distance_under_the_composed_covariance(bench)
     rel = relations_of(stamps, p, [(2, 6), (6, 2)], {0: e, 1: e})
     out = bench.check_relations(stamps, p, covs, rel)
     steps = np.array([relative(p[k], p[k + 1]) for k in range(2, 6)])
-    motion, sigma = bench.compose_steps(steps, covs[3:7])
+    motion, sigma = compose_steps(steps, covs[3:7])
     err = relative(rel.motion[0], relative(p[2], p[6]))
     assert out.d2[0] == pytest.approx(err @ np.linalg.solve(sigma, err), rel=1e-9)
     # backwards along the file: the inverse chain's covariance
-    sigma_b = bench.inverse_covariance(motion, sigma)
+    sigma_b = inverse_covariance(motion, sigma)
     err_b = relative(rel.motion[1], relative(p[6], p[2]))
     assert out.d2[1] == pytest.approx(err_b @ np.linalg.solve(sigma_b, err_b), rel=1e-9)
     widened = sigma + np.diag(np.square(bench.REFERENCE_SIGMA))

@@ -162,19 +162,23 @@ class _CovarianceOut:
         self,
         *,
         partial: bool = False,
-        optimised: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        optimised: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None = None,
     ) -> dict[str, Path]:
         """Finish the bag; name → path where written. ``optimised``: loop closure's
-        ``(stamps, optimised poses, front end's poses)``, appended first
-        (:meth:`~fuzzypos.io.OdometryBagWriter.write_optimised`; their covariance unknown:
-        the graph's marginals are not computed). One that cannot be finished is removed:
-        noted in a ``partial`` run, else raised."""
+        ``(stamps, optimised poses, front end's poses, optimised poses' covariances)``, the
+        covariances ``(scans, 3, 3)`` in the map frame
+        (:func:`~fuzzypos.graph.outputs.optimised_covariances`; None, or a row not finite:
+        unknown), appended first (:meth:`~fuzzypos.io.OdometryBagWriter.write_optimised`).
+        One that cannot be finished is removed: noted in a ``partial`` run, else raised."""
         if self.bag is None:
             return {}
         try:
             if optimised is not None:
-                for t, pose, front in zip(*optimised, strict=True):
-                    self.bag.write_optimised(float(t), pose, front)
+                stamps, poses, fronts, covs = optimised
+                for k, (t, pose, front) in enumerate(zip(stamps, poses, fronts, strict=True)):
+                    cov = None if covs is None else covs[k]
+                    known = cov is not None and bool(np.all(np.isfinite(cov)))
+                    self.bag.write_optimised(float(t), pose, front, cov if known else None)
             self.bag.close()
             self._bag_done = True
         except BaseException as exc:

@@ -49,6 +49,7 @@ RESULT_FILES = (
     "summary.json",
     # with loop closure (fuzzypos.graph.LOOP_CLOSURE_FILES)
     "trajectory_frontend.tum",
+    "covariance_optimised.csv",
     "trajectory_online.tum",
     "graph.g2o",
     "map.pgm",

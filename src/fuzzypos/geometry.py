@@ -44,6 +44,10 @@ __all__ = [
     "Cov3Upper",
     "propagate3",
     "covariance_to_parent3",
+    "adjoint",
+    "compose_steps",
+    "inverse_covariance",
+    "covariances_to_parent",
 ]
 
 
@@ -334,6 +338,59 @@ def covariance_to_parent3(theta: float, cov: Cov3Upper) -> Cov3Upper:
         s * p02 + c * p12,
         p22,
     )
+
+
+# -- SE(2) covariance composition (right perturbations) --------------------------------------
+def adjoint(pose: ArrayLike) -> FloatArray:
+    """The adjoint of an SE(2) element ``(x, y, θ)`` for right perturbations ``(x, y, θ)``:
+    ``T ⊕ ε ⊕ ⊖T ≈ Ad(T)·ε`` to first order, ``[[c, −s, y], [s, c, −x], [0, 0, 1]]``; for
+    ``(n, 3)`` poses, ``(n, 3, 3)``."""
+    p = np.asarray(pose, dtype=float)
+    x, y, th = p[..., 0], p[..., 1], p[..., 2]
+    c, s = np.cos(th), np.sin(th)
+    zero, one = np.zeros_like(th), np.ones_like(th)
+    rows = [[c, -s, y], [s, c, -x], [zero, zero, one]]
+    out: FloatArray = np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    return out
+
+
+def compose_steps(steps: ArrayLike, covariances: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """The composition ``T = s₁ ⊕ s₂ ⊕ … ⊕ sₙ`` of ``steps`` ``(n, 3)`` and the covariance
+    of its right-perturbation error from the steps' ``covariances`` ``(n, 3, 3)`` (each in its
+    own step's frame, independent): step by step, for ``T ⊕ s``,
+    ``Σ ← Ad(⊖s)·Σ·Ad(⊖s)ᵀ + Σ_s`` (first order; :func:`propagate`'s). No steps: the
+    identity and zeros."""
+    s = np.asarray(steps, dtype=float).reshape(-1, 3)
+    c = np.asarray(covariances, dtype=float).reshape(-1, 3, 3)
+    if s.shape[0] != c.shape[0]:
+        raise ValueError(f"{s.shape[0]} steps but {c.shape[0]} covariances")
+    total = np.zeros(3)
+    sigma = np.zeros((3, 3))
+    for step, cov in zip(s, c, strict=True):
+        a = adjoint(inverse(step))
+        sigma = a @ sigma @ a.T + cov
+        total = compose(total, step)
+    return total, 0.5 * (sigma + sigma.T)
+
+
+def inverse_covariance(motion: ArrayLike, sigma: ArrayLike) -> FloatArray:
+    """The covariance of ``⊖T``'s right-perturbation error from ``T``'s (first order):
+    ``⊖(T ⊕ ε) = ⊖T ⊕ (−Ad(T)·ε)``, so ``Ad(T)·Σ·Ad(T)ᵀ``."""
+    a = adjoint(motion)
+    out: FloatArray = a @ np.asarray(sigma, dtype=float) @ a.T
+    sym: FloatArray = 0.5 * (out + out.T)
+    return sym
+
+
+def covariances_to_parent(poses: ArrayLike, covariances: ArrayLike) -> FloatArray:
+    """:func:`covariance_to_parent` for ``(n, 3)`` poses and their ``(n, 3, 3)`` covariances
+    (each in its own pose's frame): ``R·Σ·Rᵀ``, ``R = blockdiag(rot(θ), 1)``."""
+    p = _as_poses(poses).reshape(-1, 3)
+    c = np.asarray(covariances, dtype=float).reshape(-1, 3, 3)
+    r = adjoint(np.column_stack((np.zeros((len(p), 2)), p[:, 2])))
+    out: FloatArray = r @ c @ np.swapaxes(r, -1, -2)
+    sym: FloatArray = 0.5 * (out + np.swapaxes(out, -1, -2))
+    return sym
 
 
 @dataclass(frozen=True)

@@ -51,7 +51,9 @@ first pose's covariance is the first estimate's), turned into the odom frame
 (:func:`~fuzzypos.geometry.covariance_to_parent`); the twist is the increment over the time
 since the previous scan (its covariance the increment's over dt²), zero with unknown
 covariance at the first scan and where dt <= 0. With loop closure the optimised poses follow
-on ``/fuzzypos/pose`` (map frame) with map → odom on ``/tf``.
+on ``/fuzzypos/pose`` (map frame, their covariance the pose graph's marginals carried to
+each scan and rotated into the map frame, as in ``covariance_optimised.csv``:
+:func:`~fuzzypos.graph.outputs.optimised_covariances`) with map → odom on ``/tf``.
 
 Memory stays small on long logs: only the stamps and poses (estimate, odometry, truth)
 and the points of every ``map_every``-th scan are kept, never the scans.
@@ -445,7 +447,7 @@ def _write_results(
     ``out_tum``, which a partial run does not get. ``loop``: loop closure's result, whose
     poses ``a.poses`` are and ``trajectory.clf`` then carries."""
     files: dict[str, Path] = {}
-    optimised = None if loop is None else (a.stamps, loop.poses, loop.frontend)
+    optimised = None if loop is None else (a.stamps, loop.poses, loop.frontend, loop.covariances)
 
     def tum() -> dict[str, Path]:
         what = "part of the" if steps.partial else "the"
@@ -579,8 +581,15 @@ def _final_optimisation(track: _Track, steps: Steps) -> tuple[_Arrays, LoopClosu
         "loop closure: trajectory.tum holds the optimised poses (trajectory_frontend.tum "
         "the front end's, trajectory_online.tum each scan's as first output online) and "
         "so does trajectory.clf; covariance.csv and the bag's odometry are the front end's "
-        "(a bag gets the optimised poses and map -> odom too)"
+        "(a bag gets the optimised poses and map -> odom too), covariance_optimised.csv the "
+        "optimised poses' covariances (the pose graph's marginals)"
     )
+    if loop.covariances is None:
+        steps.notes.append(
+            "no covariance_optimised.csv: gtsam gave no marginals "
+            f"({loop.summary.get('marginals_error')}); the bag's optimised poses' covariance "
+            "is unknown"
+        )
     return replace(a, poses=loop.poses), loop
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..features import Features
-from ..geometry import compose, inverse, relative
+from ..geometry import adjoint, compose, inverse, propagate, relative
 from ..pipeline import Estimate
 from ._gtsam import gtsam
 
@@ -80,6 +80,10 @@ class PoseGraph:
         self.edges: list[Edge] = []
         self._owner: list[int] = []  # per scan: its keyframe
         self._offset: list[FloatArray] = []  # per scan: its pose relative to its keyframe
+        #: per scan: the covariance of its pose relative to its keyframe (right perturbation;
+        #: zeros at a keyframe, NaN where the front end gave none), :meth:`_offset_covariance`
+        self._offset_cov: list[FloatArray] = []
+        self._robust: tuple[str, float] = ("none", 1.0)  # the last optimisation's kernel
         self._stamps: list[float] = []
         self._frontend: list[FloatArray] = []
         #: the keyframes' optimised poses (the front end's until optimised)
@@ -127,9 +131,24 @@ class PoseGraph:
         owner = len(self.keyframes) - 1
         self._owner.append(owner)
         self._offset.append(relative(self.keyframes[owner].pose, pose))
+        self._offset_cov.append(self._offset_covariance(est, owner))
         self._stamps.append(float(est.stamp))
         self._frontend.append(pose)
         return self.keyframes[owner].scan == k
+
+    def _offset_covariance(self, est: Estimate, owner: int) -> FloatArray:
+        """The covariance of the new scan's pose relative to keyframe ``owner``: zeros where
+        it is that keyframe; else the front end's ``keyframe_covariance`` (its fit against
+        that keyframe), else the previous scan's carried on by the step's covariance
+        (:func:`~fuzzypos.geometry.propagate`); NaN where neither is known."""
+        if self.keyframes[owner].scan == len(self._owner) - 1:
+            return np.zeros((3, 3))
+        if est.keyframe_covariance is not None:
+            return np.asarray(est.keyframe_covariance, dtype=np.float64)
+        if est.covariance is None or not np.all(np.isfinite(self._offset_cov[-1])):
+            return np.full((3, 3), np.nan)
+        step = est.increment.as_array()
+        return propagate(self._offset_cov[-1], step, np.asarray(est.covariance, dtype=float))
 
     def _edge_to(self, est: Estimate, pose: FloatArray, k: int) -> None:
         cov = est.keyframe_covariance
@@ -173,6 +192,7 @@ class PoseGraph:
         if not self.keyframes:
             raise PoseGraphError("the pose graph has no keyframes")
         g = gtsam()
+        self._robust = (robust, cauchy_scale)
         closures = [e for e in self.edges if e.closure]
         keep = [True] * len(closures)
         if robust == "gnc" and closures:
@@ -201,6 +221,47 @@ class PoseGraph:
         out = np.array([_array(solved.atPose2(k)) for k in range(len(self.keyframes))])
         self.poses = out
         return out
+
+    def marginals(self) -> FloatArray:
+        """The keyframes' marginal covariances ``(keyframes, 3, 3)`` at the current poses
+        (:attr:`poses`, the last optimisation's solution): gtsam's ``Marginals`` of the graph
+        the last optimisation solved (the anchor, the front end's edges, the closures it kept:
+        weight ≥ ½, those added since all; a Cauchy kernel as it had it). gtsam's convention,
+        the project's: the right perturbation (x, y, θ) in the keyframe's own frame. The first
+        keyframe's is the anchor's (µm, 0.1 µrad). A RuntimeError where gtsam finds the
+        system indeterminate."""
+        if not self.keyframes:
+            raise PoseGraphError("the pose graph has no keyframes")
+        g = gtsam()
+        robust, cauchy_scale = self._robust
+        n_closures = sum(e.closure for e in self.edges)
+        keep = [w >= 0.5 for w in self.closure_weights][:n_closures]
+        keep += [True] * (n_closures - len(keep))
+        graph, values, _ = self._factors(
+            g, "cauchy" if robust == "cauchy" else "none", cauchy_scale, keep
+        )
+        marginals = g.Marginals(graph, values)
+        out = np.array([marginals.marginalCovariance(k) for k in range(len(self.keyframes))])
+        return np.asarray(0.5 * (out + np.swapaxes(out, 1, 2)), dtype=np.float64)
+
+    def scan_covariances(self, poses: FloatArray, marginals: FloatArray) -> FloatArray:
+        """Every scan's covariance ``(scans, 3, 3)`` at its row of ``poses`` (the optimised
+        trajectory), in its own frame (right perturbation): its keyframe's ``marginals`` row
+        (:meth:`marginals`) carried to the scan, ``Ad(T⁻¹)·Σ_kf·Ad(T⁻¹)ᵀ + Σ_rel``, ``T`` the
+        scan's pose relative to its keyframe's current pose and ``Σ_rel`` the front end's
+        covariance of it (:meth:`_offset_covariance`; the keyframe's errors and the scan's
+        relative to it taken as independent)."""
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        if len(poses) != self.scans or len(marginals) != len(self.keyframes):
+            raise PoseGraphError(
+                f"scan_covariances needs {self.scans} poses and {len(self.keyframes)} "
+                f"marginals, got {len(poses)} and {len(marginals)}"
+            )
+        owner = self.owners
+        a = adjoint(inverse(relative(self.poses[owner], poses)))
+        out = a @ np.asarray(marginals)[owner] @ np.swapaxes(a, 1, 2)
+        out += np.array(self._offset_cov).reshape(-1, 3, 3)
+        return np.asarray(0.5 * (out + np.swapaxes(out, 1, 2)), dtype=np.float64)
 
     def _factors(
         self, g: Any, robust: str, cauchy_scale: float, keep: list[bool]

@@ -23,7 +23,11 @@ Each :meth:`OdometryBagWriter.write_optimised` (loop closure's poses, known at t
 run and written after the stream above, stamped as their scans) adds:
 
 - on ``/fuzzypos/pose`` (``pose_topic=``) a ``geometry_msgs/msg/PoseWithCovarianceStamped``
-  in the map frame: the optimised pose, its 6×6 covariance (unknown when None);
+  in the map frame: the optimised pose, its 6×6 covariance (unknown when None), whose 3×3
+  the caller gives in the map frame as ROS expects, like the odometry's: additive errors of
+  ``(x, y, θ)`` along the map's axes, ``R·Σ·Rᵀ`` of the right perturbation ``Σ`` in the
+  robot's own frame (gtsam's ``Pose2`` marginals' convention, x, y, θ), ``R =
+  blockdiag(rot(θ), 1)``;
 - on ``/tf`` one map → odometry frame transform, ``optimised ∘ front_end⁻¹``: composed with
   the odometry frame → base transform of the same stamp it gives the optimised pose.
 
