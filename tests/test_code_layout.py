@@ -14,7 +14,8 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "fuzzypos"
 
 #: bottom up; a name is a module or a subpackage of ``fuzzypos``
 LAYERS = (
-    ("_version", "config", "geometry", "_kernels"),
+    ("_version", "errors"),
+    ("config", "geometry", "_kernels"),
     ("fuzzy", "scan"),
     ("segmentation",),
     ("features",),

@@ -2,6 +2,7 @@
 
 from ._version import __version__
 from .config import Config, ConfigError
+from .errors import FuzzyposError
 from .features import Features, extract_features
 from .geometry import Pose2D
 from .pipeline import Estimate, Positioner, Reason
@@ -12,6 +13,7 @@ __all__ = [
     "ConfigError",
     "Estimate",
     "Features",
+    "FuzzyposError",
     "LaserScan",
     "Pose2D",
     "Positioner",

@@ -19,6 +19,8 @@ from dataclasses import MISSING, Field, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
+from .errors import FuzzyposError
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - exercised on 3.10 only
@@ -43,7 +45,7 @@ def _partition(peaks: tuple[float, ...]) -> tuple[Triangle, ...]:
 ANGLE_UNIT = "rad"  # radians in code, degrees under "<name>_deg" in TOML
 
 
-class ConfigError(ValueError):
+class ConfigError(FuzzyposError, ValueError):
     """A configuration value or file is wrong; the message names the key."""
 
     __module__ = "fuzzypos.config"  # where it is imported from (and pickled as)

@@ -30,6 +30,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import FuzzyposError
 from .geometry import Pose2D, compose, relative, rotation_matrix, wrap_angle
 from .io.relations import Relations
 
@@ -71,7 +72,7 @@ DEFAULT_RELATIONS_GAP = 1e-4
 DEFAULT_ASSOCIATION_GAP = 0.01
 
 
-class EvaluationError(ValueError):
+class EvaluationError(FuzzyposError, ValueError):
     """Trajectories that cannot be compared (shapes, lengths, non-finite values)."""
 
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .config import Config
+from .errors import FuzzyposError
 from .io import OutputPathError, check_output_file
 
 __all__ = [
@@ -81,7 +82,7 @@ def default_results_dir(path: str | os.PathLike[str], when: float | None = None)
     return Path("results") / log_label(path) / stamp
 
 
-class ResultsFolderError(FileExistsError):
+class ResultsFolderError(FuzzyposError, FileExistsError):
     """A results folder that a run will not write into (or clear): ``"<folder>: <why>"``."""
 
     def __init__(self, folder: str | os.PathLike[str], reason: str) -> None:

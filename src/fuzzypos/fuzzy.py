@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._kernels import compiled
 from .config import FuzzyConfig
+from .errors import FuzzyposError
 
 FloatArray = NDArray[np.float64]
 
@@ -45,7 +46,7 @@ except ImportError:  # pragma: no cover - another numpy layout
     _interp = np.interp
 
 
-class FuzzyError(ValueError):
+class FuzzyError(FuzzyposError, ValueError):
     """Bad input to the fuzzy engine (wrong number of inputs, mismatched shapes)."""
 
 

@@ -48,6 +48,7 @@ from typing import Any, TypeVar, Union
 import numpy as np
 
 from .config import ScannerConfig
+from .errors import FuzzyposError
 from .geometry import Pose2D
 from .io import GZIP_MAGIC, BagReader, CarmenReader, LogFormatError, LogRecord
 from .io._common import display_name, spool_if_stream
@@ -99,7 +100,7 @@ class UnknownLogError(LogFormatError):
         return (type(self), (self.path, self.reason))
 
 
-class SelectionError(ValueError):
+class SelectionError(FuzzyposError, ValueError):
     """A bad ``start`` / ``end`` / ``max_scans`` (or ``--laser-offset``) argument."""
 
 

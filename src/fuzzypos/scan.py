@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import FuzzyposError
 from .geometry import Pose2D, transform_points
 
 FloatArray = NDArray[np.float64]
@@ -52,7 +53,7 @@ NO_RETURN_SLACK = 2.0**-23
 ABSURD_RANGE_M = 1.0e5
 
 
-class ScanError(ValueError):
+class ScanError(FuzzyposError, ValueError):
     """A malformed :class:`LaserScan` (the message names the offending field)."""
 
 

@@ -17,6 +17,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from .errors import FuzzyposError
+
 __all__ = [
     "ONE_THREAD_ENV",
     "RayMissingError",
@@ -39,7 +41,7 @@ ONE_THREAD_ENV = {
 _INSTALL = "pip install 'fuzzypos[ray]' (or pip install 'ray>=2.9')"
 
 
-class RayMissingError(OSError):
+class RayMissingError(FuzzyposError, OSError):
     """Ray (the ``ray`` extra) is not installed: the message says how to install it."""
 
     def __init__(self, message: str = f"this needs Ray: {_INSTALL}") -> None:

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from types import ModuleType
 
+from ..errors import FuzzyposError
+
 __all__ = ["GraphDependencyError", "gtsam"]
 
 INSTALL = "pip install 'fuzzypos[graph]' (or pip install 'gtsam>=4.2')"
 
 
-class GraphDependencyError(OSError):
+class GraphDependencyError(FuzzyposError, OSError):
     """The pose graph needs gtsam, which is not installed; the message says how to install it."""
 
     __module__ = "fuzzypos.graph"

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..errors import FuzzyposError
 from ..features import Features
 from ..geometry import adjoint, compose, inverse, propagate, relative
 from ..pipeline import Estimate
@@ -34,7 +35,7 @@ _ANCHOR_SIGMAS = (1e-6, 1e-6, 1e-7)
 _COVARIANCE_FLOOR = 1e-12
 
 
-class PoseGraphError(ValueError):
+class PoseGraphError(FuzzyposError, ValueError):
     """A pose graph cannot be built or read as asked; the message says why."""
 
     __module__ = "fuzzypos.graph"

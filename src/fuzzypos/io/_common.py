@@ -23,6 +23,7 @@ from typing import IO, Any, NamedTuple, Union, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from ..errors import FuzzyposError
 from ..geometry import Pose2D
 from ..scan import LaserScan
 
@@ -64,7 +65,7 @@ class LogRecord(NamedTuple):
 
 
 # -- errors --------------------------------------------------------------------------------
-class LogFormatError(ValueError):
+class LogFormatError(FuzzyposError, ValueError):
     """A malformed line in a log file: ``"<file>:<line>: <what>"``.
 
     ``path`` is the file as given, ``line`` the 1-based line number (0 when the problem is
@@ -282,7 +283,7 @@ def display_name(path: PathLike) -> str:
 
 
 # -- outputs ---------------------------------------------------------------------------------
-class OutputPathError(OSError):
+class OutputPathError(FuzzyposError, OSError):
     """An output path that fuzzypos will not write (a socket, a block device, a folder where a
     file is wanted, one it cannot create or replace): ``"<path>: <why>"``, found before a
     run starts."""
@@ -291,7 +292,7 @@ class OutputPathError(OSError):
         return f"{self.filename}: {self.strerror}"
 
 
-class OutputWriteError(OSError):
+class OutputWriteError(FuzzyposError, OSError):
     """Writing an output failed (a full disk, a closed pipe): ``"cannot write <path>: <why>"``
     (``errno`` the failure's, ``filename`` the path as given)."""
 

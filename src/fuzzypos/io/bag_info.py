@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import FuzzyposError
 from ._common import PathLike, display_name
 from .rosbag import (
     _READ_ERRORS,
@@ -66,7 +67,7 @@ TF_TOPICS = ("/tf", TF_STATIC_TOPIC)
 DEFAULT_FRAMES = {"base": "base_link", "odom": "odom", "map": "map"}
 
 
-class BagFrameError(ValueError):
+class BagFrameError(FuzzyposError, ValueError):
     """A frame name that cannot name an estimate's frames (empty, with spaces, or the same as
     another of the three)."""
 

@@ -124,6 +124,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._kernels import compiled
+from ..errors import FuzzyposError
 from ..geometry import Pose2D
 from ..scan import ABSURD_RANGE_M, LaserScan, ScanError
 from ._common import (
@@ -177,7 +178,7 @@ class CarmenFormatError(LogFormatError):
     """A malformed CARMEN log line, e.g. ``log.clf:17: FLASER: expected 180 ranges, got 179``."""
 
 
-class _Bad(Exception):
+class _Bad(FuzzyposError):
     """Internal: a line handler's complaint; the reader adds the file and line."""
 
 

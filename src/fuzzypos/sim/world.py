@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..errors import FuzzyposError
+
 FloatArray = NDArray[np.float64]
 
 __all__ = [
@@ -37,7 +39,7 @@ PARALLEL_SIN = 1e-12
 VERTEX_TOL = 1e-7
 
 
-class SimError(ValueError):
+class SimError(FuzzyposError, ValueError):
     """Invalid simulator input: a malformed world, scanner model or ray query."""
 
 

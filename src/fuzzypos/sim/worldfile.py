@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import FuzzyposError
 from .world import FloatArray, SimError, World, _polygon_segments
 
 if sys.version_info >= (3, 11):  # pragma: no cover - depends on the interpreter
@@ -49,7 +50,7 @@ _POLYGON_KEYS = ("points", "closed")
 _SEGMENT_KEYS = ("start", "end")
 
 
-class _Bad(Exception):
+class _Bad(FuzzyposError):
     """A problem in the file's content (the message lacks the file prefix)."""
 
 
