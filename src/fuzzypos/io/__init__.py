@@ -8,7 +8,11 @@
 - :mod:`fuzzypos.io.rosbag_write`: :class:`OdometryBagWriter`, an estimate as
   ``nav_msgs/Odometry`` and ``/tf`` into a ROS1 or ROS2 bag;
 - :mod:`fuzzypos.io.relations`: the Freiburg benchmark's relations files;
-- :mod:`fuzzypos.io.tum`: TUM trajectories (``t x y z qx qy qz qw``, what ``evo`` reads).
+- :mod:`fuzzypos.io.tum`: TUM trajectories (``t x y z qx qy qz qw``, what ``evo`` reads);
+- :mod:`fuzzypos.io.logs`: :func:`open_log`, a CARMEN log or a bag opened as one stream of
+  records, with the checks of its stamps, odometry (:mod:`fuzzypos.io.odometry_check`) and
+  no-return readings (:mod:`fuzzypos.io.no_returns`);
+- :mod:`fuzzypos.io.provenance`: what a results folder records of its inputs (hashes, git).
 
 Every format error is a :class:`LogFormatError` (a :class:`ValueError`) naming the file, the
 line and what is wrong. Outputs are written where their paths point
@@ -50,9 +54,16 @@ from .rosbag import (
     read_bag,
 )
 from .rosbag_write import BAG_STORAGES, BagWriteError, OdometryBagWriter, covariance6
+from .logs import LogInfo, OpenLog, UnknownLogError, describe_log, log_kind, open_log
 from .tum import TumFormatError, read_tum, write_tum
 
 __all__ = [
+    "LogInfo",
+    "OpenLog",
+    "UnknownLogError",
+    "describe_log",
+    "log_kind",
+    "open_log",
     "PLANAR_TOLERANCE",
     "Relations",
     "RelationsFormatError",

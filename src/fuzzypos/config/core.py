@@ -42,15 +42,16 @@ from ._config_pipeline import (
 from ._config_scanner import ScannerConfig
 from ._config_schema import (
     SECTIONS,
+    check_rules,
+    check_section,
+    check_sets,
     ConfigError,
     FieldSpec,
-    base_for,
     convert_section,
     read_toml,
     section_to_dict,
     spec_of,
     translate_legacy,
-    validate,
 )
 from ._config_uncertainty import CovarianceConfig, GateConfig, OdometryNoiseConfig
 
@@ -235,3 +236,81 @@ def same_as_last_call(func: Callable[_P, _R]) -> Callable[_P, _R]:
         return out
 
     return wrapper
+
+
+# -- what loading needs of Config itself (here, so that schema never imports Config) ----------
+def base_for(
+    cls: type[Config], data: Mapping[str, Any], base: Config | None, source: str
+) -> Config:
+    """The base a mapping loads onto: ``base``, else the one its ``preset`` line names."""
+    if "preset" not in data:
+        return base if base is not None else cls()
+    name = data["preset"]
+    if not isinstance(name, str):
+        raise ConfigError(f"{source}: preset must be a string, got {name!r}")
+    try:
+        named = cls.preset(name)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: {exc}") from None
+    if base is not None and base != named:
+        raise ConfigError(f"{source}: preset = {name!r} differs from the base configuration given")
+    return named
+
+
+# -- the checks the declarations cannot express ----------------------------------------------------
+def _check_fuzzy(cfg: Config) -> None:
+    fz = cfg.fuzzy
+    for name, n in (
+        ("detection_angle_sets", 3),
+        ("distance_sets", 5),
+        ("uncertainty_sets", 3),
+        ("line_distance_sets", 3),
+        ("virtual_distance_sets", 5),
+    ):
+        check_sets(name, getattr(fz, name), n)
+    if len(fz.output_centres) != 3:
+        raise ConfigError("fuzzy.output_centres needs 3 values (S, M, B)")
+    check_rules("point_rules", fz.point_rules, 5, 3)
+    check_rules("line_rules", fz.line_rules, 3, 3)
+    check_rules("virtual_pair_rules", fz.virtual_pair_rules, 3, 3)
+    check_rules("virtual_distance_rules", fz.virtual_distance_rules, 5, 3)
+
+
+def _check_distances(cfg: Config) -> None:
+    if cfg.refinement.min_distance > cfg.refinement.max_distance:
+        raise ConfigError("refinement.min_distance must not exceed refinement.max_distance")
+
+
+def _check_feature_kinds(cfg: Config) -> None:
+    m = cfg.matching
+    if not (m.use_break_points or m.use_angular_points or m.use_virtual_points):
+        raise ConfigError("matching: at least one kind of feature point must be used")
+
+
+def _check_bands(cfg: Config) -> None:
+    """``scanner.no_return_bands``: ``[low, high]`` pairs with ``low <= high``."""
+    for i, band in enumerate(cfg.scanner.no_return_bands):
+        if not isinstance(band, (tuple, list)) or len(band) != 2:
+            raise ConfigError(
+                f"scanner.no_return_bands[{i}] must be a [low, high] pair, got {band!r}"
+            )
+        if band[0] > band[1]:
+            raise ConfigError(
+                f"scanner.no_return_bands[{i}] needs low <= high, got [{band[0]!r}, {band[1]!r}]"
+            )
+
+
+CHECKS: tuple[Callable[[Config], None], ...] = (
+    _check_fuzzy,
+    _check_distances,
+    _check_feature_kinds,
+    _check_bands,
+)
+
+
+def validate(cfg: Config, sections: Mapping[str, type]) -> None:
+    """Every field against its declaration (finite, within bounds, a choice), then CHECKS."""
+    for sec_name in sections:
+        check_section(sec_name, getattr(cfg, sec_name))
+    for check in CHECKS:
+        check(cfg)
