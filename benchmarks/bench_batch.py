@@ -23,8 +23,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from fuzzypos.batch import find_logs
-from fuzzypos.folders import log_label
+from fuzzypos.jobs.batch import find_logs
+from fuzzypos.jobs.folders import log_name
 
 #: ``fuzzypos batch`` through this interpreter (the checkout's package, whatever is installed)
 COMMAND = [sys.executable, "-c", "from fuzzypos.cli import main; main()", "batch"]
@@ -57,7 +57,8 @@ def main() -> None:
         logs = find_logs([args.data])
     except (OSError, ValueError) as exc:
         sys.exit(f"{args.data}: {exc} (the shared data; see --data)")
-    print(f"logs: {', '.join(log_label(p) for p in logs)}; cpus: {os.cpu_count()}", flush=True)
+    names = ", ".join(log_name(p, keep_format=True) for p in logs)
+    print(f"logs: {names}; cpus: {os.cpu_count()}", flush=True)
     results = []
     for jobs in (1, args.jobs):
         load = os.getloadavg()[0]
@@ -86,7 +87,8 @@ def main() -> None:
     print("|---:|---|---:|---:|")
     for jobs, _wall, rows, _loads in results:
         for r in sorted(rows, key=lambda r: r["log"]):
-            print(f"| {jobs} | {log_label(r['log'])} | {r['scans']:,} | {r['seconds']:.1f} |")
+            name = log_name(r["log"], keep_format=True)
+            print(f"| {jobs} | {name} | {r['scans']:,} | {r['seconds']:.1f} |")
 
 
 if __name__ == "__main__":

@@ -34,7 +34,7 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 from fuzzypos import Positioner, sim  # noqa: E402
-from fuzzypos.demo import DemoSettings  # noqa: E402
+from fuzzypos.jobs import DemoSettings  # noqa: E402
 
 sys.path.insert(0, os.fspath(Path(__file__).resolve().parent))
 from bench_honesty import commit, machine  # noqa: E402

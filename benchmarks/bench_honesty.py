@@ -67,12 +67,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from fuzzypos.config import Config
-from fuzzypos.evaluation import nearest_stamps
+from fuzzypos.eval.metrics import nearest_stamps
 from fuzzypos.geometry import compose_steps, inverse_covariance, relative
-from fuzzypos.io import Relations, read_relations
+from fuzzypos.io import Relations, open_log, read_relations
+from fuzzypos.io.provenance import git_hash, write_json
 from fuzzypos.io.tum import read_tum
-from fuzzypos.logs import open_log
-from fuzzypos.provenance import git_hash, write_json
 
 #: the shared logs, by name: the log and the relations under the data folder
 LOGS = {

@@ -41,9 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from fuzzypos.evaluation import relations_errors
-from fuzzypos.io import Relations, read_relations, read_tum
-from fuzzypos.logs import open_log
+from fuzzypos.eval import relations_errors
+from fuzzypos.io import Relations, open_log, read_relations, read_tum
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_honesty import commit, machine

@@ -16,7 +16,7 @@ scored on the log's relations.
 
 The peers are optional (``pip install -e '.[bench]'``); a peer that is not installed is
 skipped with a note. Every run reads the log afresh with
-``fuzzypos.logs.open_log(path).records()``, in file order, one thread.
+``fuzzypos.io.logs.open_log(path).records()``, in file order, one thread.
 
 - **fuzzypos**: ``Positioner()`` (the default), ``update(scan, odometry)``.
 - **small_gicp** (GICP, PLANE_ICP): each scan's valid points in the robot frame
@@ -77,11 +77,10 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 from fuzzypos import LaserScan, Pose2D, Positioner, __version__  # noqa: E402
-from fuzzypos.evaluation import EvaluationError, relations_errors  # noqa: E402
-from fuzzypos.io import read_relations  # noqa: E402
-from fuzzypos.logs import open_log  # noqa: E402
+from fuzzypos.eval import EvaluationError, relations_errors  # noqa: E402
+from fuzzypos.io import open_log, read_relations  # noqa: E402
+from fuzzypos.io.provenance import git_hash, write_json  # noqa: E402
 from fuzzypos.pipeline.warm import warm_up  # noqa: E402
-from fuzzypos.provenance import git_hash, write_json  # noqa: E402
 
 try:
     import small_gicp
@@ -369,9 +368,9 @@ def simulated_log(folder: Path, name: str) -> tuple[Path, Path]:
     mode, σ = 1 cm + 1 mm per metre) with ``SIMULATED[name]`` beams over 180°, the demo's slip
     (seed 0). Returns the log's and the relations' paths."""
     from fuzzypos import sim
-    from fuzzypos.demo import DemoSettings
     from fuzzypos.geometry import relative as relative_pose
     from fuzzypos.io import write_carmen
+    from fuzzypos.jobs import DemoSettings
 
     settings = DemoSettings()
     scanner = dataclasses.replace(settings.scanner, n_beams=SIMULATED[name])

@@ -27,8 +27,7 @@ from fuzzypos import Config, Positioner
 from fuzzypos.geometry import compose, relative
 from fuzzypos.graph import LoopCloser, PoseGraph
 from fuzzypos.graph.place import PlaceIndex
-from fuzzypos.io import read_tum
-from fuzzypos.logs import open_log
+from fuzzypos.io import open_log, read_tum
 
 NEAR, FAR = 1.0, 5.0  # m
 THRESHOLDS = (0.05, 0.1, 0.15, 0.2, 0.3)

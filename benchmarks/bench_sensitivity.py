@@ -6,7 +6,7 @@ The long relations measure drift, which a few degrees of heading lost at one tur
 local ones measure the matcher. This shows how far apart the two kinds of figure are in
 robustness, so that a change is not judged on one lucky run.
 
-Each log and variant is a Ray task with one thread (``fuzzypos.tasks.run_tasks``, as
+Each log and variant is a Ray task with one thread (``fuzzypos.jobs.tasks.run_tasks``, as
 ``fuzzypos batch``: a local Ray with ``--jobs`` CPUs, or the cluster of ``RAY_ADDRESS``)
 where Ray (the ``ray`` extra) is installed, else the runs go one after the other in this
 process; a line on stderr says which.
@@ -25,11 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from fuzzypos import Config, Positioner
-from fuzzypos.benchmark import find_benchmark_logs
-from fuzzypos.evaluation import relations_errors
+from fuzzypos.eval import relations_errors
+from fuzzypos.io import open_log
 from fuzzypos.io.relations import read_relations
-from fuzzypos.logs import open_log
-from fuzzypos.tasks import ray_installed, run_tasks
+from fuzzypos.jobs import run_tasks
+from fuzzypos.jobs.benchmark import find_benchmark_logs
+from fuzzypos.jobs.tasks import ray_installed
 
 VARIANTS: dict[str, dict[str, dict[str, object]]] = {
     "default": {},

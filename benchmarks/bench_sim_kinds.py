@@ -4,10 +4,10 @@ more precise (``odometry_noise.trust_where_better``), and against the default wi
 trust, locally and over the whole run, as a table; beside them the paper's gym half lap,
 whose odometry is precise step by step but biased (the B21r's slip).
 
-Local: the relative pose error (:func:`~fuzzypos.evaluation.relative_pose_error`) over
+Local: the relative pose error (:func:`~fuzzypos.eval.metrics.relative_pose_error`) over
 ``WINDOWS`` scans (at 1.6 Hz, 2 scans = 1.25 s, 5 scans = 3.1 s; consecutive, non-overlapping
 pairs): the mean translation (m) and rotation (°) error of the motion between the two scans.
-Whole run: the final and the mean position error (:func:`~fuzzypos.evaluation.
+Whole run: the final and the mean position error (:func:`~fuzzypos.eval.metrics.
 trajectory_errors`). ``tests/test_sim_kinds.py`` states the goal with these figures: the
 default no worse than odometry locally, better over the whole run.
 
@@ -23,8 +23,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from fuzzypos import Config, Positioner, sim
-from fuzzypos.demo import DemoSettings
-from fuzzypos.evaluation import relative_pose_error, trajectory_errors
+from fuzzypos.eval import relative_pose_error, trajectory_errors
+from fuzzypos.jobs import DemoSettings
 
 #: the runs, by name: a function of the seed
 KINDS: dict[str, Callable[[int], sim.SimulatedRun]] = {

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from fuzzypos import Config, Positioner, sim
-from fuzzypos.demo import DemoSettings
-from fuzzypos.evaluation import trajectory_errors
+from fuzzypos.eval import trajectory_errors
+from fuzzypos.jobs import DemoSettings
 
 RUNS = {
     "gym, 4 m circle, half a lap": (sim.gym, lambda: sim.CommandedPath.circle(4.0, 0.5, 0.3)),

@@ -8,7 +8,7 @@ refinement's prior or its calibration applied everywhere (``odometry_noise.in_re
 as ``fuzzypos benchmark`` scores it), and prints one table with the scans the gate rejected,
 the share of scans where the odometry was trusted, and the learned odometry noise and
 calibration at the end of the log. Each log and variant is a Ray task with one thread
-(``fuzzypos.tasks.run_tasks``: a local Ray with ``--jobs`` CPUs, or the cluster of
+(``fuzzypos.jobs.tasks.run_tasks``: a local Ray with ``--jobs`` CPUs, or the cluster of
 ``RAY_ADDRESS``) where Ray is installed, else the runs go one after the other in this
 process; a line on stderr says which.
 
@@ -27,11 +27,12 @@ from typing import Any
 import numpy as np
 
 from fuzzypos import Config, Positioner, Reason
-from fuzzypos.benchmark import find_benchmark_logs
-from fuzzypos.evaluation import relations_errors
+from fuzzypos.eval import relations_errors
+from fuzzypos.io import open_log
 from fuzzypos.io.relations import read_relations
-from fuzzypos.logs import open_log
-from fuzzypos.tasks import ray_installed, run_tasks
+from fuzzypos.jobs import run_tasks
+from fuzzypos.jobs.benchmark import find_benchmark_logs
+from fuzzypos.jobs.tasks import ray_installed
 
 VARIANTS: dict[str, dict[str, dict[str, Any]]] = {
     "default": {},

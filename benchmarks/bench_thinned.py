@@ -10,7 +10,7 @@ scans whose stamps are the relation's, as the metric matches them), and the firs
 other scan is kept when its odometry pose has moved at least the distance (straight, from
 pose to pose) or turned at least the angle since the last scan kept (for whatever reason). A
 scan without odometry is kept only as a relation's end. The kept records (read with
-``fuzzypos.logs.open_log(path).records()``) are written as a CARMEN log
+``fuzzypos.io.logs.open_log(path).records()``) are written as a CARMEN log
 (:func:`write_thinned`): FLASER lines (``fuzzypos.io.write_carmen``) where the scans fit
 FLASER's beam geometry, with one maximum range above every valid reading and each scan's
 invalid readings written as it (:func:`one_range_max`: the reader learns a FLASER log's "no
@@ -22,7 +22,7 @@ and checked scan by scan against the kept records (stamps, odometry, beams, rang
 before it is run.
 
 Both logs go through ``Positioner()`` (the default front end) as ``bench_peers.py`` runs it,
-one thread, and are scored with ``fuzzypos.evaluation.relations_errors`` on the log's
+one thread, and are scored with ``fuzzypos.eval.metrics.relations_errors`` on the log's
 relations: all relations and local ones (t2 − t1 <= 10 s), mean translational (m) and
 rotational (degrees) errors, and each thinned figure over the full log's (the issue's target:
 at most 1.15). The table is printed and written as markdown to ``--out`` (default
@@ -54,12 +54,17 @@ from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from fuzzypos.evaluation import DEFAULT_RELATIONS_GAP, nearest_stamps  # noqa: E402
+from fuzzypos.eval.metrics import DEFAULT_RELATIONS_GAP, nearest_stamps  # noqa: E402
 from fuzzypos.geometry import relative  # noqa: E402
-from fuzzypos.io import CarmenWriter, LogRecord, read_relations, write_carmen  # noqa: E402
+from fuzzypos.io import (  # noqa: E402
+    CarmenWriter,
+    LogRecord,
+    open_log,
+    read_relations,
+    write_carmen,
+)
 from fuzzypos.io.carmen_write import flaser_geometry  # noqa: E402
-from fuzzypos.logs import open_log  # noqa: E402
-from fuzzypos.provenance import write_json  # noqa: E402
+from fuzzypos.io.provenance import write_json  # noqa: E402
 
 sys.path.insert(0, os.fspath(Path(__file__).resolve().parent))
 import bench_peers  # noqa: E402

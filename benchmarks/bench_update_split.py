@@ -4,7 +4,7 @@ between them, on the same scans in one process.
     OMP_NUM_THREADS=1 python benchmarks/bench_update_split.py [--data ../shared/data]
         [--logs intel,aces,sim180,sim360] [--max-scans N] [--repeat R] [--gicp]
 
-Each log is read once (``fuzzypos.logs.open_log(path).records()``) and run through a fresh
+Each log is read once (``fuzzypos.io.logs.open_log(path).records()``) and run through a fresh
 ``Positioner()`` (the default) ``R`` times (default 3), alternately without and with a timer
 around every compiled kernel the pipeline calls from Python (each module-level dispatcher of
 ``fuzzypos._kernels``; the kernels' calls of each other stay inside the compiled code). The
@@ -42,7 +42,7 @@ from typing import Any  # noqa: E402
 
 import fuzzypos._kernels  # noqa: E402
 from fuzzypos import Positioner  # noqa: E402
-from fuzzypos.logs import open_log  # noqa: E402
+from fuzzypos.io import open_log  # noqa: E402
 from fuzzypos.pipeline.warm import warm_up  # noqa: E402
 
 sys.path.insert(0, os.fspath(Path(__file__).resolve().parent))

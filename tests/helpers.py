@@ -29,9 +29,9 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 import fuzzypos._kernels as kernels
 from fuzzypos import sim
-from fuzzypos.demo import DemoSettings
 from fuzzypos.geometry import compose, relative, wrap_angle
 from fuzzypos.io import CarmenRecord, write_carmen
+from fuzzypos.jobs import DemoSettings
 
 # -- the shared logs ---------------------------------------------------------------------------
 #: where the shared logs are: ``$FUZZYPOS_DATA``, else ``../shared/data`` beside the repository
@@ -356,7 +356,7 @@ def compiled_and_staged(scan: Any, cfg: Any) -> tuple[Any, Any]:
     call switched off for it)."""
     import pytest
 
-    from fuzzypos import features as features_module
+    from fuzzypos.features import extract as features_module
 
     kernels._ENABLED = True
     compiled = features_module._extract_compiled(scan, features_module.rule_bases(cfg.fuzzy), cfg)

@@ -10,13 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fuzzypos.cli import app
-from fuzzypos.io.bag_info import (
-    BagFrameError,
-    TfPair,
-    _header,
-    describe_bag,
-    output_frames,
-)
+from fuzzypos.io.bag_info import BagFrameError, TfPair, _header, describe_bag, output_frames
 from helpers import DATA, ODOM_T, SCAN_T, BagBuilder, make_bag, odd_frames, scan_ranges
 
 runner = CliRunner()

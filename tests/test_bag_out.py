@@ -14,14 +14,14 @@ import pytest
 from rosbags.highlevel import AnyReader
 from typer.testing import CliRunner
 
-import fuzzypos.run as run_module
+import fuzzypos.jobs.run as run_module
 from fuzzypos.cli import app
 from fuzzypos.geometry import Pose2D, covariance_to_parent, propagate
-from fuzzypos.io import BagWriteError, OdometryBagWriter, covariance6, read_tum
+from fuzzypos.io import BagWriteError, OdometryBagWriter, covariance6, open_log, read_tum
 from fuzzypos.io.rosbag_write import UNUSED_VARIANCE, bag_storage_for
-from fuzzypos.logs import open_log
+from fuzzypos.jobs import run_log
+from fuzzypos.jobs.outputs import COVARIANCE_COLUMNS
 from fuzzypos.pipeline import Positioner
-from fuzzypos.run import COVARIANCE_COLUMNS, run_log
 from helpers import write_sim_log
 
 runner = CliRunner()

@@ -1,4 +1,4 @@
-"""``fuzzypos batch`` (fuzzypos.batch): logs × configurations as Ray tasks on a local Ray.
+"""``fuzzypos batch`` (fuzzypos.jobs.batch): logs × configurations as Ray tasks on a local Ray.
 
 One Ray session serves the whole module (its start-up is slow); the first batch's results
 are shared by the tests of reruns and ``--force``.
@@ -20,8 +20,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from fuzzypos.batch import RayMissingError, find_logs, run_batch
 from fuzzypos.cli import app
+from fuzzypos.jobs import run_batch
+from fuzzypos.jobs.batch import find_logs
+from fuzzypos.jobs.tasks import RayMissingError
 from helpers import make_bag, standard, write_relations, write_sim_log
 
 runner = CliRunner()
@@ -192,7 +194,7 @@ def test_ctrl_c_exits_130(monkeypatch: pytest.MonkeyPatch, data: Path, tmp_path:
     def interrupted(*args: Any, **kwargs: Any) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("fuzzypos.batch.run_batch", interrupted)
+    monkeypatch.setattr("fuzzypos.jobs.batch.run_batch", interrupted)
     res = runner.invoke(app, ["batch", str(data), "--out", str(tmp_path)])
     assert res.exit_code == 130 and "interrupted" in res.output
 
@@ -223,7 +225,7 @@ def test_preset_and_loop_closure_are_recorded_and_part_of_the_run(
 def test_batch_table_keeps_errors_readable_at_80_columns() -> None:
     from rich.console import Console
 
-    from fuzzypos.batch import batch_table
+    from fuzzypos.jobs.batch import batch_table
 
     why = "complete run with other --max-scans 2500 (now 200) kept (--force replaces it)"
     rows = [{"log": "/data/intel.clf.gz", "config": "default", "status": "refused", "error": why}]
@@ -235,7 +237,7 @@ def test_batch_table_keeps_errors_readable_at_80_columns() -> None:
 
 RAY_QUIET = """
 import sys
-from fuzzypos.tasks import run_tasks
+from fuzzypos.jobs.tasks import run_tasks
 
 
 def negative(x):
@@ -273,8 +275,8 @@ def test_a_rows_seconds_leave_out_the_kernels_compiling(
     ``compile_seconds``, not part of its ``seconds``."""
     import time
 
-    from fuzzypos.batch import _Run, _run_one
     from fuzzypos.config import Config
+    from fuzzypos.jobs.batch import _Run, _run_one
     from fuzzypos.pipeline import warm
 
     warm.compile_kernels()

@@ -25,9 +25,8 @@ from fuzzypos.geometry import (
     propagate,
     relative,
 )
-from fuzzypos.io import Relations, read_tum, write_tum
-from fuzzypos.logs import open_log
-from fuzzypos.run import run_log
+from fuzzypos.io import Relations, open_log, read_tum, write_tum
+from fuzzypos.jobs import run_log
 from helpers import load_benchmark, write_relations, write_sim_log
 
 

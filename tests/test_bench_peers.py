@@ -10,10 +10,9 @@ import numpy as np
 import pytest
 
 from fuzzypos import sim
-from fuzzypos.demo import DemoSettings
-from fuzzypos.evaluation import relations_errors
-from fuzzypos.io import read_relations
-from fuzzypos.logs import open_log
+from fuzzypos.eval import relations_errors
+from fuzzypos.io import open_log, read_relations
+from fuzzypos.jobs import DemoSettings
 from helpers import load_benchmark
 
 

@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 from fuzzypos import LaserScan, Pose2D
-from fuzzypos.io import LogRecord, write_carmen
-from fuzzypos.logs import open_log
+from fuzzypos.io import LogRecord, open_log, write_carmen
 from helpers import load_benchmark
 
 

@@ -9,7 +9,7 @@ from types import ModuleType
 import pytest
 
 from fuzzypos import sim
-from fuzzypos.demo import DemoSettings
+from fuzzypos.jobs import DemoSettings
 from helpers import load_benchmark
 
 

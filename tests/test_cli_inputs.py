@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from fuzzypos.provenance import file_sha256
+from fuzzypos.io.provenance import file_sha256
 from helpers import fifo_with, invoke, make_bag, one_line_error, scan_ranges, write_sim_log
 
 

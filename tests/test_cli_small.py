@@ -17,8 +17,8 @@ from typer.models import ParameterInfo
 from typer.testing import CliRunner
 
 from fuzzypos import __version__
-from fuzzypos._cli_help import escape_markup
 from fuzzypos.cli import app
+from fuzzypos.cli.help import escape_markup
 from helpers import write_relations, write_sim_log
 
 runner = CliRunner()
@@ -138,7 +138,7 @@ def test_the_benchmark_table_keeps_every_number_at_80_columns() -> None:
     an ellipsis) shows each value's digits whole; a wide terminal keeps a line a row."""
     from rich.console import Console
 
-    from fuzzypos._cli_tables import benchmark_table
+    from fuzzypos.cli.tables import benchmark_table
 
     row = {
         "log": "fr-clinic", "config": "default+loop_closure online",
@@ -167,7 +167,7 @@ def test_the_benchmark_table_keeps_every_number_at_80_columns() -> None:
 def test_run_says_the_kernels_compile_only_where_the_cache_is_cold(
     scored_log, tmp_path, monkeypatch, cold
 ):
-    from fuzzypos._cli_help import COMPILING
+    from fuzzypos.cli.help import COMPILING
     from fuzzypos.pipeline import warm
 
     warm.compile_kernels()  # compiled in this process: the warm-up below only pretends
@@ -188,7 +188,7 @@ def test_run_says_the_kernels_compile_only_where_the_cache_is_cold(
 
 
 def test_demo_says_what_it_does_before_the_kernels_compile(tmp_path, monkeypatch):
-    from fuzzypos._cli_help import COMPILING
+    from fuzzypos.cli.help import COMPILING
     from fuzzypos.pipeline import warm
 
     warm.compile_kernels()

@@ -19,7 +19,7 @@ import typer
 from typer.testing import CliRunner
 
 from fuzzypos.cli import app
-from fuzzypos.folders import log_label
+from fuzzypos.jobs.folders import log_name
 from helpers import make_bag, standard, write_sim_log
 
 runner = CliRunner()
@@ -215,6 +215,6 @@ def test_plot_scan_default_folder_drops_the_log_suffixes(sim_log, tmp_path, monk
     res = runner.invoke(app, ["plot-scan", str(sim_log), "-n", "2"])
     assert res.exit_code == 0, res.output
     # named as run names its results folder: the log without its compression suffix
-    assert log_label(sim_log) == "sim.clf"
+    assert log_name(sim_log, keep_format=True) == "sim.clf"
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["sim.clf-scan2"]
     assert len(list((tmp_path / "plots" / "sim.clf-scan2").glob("fig1[3-8]_*.png"))) == 6

@@ -9,8 +9,8 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from fuzzypos import Config
-from fuzzypos._config_docs import settings_lines, settings_markdown
 from fuzzypos.cli import app
+from fuzzypos.config.docs import settings_lines, settings_markdown
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "configuration.md"
 

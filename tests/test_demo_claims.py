@@ -16,18 +16,18 @@ import numpy as np
 import pytest
 
 from fuzzypos import Config, Positioner
-from fuzzypos import plot as plotting
-from fuzzypos.demo import (
+from fuzzypos.eval import trajectory_errors
+from fuzzypos.features import extract_features
+from fuzzypos.jobs import DemoSettings
+from fuzzypos.jobs.demo import (
     FEATURE_SCAN_INDEX,
     PRESETS,
-    DemoSettings,
     errors_figure,
     feature_scan,
     paths_figure,
     simulate_gym_circle,
 )
-from fuzzypos.evaluation import trajectory_errors
-from fuzzypos.features import extract_features
+from fuzzypos.plot import figures as plotting
 from test_plot import _ends, _overlapping_texts, n_offsets
 
 

@@ -24,14 +24,16 @@ from fuzzypos import sim
 from fuzzypos.config import Config, ConfigError, FuzzyConfig
 from fuzzypos.features import (
     Lines,
+    distance_scale,
     extract_features,
+    point_uncertainty,
     rule_bases,
     virtual_angular_points,
-    virtual_candidates,
 )
+from fuzzypos.features.extract import virtual_candidates
+from fuzzypos.features.segmentation import line_distance_scale
 from fuzzypos.fuzzy import point_rule_base, virtual_point_rule_base
 from fuzzypos.geometry import Pose2D
-from fuzzypos.segmentation import distance_scale, line_distance_scale, point_uncertainty
 
 FIXED = Config(fuzzy=replace(Config().fuzzy, distance_scale="fixed"))
 

@@ -23,8 +23,8 @@ import numpy as np
 import pytest
 
 from fuzzypos import Config, Positioner, sim
-from fuzzypos.demo import DemoSettings
-from fuzzypos.evaluation import TrajectoryErrors, relative_pose_error, trajectory_errors
+from fuzzypos.eval import TrajectoryErrors, relative_pose_error, trajectory_errors
+from fuzzypos.jobs import DemoSettings
 
 
 def _run(

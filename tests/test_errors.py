@@ -54,7 +54,7 @@ def test_every_exception_derives_from_the_root(module: str, name: str) -> None:
 
 def test_one_except_catches_a_bad_log_and_a_bad_config(tmp_path: Path) -> None:
     from fuzzypos.config import Config
-    from fuzzypos.logs import open_log
+    from fuzzypos.io import open_log
 
     bad = tmp_path / "bad.clf"
     bad.write_text("FLASER 3 1 2\n")

@@ -12,19 +12,16 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fuzzypos.evaluation import (
+from fuzzypos.eval import (
     ErrorStatistics,
     EvaluationError,
     absolute_trajectory_error,
-    align_se2,
-    associate,
-    distance_along,
-    nearest_stamps,
     position_errors,
     relations_errors,
     relative_pose_error,
     trajectory_errors,
 )
+from fuzzypos.eval.metrics import align_se2, associate, distance_along, nearest_stamps
 from fuzzypos.geometry import Pose2D, compose, inverse, relative
 from fuzzypos.io.relations import Relations
 from helpers import DATA

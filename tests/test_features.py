@@ -15,9 +15,10 @@ import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
-from fuzzypos import features as F
-from fuzzypos import segmentation, sim
+from fuzzypos import sim
 from fuzzypos.config import Config
+from fuzzypos.features import extract as F
+from fuzzypos.features import segmentation as segmentation
 from fuzzypos.geometry import Pose2D
 from fuzzypos.scan import LaserScan
 

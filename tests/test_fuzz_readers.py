@@ -31,11 +31,12 @@ from fuzzypos.io import (
     BagReader,
     CarmenReader,
     LogFormatError,
+    describe_log,
+    open_log,
     read_relations,
     read_tum,
     write_tum,
 )
-from fuzzypos.logs import describe_log, open_log
 from helpers import make_bag, standard, write_relations, write_sim_log
 
 runner = CliRunner()

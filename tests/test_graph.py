@@ -10,8 +10,8 @@ import pytest
 from scipy.stats import chi2
 
 from fuzzypos import Config, Positioner, sim
-from fuzzypos.demo import DemoSettings
 from fuzzypos.geometry import compose, compose_jacobians, relative
+from fuzzypos.jobs import DemoSettings
 from fuzzypos.pipeline import Estimate
 
 gtsam = pytest.importorskip("gtsam")

@@ -10,7 +10,6 @@ import pytest
 from scipy.stats import chi2
 
 from fuzzypos import Config, sim
-from fuzzypos.demo import DemoSettings
 from fuzzypos.geometry import (
     compose,
     compose_steps,
@@ -19,6 +18,7 @@ from fuzzypos.geometry import (
     relative,
     wrap_angle,
 )
+from fuzzypos.jobs import DemoSettings
 
 pytest.importorskip("gtsam")
 

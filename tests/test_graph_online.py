@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from fuzzypos import Config, Positioner, sim
-from fuzzypos.demo import DemoSettings
 from fuzzypos.geometry import Pose2D, relative
 from fuzzypos.graph import GraphDependencyError, OnlineMapper, PoseGraph, ScanStore, close_loops
+from fuzzypos.jobs import DemoSettings
 
 pytest.importorskip("gtsam", reason="loop closure needs gtsam (pip install 'fuzzypos[graph]')")
 

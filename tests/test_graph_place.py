@@ -13,9 +13,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fuzzypos import Config, Positioner, sim
-from fuzzypos.demo import DemoSettings
 from fuzzypos.geometry import compose, relative, transform_points
 from fuzzypos.graph.place import PlaceIndex, place_descriptor
+from fuzzypos.jobs import DemoSettings
 
 RINGS, SECTORS, RANGE = 20, 60, 10.0
 WIDTH = math.tau / SECTORS

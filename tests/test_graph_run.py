@@ -12,13 +12,13 @@ import pytest
 from typer.testing import CliRunner
 
 from fuzzypos import Config
-from fuzzypos.benchmark import LOOP_CLOSURE_CONFIGS, run_benchmark
 from fuzzypos.cli import app
-from fuzzypos.evaluation import relations_errors
-from fuzzypos.folders import RESULT_FILES
+from fuzzypos.eval import relations_errors
 from fuzzypos.graph import LOOP_CLOSURE_FILES, GraphDependencyError, read_g2o
 from fuzzypos.io import read_relations, read_tum
-from fuzzypos.run import run_log
+from fuzzypos.jobs import run_benchmark, run_log
+from fuzzypos.jobs.benchmark import LOOP_CLOSURE_CONFIGS
+from fuzzypos.jobs.folders import RESULT_FILES
 from helpers import write_relations, write_sim_log
 
 pytest.importorskip("gtsam")

@@ -16,8 +16,7 @@ from typer.testing import CliRunner
 
 from fuzzypos.cli import app
 from fuzzypos.config import Config
-from fuzzypos.io import CarmenReader
-from fuzzypos.logs import open_log
+from fuzzypos.io import CarmenReader, open_log
 from helpers import invoke, make_bag, one_line_error, write_sim_log
 
 runner = CliRunner()
@@ -217,7 +216,7 @@ def test_odometry_standing_still_with_still_scans_is_not_flagged(sim, tmp_path):
     first = next(ln for ln in path.read_text().splitlines(True) if ln.startswith("FLASER "))
     still = "".join(first.replace(" 0.0 host", f" {0.1 * k!r} host", 1) for k in range(20))
     path.write_text(still)
-    from fuzzypos.logs import survey_log
+    from fuzzypos.io.logs import survey_log
 
     _, coverage = survey_log(open_log(path), Config().scanner)
     assert coverage.scans == 20 and coverage.uncovered == 0 and coverage.note() is None

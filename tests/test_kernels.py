@@ -19,11 +19,12 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 import fuzzypos._kernels as kernels
-from fuzzypos import features as features_module
-from fuzzypos import segmentation as seg
 from fuzzypos import sim
 from fuzzypos.config import Config
-from fuzzypos.features import _fit_lines_compiled, _fit_lines_numpy, extract_features, rule_bases
+from fuzzypos.features import extract as features_module
+from fuzzypos.features import extract_features, rule_bases
+from fuzzypos.features import segmentation as seg
+from fuzzypos.features.extract import _fit_lines_compiled, _fit_lines_numpy
 from fuzzypos.geometry import Pose2D
 from fuzzypos.matching import lines as line_matching
 from fuzzypos.matching import search as search_module

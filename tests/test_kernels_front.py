@@ -17,12 +17,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import fuzzypos._kernels as kernels
-from fuzzypos import features as features_module
-from fuzzypos import segmentation as seg
 from fuzzypos import sim
 from fuzzypos._kernels import packing
 from fuzzypos.config import Config
+from fuzzypos.features import extract as features_module
 from fuzzypos.features import rule_bases
+from fuzzypos.features import segmentation as seg
 from fuzzypos.geometry import Pose2D
 from fuzzypos.scan import LaserScan
 from helpers import both, compiled_and_staged

@@ -18,11 +18,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import fuzzypos._kernels as kernels
-from fuzzypos import _features_points as P
-from fuzzypos import features as F
 from fuzzypos import sim
 from fuzzypos.config import Config
-from fuzzypos.features import FeaturePoints, merge_duplicates, rule_bases
+from fuzzypos.features import FeaturePoints, rule_bases
+from fuzzypos.features import extract as F
+from fuzzypos.features import points as P
+from fuzzypos.features.extract import merge_duplicates
 from fuzzypos.geometry import Pose2D
 
 TOL = 1e-9

@@ -1,4 +1,4 @@
-"""fuzzypos.logs: telling a log's kind by content, choosing a stretch, describing a log."""
+"""fuzzypos.io.logs: telling a log's kind by content, choosing a stretch, describing a log."""
 
 from __future__ import annotations
 
@@ -13,29 +13,26 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fuzzypos.geometry import Pose2D
-from fuzzypos.io import BagReader, CarmenReader, LogFormatError, LogRecord
-from fuzzypos.logs import (
-    SelectionError,
-    StampCheck,
-    StampError,
+from fuzzypos.io import (
+    BagReader,
+    CarmenReader,
+    LogFormatError,
+    LogRecord,
     UnknownLogError,
     describe_log,
     log_kind,
     open_log,
+)
+from fuzzypos.io.logs import (
+    SelectionError,
+    StampCheck,
+    StampError,
     parse_laser_offset,
     select_records,
     select_stamps,
 )
 from fuzzypos.scan import LaserScan
-from helpers import (
-    SCAN_T,
-    fifo_with,
-    make_bag,
-    pipe_with,
-    scan_ranges,
-    standard,
-    write_sim_log,
-)
+from helpers import SCAN_T, fifo_with, make_bag, pipe_with, scan_ranges, standard, write_sim_log
 
 
 # -- helpers ----------------------------------------------------------------------------

@@ -28,10 +28,10 @@ from fuzzypos.cli import app
 from fuzzypos.config import Config, ConfigError, ScannerConfig
 from fuzzypos.features import Features, extract_features
 from fuzzypos.geometry import Pose2D
-from fuzzypos.io import CarmenRecord, write_carmen
-from fuzzypos.logs import describe_log, find_no_return_values, open_log
-from fuzzypos.no_returns import FoundNoReturn, RangeTally, with_found_bands
-from fuzzypos.run import run_log
+from fuzzypos.io import CarmenRecord, describe_log, open_log, write_carmen
+from fuzzypos.io.logs import find_no_return_values
+from fuzzypos.io.no_returns import FoundNoReturn, RangeTally, with_found_bands
+from fuzzypos.jobs import run_log
 from fuzzypos.scan import (
     NO_RETURN_SLACK,
     LaserScan,

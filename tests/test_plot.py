@@ -14,9 +14,10 @@ from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 from matplotlib.text import Text
 
-from fuzzypos import Config, plot, sim
+from fuzzypos import Config, sim
 from fuzzypos.features import Features, extract_features
 from fuzzypos.geometry import Pose2D
+from fuzzypos.plot import figures as plot
 from fuzzypos.scan import LaserScan
 from fuzzypos.sim import ScannerModel, furnished_room, simulate_scan
 

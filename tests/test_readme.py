@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from fuzzypos.cli import app
-from fuzzypos.folders import RESULT_FILES
+from fuzzypos.jobs.folders import RESULT_FILES
 from helpers import write_sim_log
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from fuzzypos import Config, Positioner, Reason
-from fuzzypos.evaluation import relations_errors
+from fuzzypos.eval import relations_errors
 from fuzzypos.geometry import relative
 from fuzzypos.io import BagReader, read_carmen, read_relations
 from helpers import DATA

@@ -1,6 +1,6 @@
-"""The run job and its results folder (fuzzypos.run), scoring trajectory files
-(fuzzypos.scoring), provenance (fuzzypos.provenance), the benchmark (fuzzypos.benchmark), and
-the fuzzypos.results compatibility names."""
+"""The run job and its results folder (fuzzypos.jobs.run), scoring trajectory files
+(fuzzypos.eval.scoring), provenance (fuzzypos.io.provenance), the benchmark
+(fuzzypos.jobs.benchmark), and the deprecated paths fuzzypos.logs and fuzzypos.evaluation."""
 
 from __future__ import annotations
 
@@ -12,16 +12,21 @@ import subprocess
 import numpy as np
 import pytest
 
-from fuzzypos.benchmark import BENCHMARK_CONFIGS, find_benchmark_logs, run_benchmark
 from fuzzypos.config import Config
-from fuzzypos.folders import ResultsFolderError
+from fuzzypos.eval import evaluate_trajectory
 from fuzzypos.geometry import Pose2D
-from fuzzypos.io import CarmenReader, CarmenWriter, LogRecord, read_tum
-from fuzzypos.logs import open_log
-from fuzzypos.provenance import file_sha256, git_hash
-from fuzzypos.run import log_name, partial_results, run_log, write_estimate_clf
+from fuzzypos.io import CarmenReader, CarmenWriter, LogRecord, open_log, read_tum
+from fuzzypos.io.provenance import file_sha256, git_hash
+from fuzzypos.jobs import (
+    ResultsFolderError,
+    log_name,
+    partial_results,
+    run_benchmark,
+    run_log,
+    write_estimate_clf,
+)
+from fuzzypos.jobs.benchmark import BENCHMARK_CONFIGS, find_benchmark_logs
 from fuzzypos.scan import LaserScan
-from fuzzypos.scoring import evaluate_trajectory
 from helpers import write_relations, write_sim_log
 
 FILES = {"trajectory.tum", "trajectory.clf", "config.toml", "path.png", "summary.json"}
@@ -356,6 +361,7 @@ def test_log_name():
     assert log_name("aces.bag") == "aces"
     assert log_name("my_bag/") == "my_bag"
     assert log_name(".clf") == ".clf"
+    assert log_name("x.clf.bz2") == "x"
 
 
 # -- evaluate_trajectory ----------------------------------------------------------------------
@@ -440,27 +446,14 @@ def test_records_keep_their_type():
     assert BENCHMARK_CONFIGS == ("odometry", "paper", "default")
 
 
-# -- fuzzypos.results: the names it had before the split (docs/python.md names them) ------------
-def test_the_results_compatibility_names_are_the_new_modules_objects():
-    import fuzzypos.results as results_mod
-    from fuzzypos import benchmark, provenance, scoring
-    from fuzzypos import run as run_mod
+# -- the deprecated paths: fuzzypos.logs and fuzzypos.evaluation re-export the new modules' names
+def test_the_deprecated_paths_re_export_the_new_modules_objects():
+    import fuzzypos.evaluation as old_evaluation
+    import fuzzypos.logs as old_logs
+    from fuzzypos.eval import metrics
+    from fuzzypos.io import logs
 
-    home = {
-        "BENCHMARK_CONFIGS": benchmark,
-        "BenchmarkResult": benchmark,
-        "find_benchmark_logs": benchmark,
-        "run_benchmark": benchmark,
-        "Evaluation": scoring,
-        "evaluate_trajectory": scoring,
-        "file_sha256": provenance,
-        "git_hash": provenance,
-        "RunSummary": run_mod,
-        "default_results_dir": run_mod,
-        "log_name": run_mod,
-        "run_log": run_mod,
-        "write_estimate_clf": run_mod,
-    }
-    assert sorted(results_mod.__all__) == sorted(home)
-    for name, module in home.items():
-        assert getattr(results_mod, name) is getattr(module, name), name
+    for old, new in ((old_logs, logs), (old_evaluation, metrics)):
+        assert sorted(old.__all__) == sorted(new.__all__)
+        for name in new.__all__:
+            assert getattr(old, name) is getattr(new, name), name

@@ -16,10 +16,10 @@ import pytest
 from typer.testing import CliRunner
 
 from fuzzypos.cli import app
-from fuzzypos.folders import ResultsFolderError, default_results_dir, log_label
 from fuzzypos.io import CarmenReader, read_carmen, read_tum
+from fuzzypos.jobs import ResultsFolderError, default_results_dir, run_log, write_estimate_clf
+from fuzzypos.jobs.folders import log_name
 from fuzzypos.pipeline import Positioner
-from fuzzypos.run import run_log, write_estimate_clf
 from helpers import write_sim_log
 
 runner = CliRunner()
@@ -58,12 +58,12 @@ def one_line_error(args: list[str], expect: str) -> str:
 
 
 # -- names -----------------------------------------------------------------------------------------
-def test_log_label_drops_only_a_compression_suffix():
-    assert log_label("data/aces.clf.gz") == "aces.clf"
-    assert log_label("aces.bag") == "aces.bag"
-    assert log_label("INTEL.CLF.GZ") == "INTEL.CLF"
-    assert log_label("my_bag/") == "my_bag"
-    assert log_label(".gz") == ".gz"
+def test_log_name_keeping_the_format_drops_only_a_compression_suffix():
+    assert log_name("data/aces.clf.gz", keep_format=True) == "aces.clf"
+    assert log_name("aces.bag", keep_format=True) == "aces.bag"
+    assert log_name("INTEL.CLF.GZ", keep_format=True) == "INTEL.CLF"
+    assert log_name("my_bag/", keep_format=True) == "my_bag"
+    assert log_name(".gz", keep_format=True) == ".gz"
 
 
 def test_a_log_and_a_bag_of_the_same_name_get_their_own_folders():

@@ -27,8 +27,8 @@ import pytest
 from typer.testing import CliRunner
 
 from fuzzypos.cli import app
+from fuzzypos.jobs import run_log
 from fuzzypos.pipeline import Positioner
-from fuzzypos.run import run_log
 from helpers import write_sim_log
 
 runner = CliRunner()
@@ -279,7 +279,7 @@ def test_a_file_too_large_mid_run_names_it_and_keeps_the_scans_before(
     sim_log, tmp_path, monkeypatch
 ):
     """covariance.csv, written scan by scan, fails at its 6th row (EFBIG)."""
-    import fuzzypos._run_outputs as run_outputs
+    import fuzzypos.jobs.outputs as run_outputs
 
     path, _run = sim_log
 
@@ -384,7 +384,7 @@ def test_ctrl_c_inside_the_loop_from_numba_is_an_interrupt(sim_log, tmp_path, mo
 
 @pytest.mark.parametrize("step", ["path.png", "config.toml"])
 def test_ctrl_c_in_a_writer_keeps_the_rest(sim_log, tmp_path, monkeypatch, step):
-    import fuzzypos.run as run_module
+    import fuzzypos.jobs.run as run_module
 
     path, run = sim_log
     if step == "path.png":

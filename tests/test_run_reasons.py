@@ -15,19 +15,17 @@ from typing import Any, ClassVar
 import numpy as np
 import pytest
 
-import fuzzypos.run as run_module
+import fuzzypos.jobs.run as run_module
 from fuzzypos.config import Config
 from fuzzypos.geometry import Pose2D, covariance_to_parent, propagate
-from fuzzypos.io import CarmenRecord, read_tum, write_carmen
-from fuzzypos.logs import open_log
-from fuzzypos.pipeline import Estimate, OdometryNoise, Positioner, Reason
-from fuzzypos.run import (
+from fuzzypos.io import CarmenRecord, open_log, read_tum, write_carmen
+from fuzzypos.jobs import partial_results, run_log
+from fuzzypos.jobs.outputs import (
     COVARIANCE_COLUMNS,
     POSE_COVARIANCE_COLUMNS,
     STEP_COVARIANCE_COLUMNS,
-    partial_results,
-    run_log,
 )
+from fuzzypos.pipeline import Estimate, OdometryNoise, Positioner, Reason
 from helpers import write_sim_log
 
 LEGACY = ["stamp", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta"]

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from fuzzypos import Config, Positioner, sim
-from fuzzypos.evaluation import relative_pose_error
+from fuzzypos.eval import relative_pose_error
 from fuzzypos.geometry import Pose2D
 from fuzzypos.io import CarmenRecord, read_carmen, write_carmen
 from fuzzypos.scan import LaserScan

@@ -22,8 +22,8 @@ import pytest
 
 from fuzzypos import sim
 from fuzzypos.config import Config
-from fuzzypos.demo import DemoSettings
 from fuzzypos.geometry import Pose2D
+from fuzzypos.jobs import DemoSettings
 from fuzzypos.pipeline import Estimate, Positioner
 from fuzzypos.pipeline import positioner as positioner_module
 from fuzzypos.pipeline.warm import warm_up

@@ -1,4 +1,4 @@
-"""``fuzzypos.tasks.run_tasks`` (Ray tasks with one thread each, or one after the other here)
+"""``fuzzypos.jobs.tasks.run_tasks`` (Ray tasks with one thread each, or one after the other here)
 and what goes through it besides ``fuzzypos batch``: ``fuzzypos benchmark --jobs`` and
 ``benchmarks/bench_sensitivity.py``, whose Ray path gives the rows of the sequential one.
 
@@ -20,9 +20,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from fuzzypos.benchmark import LOOP_CLOSURE_CONFIGS, run_benchmark
 from fuzzypos.cli import app
-from fuzzypos.tasks import ONE_THREAD_ENV, RayMissingError, TaskDone, ray_installed, run_tasks
+from fuzzypos.jobs import TaskDone, run_benchmark, run_tasks
+from fuzzypos.jobs.benchmark import LOOP_CLOSURE_CONFIGS
+from fuzzypos.jobs.tasks import ONE_THREAD_ENV, RayMissingError, ray_installed
 from helpers import write_relations, write_sim_log
 
 runner = CliRunner()

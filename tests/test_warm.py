@@ -176,8 +176,8 @@ def test_the_sources_stamp_changes_with_any_kernel_module(tmp_path) -> None:
 def test_a_runs_speed_figures_leave_out_the_kernels_compiling(tmp_path, monkeypatch) -> None:
     """``run_log`` compiles the kernels before its clock starts: a warm-up of 2 s is in
     ``compile_seconds``, not in the positioner's or the loop's seconds."""
+    from fuzzypos.jobs import run_log
     from fuzzypos.pipeline import warm
-    from fuzzypos.run import run_log
     from helpers import write_sim_log
 
     warm.compile_kernels()  # the kernels really compiled (or loaded) in this process first

@@ -1,4 +1,4 @@
-"""The point features of one scan (``fuzzypos.features._point_features``, its numpy
+"""The point features of one scan (``fuzzypos.features.extract._point_features``, its numpy
 reference) in one compiled call: the line pairs that meet at a real angular point, the virtual
 angular points' candidates (§3.6, eq. 10), one fuzzy grading of them and of the joined real
 corners (eq. 11–12: a three-input product rule base, eq. 4's centre average), the angular
@@ -87,7 +87,7 @@ def grade(
 
 @kernel
 def _merge(xy: FloatArray, u: FloatArray, kind: Int8Array, radius: float) -> IntArray:
-    """``fuzzypos.features.merge_duplicates``' kept indices, in order: the points sorted by
+    """``fuzzypos.features.extract.merge_duplicates``' kept indices, in order: the points sorted by
     uncertainty, then kind (virtual first; ``np.lexsort``'s stable order), each dropped that
     lies within ``radius`` of one before it in that order (no NaN)."""
     n = xy.shape[0]

@@ -1,5 +1,5 @@
 """The segmentation stages as compiled loops over a scan's points (the references: the numpy
-functions of ``fuzzypos.segmentation`` and ``fuzzypos.features``, which
+functions of ``fuzzypos.features.segmentation`` and ``fuzzypos.features``, which
 ``FUZZYPOS_KERNELS=numpy`` selects): break points (eq. 13), detection angles (eq. 3),
 clusters (§3.3), angular points (eq. 14), segments (§3.5), the lines' least-squares fits
 (eq. 5–8) and their joins at angular points (§3.5 b)). The angles themselves (atan2, sin,
@@ -334,7 +334,7 @@ def join_at_corners(
 ) -> tuple[
     int, FloatArray, FloatArray, FloatArray, FloatArray, BoolArray, IntArray, IntArray, FloatArray
 ]:
-    """§3.5 b), ``fuzzypos.features.join_at_corners``: the lines (``segment`` their segment
+    """§3.5 b), ``fuzzypos.features.extract.join_at_corners``: the lines (``segment`` their segment
     ids) on either side of each angular point (``before``/``after``: segment ids) that meet
     at least at ``min_sine`` are joined at their intersection (eq. 15–16 in normal form).
     Returns how many angular points have a line on both sides, the lines' new start and end

@@ -1,8 +1,9 @@
-"""The ``fuzzypos`` command line (typer): the commands (:mod:`.main`), their help and progress
-(:mod:`.help`) and their tables (:mod:`.tables`). ``fuzzypos.cli:app`` is the console script."""
+"""The ``fuzzypos`` command line (typer): the commands (:mod:`.commands`), their help and
+progress (:mod:`.help`) and their tables (:mod:`.tables`). ``fuzzypos.cli:app`` is the console
+script; :func:`main` runs it."""
 
 from __future__ import annotations
 
-from .main import app
+from .commands import app, main
 
-__all__ = ["app"]
+__all__ = ["app", "main"]

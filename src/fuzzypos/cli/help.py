@@ -14,8 +14,8 @@ from rich.markup import escape
 from rich.progress import Progress
 from typer.core import TyperArgument, TyperCommand, TyperGroup
 
-from ._version import __version__
-from .config import Config, ConfigError
+from .._version import __version__
+from ..config import Config, ConfigError
 
 __all__ = [
     "BATCH_HELP",
@@ -198,7 +198,7 @@ COMPILING = "compiling the kernels on first use (a minute or two; cached afterwa
 
 @contextmanager
 def compiling_shown(console: Console, progress: Progress | None = None) -> Iterator[None]:
-    """While the kernels compile (``compiling`` of :func:`~fuzzypos.run.run_log`): the line
+    """While the kernels compile (``compiling`` of :func:`~fuzzypos.jobs.run.run_log`): the line
     :data:`COMPILING` on ``console`` (stderr), then on a terminal a spinner: a task of
     ``progress`` where that display is live (rich shows one live display at a time), else
     the console's status."""

@@ -15,10 +15,11 @@ from rich.table import Table
 from rich.text import Text
 
 if TYPE_CHECKING:
-    from .config import ScannerConfig
-    from .io.bag_info import BagInfo, StreamInfo
-    from .logs import LogInfo, NoReturnCount, OpenLog
-    from .no_returns import FoundNoReturn
+    from ..config import ScannerConfig
+    from ..io import LogInfo, OpenLog
+    from ..io.bag_info import BagInfo, StreamInfo
+    from ..io.logs import NoReturnCount
+    from ..io.no_returns import FoundNoReturn
 
 __all__ = [
     "bag_overview",
@@ -302,8 +303,8 @@ def bag_overview(log: OpenLog) -> BagInfo | None:
     """``info``'s look into an opened bag (:func:`~fuzzypos.io.bag_info.describe_bag`, with
     the topics its reader picked; :func:`bag_tables` shows it); None for a CARMEN log. An
     error: one line, exit 2."""
-    from .io import BagReader
-    from .io.bag_info import describe_bag
+    from ..io import BagReader
+    from ..io.bag_info import describe_bag
 
     reader = log.reader
     if not isinstance(reader, BagReader):
@@ -323,8 +324,8 @@ def bag_alone(path: Path, odom_topic: str | None, json_out: bool, console: Conso
     defaults (:func:`bag_tables`; ``{"bag": …}`` with ``json_out``) and a note on stderr of
     what ``run`` needs; True. False for anything else (a CARMEN log, a bag with one scan
     topic, a path that is no bag): ``info`` goes on as before."""
-    from .io.bag_info import describe_bag
-    from .logs import log_kind
+    from ..io import log_kind
+    from ..io.bag_info import describe_bag
 
     try:
         if not (path.is_file() or path.is_dir()):  # a pipe is read once, by info itself
@@ -351,7 +352,7 @@ def bag_alone(path: Path, odom_topic: str | None, json_out: bool, console: Conso
 
 
 def log_table(title: str, result: LogInfo, scanner: ScannerConfig) -> Table:
-    """``info``'s table of what a log holds (:func:`~fuzzypos.logs.describe_log`'s
+    """``info``'s table of what a log holds (:func:`~fuzzypos.io.logs.describe_log`'s
     ``result``; the "no return" rows judged by ``scanner``)."""
     table = Table(title=title, show_header=False)
     table.add_column("", style="bold")

@@ -3,7 +3,7 @@
 Every threshold and every membership function lives here, each declaring why it has its value,
 its unit and its bounds (``_field(default, reason, unit=..., ge=..., gt=..., le=..., lt=...)``;
 ``reasons()``, ``schema()``). Validation is generated from those declarations, plus the few
-checks they cannot express (``_config_schema.CHECKS``). Angles (unit ``"rad"``) are radians in
+checks they cannot express (``CHECKS``, below). Angles (unit ``"rad"``) are radians in
 the code; in TOML they sit in keys ending in ``_deg`` and are converted once, at load. Unknown
 keys are an error that names the key; keys of older files that moved or were removed are
 translated with a FutureWarning.
@@ -23,7 +23,7 @@ from typing import Any, ParamSpec, TypeVar
 
 import tomli_w
 
-from ._config_features import (
+from .features import (
     AngularPointConfig,
     FilterConfig,
     FuzzyConfig,
@@ -31,29 +31,23 @@ from ._config_features import (
     SegmentationConfig,
     VirtualPointConfig,
 )
-from ._config_graph import LoopClosureConfig
-from ._config_pipeline import (
-    FusionConfig,
-    MatchingConfig,
-    OdometryConfig,
-    RefinementConfig,
-    SearchConfig,
-)
-from ._config_scanner import ScannerConfig
-from ._config_schema import (
+from .graph import LoopClosureConfig
+from .pipeline import FusionConfig, MatchingConfig, OdometryConfig, RefinementConfig, SearchConfig
+from .scanner import ScannerConfig
+from .schema import (
     SECTIONS,
+    ConfigError,
+    FieldSpec,
     check_rules,
     check_section,
     check_sets,
-    ConfigError,
-    FieldSpec,
     convert_section,
     read_toml,
     section_to_dict,
     spec_of,
     translate_legacy,
 )
-from ._config_uncertainty import CovarianceConfig, GateConfig, OdometryNoiseConfig
+from .uncertainty import CovarianceConfig, GateConfig, OdometryNoiseConfig
 
 __all__ = [
     "ConfigError",
@@ -144,7 +138,7 @@ class Config:
 
         Without ``base``, a top-level ``preset = "<name>"`` picks it (default: ``Config()``);
         with one, a ``preset`` line must name that same configuration. Keys of older files
-        are read in their new place (or dropped) with a FutureWarning, see ``_config_schema``.
+        are read in their new place (or dropped) with a FutureWarning, see :mod:`.schema`.
         Every error names ``source`` and the key.
         """
         base = base_for(cls, data, base, source)

@@ -4,7 +4,7 @@
 ``docs/configuration.md`` holds (``tests/test_config_docs.py`` fails when the committed file
 differs from it): per section, every key as TOML spells it (angles under ``<name>_deg``), its
 default, the ``paper`` preset's value where it differs, its unit, its bounds and the reason
-for its value (:class:`~fuzzypos._config_schema.FieldSpec`). :func:`settings_lines` is the
+for its value (:class:`~fuzzypos.config.schema.FieldSpec`). :func:`settings_lines` is the
 plain-text form ``fuzzypos config --reasons`` prints.
 """
 
@@ -13,12 +13,10 @@ from __future__ import annotations
 import json
 import re
 from dataclasses import fields
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ._config_schema import FieldSpec, spec_of
-
-if TYPE_CHECKING:
-    from .config import Config
+from .core import _SECTIONS, Config
+from .schema import FieldSpec, spec_of
 
 __all__ = ["settings_lines", "settings_markdown"]
 
@@ -87,8 +85,6 @@ def _rows(section: str, cls: type, default: Config, paper: Config) -> list[str]:
 
 def settings_markdown() -> str:
     """``docs/configuration.md``: every setting by section (module docstring)."""
-    from .config import _SECTIONS, Config  # config imports this module's layer-mates only
-
     default, paper = Config(), Config.preset("paper")
     out = [_HEADER]
     for section, cls in _SECTIONS.items():
@@ -105,8 +101,6 @@ def settings_markdown() -> str:
 
 def settings_lines() -> list[str]:
     """``fuzzypos config --reasons``: ``section.key [unit, bounds]: reason`` per setting."""
-    from .config import Config
-
     lines = []
     for key, spec in Config.schema().items():
         what = spec.describe()

@@ -7,12 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ._config_schema import (
-    Triangle,
-    _field,
-    _partition,
-    section,
-)
+from .schema import Triangle, _field, _partition, section
 
 RAD = "rad"  # an angle: radians in code, degrees under "<name>_deg" in TOML
 M = "m"

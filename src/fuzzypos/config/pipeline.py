@@ -7,11 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ._config_schema import (
-    Triangle,  # noqa: F401  (re-exported by config)
-    _field,
-    section,
-)
+from .schema import _field, section
 
 RAD = "rad"  # an angle: radians in code, degrees under "<name>_deg" in TOML
 M = "m"

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ._config_schema import _field, section
+from .schema import _field, section
 
 Band = tuple[float, float]
 
@@ -21,7 +21,7 @@ class ScannerConfig:
 
     ``find_no_return_values`` and the ``find_*`` thresholds: a first pass over the log finds
     the values its scanner uses as "no return" codes, which the run adds to the bands
-    (:mod:`fuzzypos.no_returns`: criteria (a)-(d) there).
+    (:mod:`fuzzypos.io.no_returns`: criteria (a)-(d) there).
     """
 
     no_return_bands: tuple[Band, ...] = _field(

@@ -19,7 +19,7 @@ from dataclasses import MISSING, Field, dataclass, field, fields
 from pathlib import Path
 from typing import Any, TypeVar
 
-from .errors import FuzzyposError
+from ..errors import FuzzyposError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -27,7 +27,6 @@ else:  # pragma: no cover - exercised on 3.10 only
     import tomli as tomllib
 
 Triangle = tuple[float, float, float]
-
 
 
 def _partition(peaks: tuple[float, ...]) -> tuple[Triangle, ...]:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ._config_schema import _field, section
+from .schema import _field, section
 
 RAD = "rad"  # an angle: radians in code, degrees under "<name>_deg" in TOML
 M = "m"

@@ -30,9 +30,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import FuzzyposError
-from .geometry import Pose2D, compose, relative, rotation_matrix, wrap_angle
-from .io.relations import Relations
+from ..errors import FuzzyposError
+from ..geometry import Pose2D, compose, relative, rotation_matrix, wrap_angle
+from ..io.relations import Relations
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]

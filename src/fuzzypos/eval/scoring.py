@@ -1,4 +1,4 @@
-"""Scoring trajectory files: the file interface over :mod:`fuzzypos.evaluation` (which scores
+"""Scoring trajectory files: the file interface over :mod:`fuzzypos.eval.metrics` (which scores
 arrays). :func:`evaluate_trajectory` reads a TUM estimate, a relations file and/or a TUM
 reference and scores the estimate (what ``fuzzypos evaluate`` prints)."""
 
@@ -8,7 +8,9 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from .evaluation import (
+from ..io import read_relations, read_tum
+from ..io.provenance import json_safe
+from .metrics import (
     AbsoluteTrajectoryError,
     EvaluationError,
     RelationsErrors,
@@ -17,8 +19,6 @@ from .evaluation import (
     relations_errors,
     relative_pose_error,
 )
-from .io import read_relations, read_tum
-from .provenance import json_safe
 
 __all__ = ["Evaluation", "evaluate_trajectory"]
 
@@ -58,10 +58,10 @@ def evaluate_trajectory(
     reference: str | os.PathLike[str] | None = None,
 ) -> Evaluation:
     """Score the TUM trajectory ``estimate`` against a relations file
-    (:func:`~fuzzypos.evaluation.relations_errors`: all and local relations) and/or a
+    (:func:`~fuzzypos.eval.metrics.relations_errors`: all and local relations) and/or a
     reference TUM trajectory (ATE after SE(2) alignment,
-    :func:`~fuzzypos.evaluation.absolute_trajectory_error`; RPE over 1 frame and over 1 m of
-    the reference's path, :func:`~fuzzypos.evaluation.relative_pose_error`). At least one of
+    :func:`~fuzzypos.eval.metrics.absolute_trajectory_error`; RPE over 1 frame and over 1 m of
+    the reference's path, :func:`~fuzzypos.eval.metrics.relative_pose_error`). At least one of
     the two is needed (``ValueError``). An RPE that has no pair (a reference shorter than 1 m)
     is left None with a note."""
     if relations is None and reference is None:

@@ -9,10 +9,10 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from ._kernels import compiled, packing
-from .config import Config, FuzzyConfig, LineConfig, same_as_last_call
-from .fuzzy import RuleBases
-from .scan import LaserScan
+from .._kernels import compiled, packing
+from ..config import Config, FuzzyConfig, LineConfig, same_as_last_call
+from ..fuzzy import RuleBases
+from ..scan import LaserScan
 from .segmentation import _band_bounds_of, _front_params
 
 FloatArray = NDArray[np.float64]

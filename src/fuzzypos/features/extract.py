@@ -23,25 +23,15 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from ._features_chain import MIN_LINE_NOISE as _MIN_LINE_NOISE
-from ._features_chain import ChainOutputs, chain_inputs
-from ._features_chain import line_params as _line_params
-from ._kernels import compiled, packing
-from ._kernels.packing import Unpacks
-from .config import Config, FuzzyConfig, same_as_last_call
-from .fuzzy import RuleBases
-from .geometry import stack_columns
-from .scan import LaserScan
-from .types import (
-    ANGULAR_POINT,
-    BREAK_POINT,
-    KIND_NAMES,
-    VIRTUAL_ANGULAR_POINT,
-    FeaturePoints,
-    Lines,
-    _CornerContext,
-    _PointFeatures,
-)
+from .._kernels import compiled, packing
+from .._kernels.packing import Unpacks
+from ..config import Config, FuzzyConfig, same_as_last_call
+from ..fuzzy import RuleBases
+from ..geometry import stack_columns
+from ..scan import LaserScan
+from .chain import MIN_LINE_NOISE as _MIN_LINE_NOISE
+from .chain import ChainOutputs, chain_inputs
+from .chain import line_params as _line_params
 from .segmentation import (
     _strict_upper,
     angular_points,
@@ -53,6 +43,16 @@ from .segmentation import (
     line_distance_scale,
     point_uncertainty,
     segment_scan,
+)
+from .types import (
+    ANGULAR_POINT,
+    BREAK_POINT,
+    KIND_NAMES,
+    VIRTUAL_ANGULAR_POINT,
+    FeaturePoints,
+    Lines,
+    _CornerContext,
+    _PointFeatures,
 )
 
 FloatArray = NDArray[np.float64]
@@ -79,7 +79,6 @@ __all__ = [
     "virtual_angular_points",
     "extract_features",
 ]
-
 
 
 @same_as_last_call
@@ -214,7 +213,7 @@ def _fit_lines_compiled(
     cfg: Config,
 ) -> Lines:
     """:func:`fit_lines` with the fits in one compiled loop (``_kernels.segmentation``)."""
-    from ._kernels.segmentation import finish_lines, segment_sums
+    from .._kernels.segmentation import finish_lines, segment_sums
 
     p = np.ascontiguousarray(points, dtype=np.float64)
     seg = np.ascontiguousarray(segment, dtype=np.int64)
@@ -372,7 +371,7 @@ def join_at_corners(
     if m == 0 or len(lines) < 2:
         return lines, xy, ok, none, none, np.zeros(0)
     if compiled():
-        from ._kernels.segmentation import join_at_corners as kernel
+        from .._kernels.segmentation import join_at_corners as kernel
 
         have_any, start, end, centre, xy, ok, ia, ib, dv = kernel(
             np.ascontiguousarray(lines.normal, dtype=np.float64),
@@ -466,7 +465,7 @@ def virtual_angular_points(
     Each gets the uncertainty of Table 3 from its lines' uncertainties and d_v (eq. 10), and
     points above the threshold are removed. ``exclude_pairs`` (k, 2) are line pairs that meet
     at a real angular point: that intersection is the angular point, not a second feature.
-    ``scale`` (:func:`~fuzzypos.segmentation.distance_scale`) stretches d_v's sets and the
+    ``scale`` (:func:`~fuzzypos.features.segmentation.distance_scale`) stretches d_v's sets and the
     distance limit. Returns the points, their line index pairs and their d_v.
     """
     pts, i, j, dv = virtual_candidates(lines, cfg, exclude_pairs, scale)
@@ -613,7 +612,7 @@ def _lines_compiled(
     """:func:`_graded_for_lines` and :func:`fit_lines` in one compiled call
     (``_kernels.front.fit_lines``): the lines and the scale they are graded on; None where a
     rule base is off the interpolation's path (then the staged functions run)."""
-    from ._kernels.front import fit_lines as kernel
+    from .._kernels.front import fit_lines as kernel
 
     pb, lb = bases.points, bases.lines
     if pb._grids is None or lb._grids is None:
@@ -640,8 +639,8 @@ def _graded_for_lines(
 ) -> tuple[FloatArray, float]:
     """The kept points' uncertainties the lines' δ (eq. 6) is taken from, and the scale the
     lines, d_v and the virtual points' distance limit are graded on: the scale of the lines'
-    own surface (:func:`~fuzzypos.segmentation.line_distance_scale`), the points re-graded on
-    it where it differs from the points' ``scale`` (else ``u`` itself)."""
+    own surface (:func:`~fuzzypos.features.segmentation.line_distance_scale`), the points
+    re-graded on it where it differs from the points' ``scale`` (else ``u`` itself)."""
     line_scale = line_distance_scale(ranges[segment >= 0], scale, cfg.fuzzy)
     if line_scale == scale:
         return u, scale
@@ -651,7 +650,7 @@ def _graded_for_lines(
 def _point_features(c: _CornerContext) -> _PointFeatures:
     """Angular points, virtual angular points (with their line pairs), break points and the
     merged points of interest of one scan (§3.2, §3.4, §3.6): in one compiled call where the
-    kernels are on (``_features_points.point_features_compiled``), else (or where that
+    kernels are on (:func:`.points.point_features_compiled`), else (or where that
     declines) in numpy (:func:`_point_features_numpy`, its reference)."""
     if compiled():
         from .points import point_features_compiled

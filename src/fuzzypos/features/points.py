@@ -1,5 +1,5 @@
 """The point features of one scan in one compiled call (``fuzzypos._kernels.points``):
-what ``fuzzypos.features._point_features`` runs where the kernels are on, its numpy chain
+what ``fuzzypos.features.extract._point_features`` runs where the kernels are on, its numpy chain
 (``_point_features_numpy``) the reference and the fallback where the kernel declines."""
 
 from __future__ import annotations
@@ -10,8 +10,9 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from ._kernels import f64
-from .features import (
+from .._kernels import f64
+from ..fuzzy import RuleBase
+from .types import (
     ANGULAR_POINT,
     BREAK_POINT,
     VIRTUAL_ANGULAR_POINT,
@@ -19,7 +20,6 @@ from .features import (
     _CornerContext,
     _PointFeatures,
 )
-from .fuzzy import RuleBase
 
 __all__ = ["grading_tables", "point_features_compiled"]
 
@@ -55,7 +55,7 @@ def point_features_compiled(c: _CornerContext) -> _PointFeatures | None:
         [ap.refine, ap.pair_unrefined, m.use_break_points, m.use_angular_points,
          m.use_virtual_points], dtype=np.bool_,
     )  # fmt: skip
-    from ._kernels.points import point_features
+    from .._kernels.points import point_features
 
     i64 = np.int64
     done, xy, u, ints, kinds = point_features(

@@ -12,8 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ._kernels import compiled, f64
-from .config import (
+from .._kernels import compiled, f64
+from ..config import (
     AngularPointConfig,
     Config,
     FilterConfig,
@@ -23,9 +23,9 @@ from .config import (
     SegmentationConfig,
     same_as_last_call,
 )
-from .fuzzy import RuleBases
-from .geometry import stack_columns, transform_points
-from .scan import LaserScan, _band_bounds_cached, usable
+from ..fuzzy import RuleBases
+from ..geometry import stack_columns, transform_points
+from ..scan import LaserScan, _band_bounds_cached, usable
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -66,7 +66,7 @@ def _strict_upper(n: int) -> BoolArray:
 def _steps(points: FloatArray, closed: bool) -> FloatArray:
     """Distance from each point to the next one (the last: to the first if ``closed``, else inf)."""
     if compiled():
-        from ._kernels import segmentation as kernel
+        from .._kernels import segmentation as kernel
 
         return kernel.steps(f64(points), bool(closed))
     return _steps_numpy(points, closed)
@@ -118,7 +118,7 @@ def break_points(
     open sequence are break points too (field-of-view edges, eq. 13's ``i = 1, 180``).
     """
     if compiled():
-        from ._kernels import segmentation as kernel
+        from .._kernels import segmentation as kernel
 
         return kernel.break_points(
             f64(points), f64(thresholds), float(gap_difference), bool(closed)
@@ -158,7 +158,7 @@ def detection_angles(
     neighbour on its surface (gaps on both sides) gets β = 0, so filtering removes it.
     """
     if compiled():
-        from ._kernels.segmentation import detection_terms
+        from .._kernels.segmentation import detection_terms
 
         cross, dot, isolated = detection_terms(
             f64(points_sensor), np.ascontiguousarray(gap_after, dtype=np.bool_), bool(closed)
@@ -258,7 +258,7 @@ def filter_points(beta: FloatArray, threshold: float) -> BoolArray:
 def clusters(split: BoolArray, min_points: int) -> IntArray:
     """§3.3: cluster labels 0, 1, … from cuts (``split[j]``: cut after point j); −1 = too small."""
     if compiled():
-        from ._kernels import segmentation as kernel
+        from .._kernels import segmentation as kernel
 
         return kernel.clusters(np.ascontiguousarray(split, dtype=np.bool_), int(min_points))
     return _clusters_numpy(split, min_points)
@@ -294,7 +294,7 @@ def angular_points(
     of a run of consecutive candidates the sharpest wins.
     """
     if compiled():
-        from ._kernels.segmentation import corner_arms, sharpest_of_runs
+        from .._kernels.segmentation import corner_arms, sharpest_of_runs
 
         ap = cfg.angular_points
         labels = np.ascontiguousarray(cluster, dtype=np.int64)
@@ -399,7 +399,7 @@ def segment_ids(
     """:func:`raw_segment_ids` and :func:`segments` in one: the raw id of every point and the
     id its line is fitted with (−1: none)."""
     if compiled():
-        from ._kernels import segmentation as kernel
+        from .._kernels import segmentation as kernel
 
         return kernel.segments(
             np.ascontiguousarray(cluster, dtype=np.int64),
@@ -547,7 +547,7 @@ def segment_scan_compiled(
 ) -> ScanSegments | None:
     """:func:`segment_scan_staged` in two compiled calls (``_kernels.front``); None for a gapless
     360° ring (its seam is the staged chain's) or rule bases off the interpolation's path."""
-    from ._kernels import front as kernel
+    from .._kernels import front as kernel
 
     base = bases.points
     if base._grids is None:
@@ -590,7 +590,7 @@ def _front_params(
     lines: LineConfig,
 ) -> FloatArray:
     """``_kernels.front.PARAMS`` of a config's sections (cached; not to be written to)."""
-    from ._kernels.front import PARAMS
+    from .._kernels.front import PARAMS
 
     values = {
         "gap_distance": seg.gap_distance,
@@ -613,7 +613,7 @@ def _graded_points(
     ranges: FloatArray, beta: FloatArray, bases: RuleBases, cfg: Config
 ) -> tuple[FloatArray, float]:
     """Eq. 4 for every valid point, on distance sets stretched to the scan's own distances
-    (:func:`~fuzzypos.segmentation.distance_scale`); returns the uncertainties and the scale."""
+    (:func:`distance_scale`); returns the uncertainties and the scale."""
     scale = distance_scale(ranges, cfg.fuzzy)
     return point_uncertainty(ranges, beta, bases, scale), scale
 

@@ -43,6 +43,7 @@ from .carmen import (
     read_carmen,
     write_carmen,
 )
+from .logs import LogInfo, OpenLog, UnknownLogError, describe_log, log_kind, open_log
 from .relations import PLANAR_TOLERANCE, Relations, RelationsFormatError, read_relations
 from .rosbag import (
     BagFormatError,
@@ -54,7 +55,6 @@ from .rosbag import (
     read_bag,
 )
 from .rosbag_write import BAG_STORAGES, BagWriteError, OdometryBagWriter, covariance6
-from .logs import LogInfo, OpenLog, UnknownLogError, describe_log, log_kind, open_log
 from .tum import TumFormatError, read_tum, write_tum
 
 __all__ = [

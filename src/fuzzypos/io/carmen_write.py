@@ -5,7 +5,7 @@ uses.
   (``x y θ`` repeat the odometry); every scan must fit one given FLASER beam geometry and
   share one laser (a pure forward mounting offset, one ``range_max``), else ``ValueError``.
 - the run job's ``trajectory.clf`` (``estimate_of=<the log's name>``, see
-  :func:`fuzzypos.run.write_estimate_clf`): ``x y θ`` carry the estimate and
+  :func:`fuzzypos.jobs.run.write_estimate_clf`): ``x y θ`` carry the estimate and
   ``odom_x odom_y odom_θ`` the log's odometry; the FLASER beam geometry is taken from the
   first scan, and a scan FLASER cannot describe (other beam angles, a laser mounted off the
   robot's x axis, a mount that changes) gets a ``ROBOTLASER1`` line instead, with its own

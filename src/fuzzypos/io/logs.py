@@ -25,7 +25,7 @@
   before anything is positioned.
 - :func:`describe_log` reads a whole log once and summarises it (:class:`LogInfo`).
 - :func:`find_no_return_values` reads a whole log once for the values its scanner uses as
-  "no return" codes (:mod:`fuzzypos.no_returns`); :func:`describe_log` finds them too.
+  "no return" codes (:mod:`fuzzypos.io.no_returns`); :func:`describe_log` finds them too.
 - :func:`parse_laser_offset` reads the command line's ``x,y,θdeg``.
 
 Every error here is a :class:`ValueError` subclass naming what is wrong (or an
@@ -47,15 +47,15 @@ from typing import Any, TypeVar, Union
 
 import numpy as np
 
-from .config import ScannerConfig
-from .errors import FuzzyposError
-from .geometry import Pose2D
-from .io import GZIP_MAGIC, BagReader, CarmenReader, LogFormatError, LogRecord
-from .io._common import display_name, spool_if_stream
-from .io.rosbag import ROS1_MAGIC
+from ..config import ScannerConfig
+from ..errors import FuzzyposError
+from ..geometry import Pose2D
+from ..scan import LaserScan, no_return_counts
+from ._common import GZIP_MAGIC, LogFormatError, LogRecord, display_name, spool_if_stream
+from .carmen import CarmenReader
 from .no_returns import FoundNoReturn, RangeTally
 from .odometry_check import OdometryCoverage
-from .scan import LaserScan, no_return_counts
+from .rosbag import ROS1_MAGIC, BagReader
 
 __all__ = [
     "LOG_KINDS",
@@ -676,7 +676,7 @@ class LogInfo:
     ``scans_without_ranges``: scans of no beam (not in the beam angles);
     ``scans_with_odometry``: scans whose odometry covers them, ``scans_odometry_not_covered``
     the others (no odometry at them in a log that has some, or odometry standing still while
-    the scans move: :class:`~fuzzypos.odometry_check.OdometryCoverage`, whose
+    the scans move: :class:`~fuzzypos.io.odometry_check.OdometryCoverage`, whose
     ``as_dict()`` is ``odometry_coverage``); ``scans_with_truth``;
     ``range_max``: the distinct finite ``range_max`` of the scans (at most 10 kept);
     ``no_returns``: per "no return" band, the readings it removes (:class:`NoReturnCount`);
@@ -835,7 +835,7 @@ def survey_log(
 ) -> tuple[list[FoundNoReturn], OdometryCoverage]:
     """One pass over the whole of ``log`` before a run: the "no return" codes
     (:func:`find_no_return_values`, none when ``scanner.find_no_return_values`` is off) and
-    which scans the odometry covers (:class:`~fuzzypos.odometry_check.OdometryCoverage`). A
+    which scans the odometry covers (:class:`~fuzzypos.io.odometry_check.OdometryCoverage`). A
     log that cannot be read to its end is judged on the records before the error, silently
     (the run's own pass reports it)."""
     tally = RangeTally() if scanner.find_no_return_values else None
@@ -854,7 +854,7 @@ def survey_log(
 
 def find_no_return_values(log: OpenLog, scanner: ScannerConfig) -> list[FoundNoReturn]:
     """Read the whole of ``log`` once and return the values its scanner uses as "no return"
-    codes by ``scanner``'s ``find_*`` settings (:mod:`fuzzypos.no_returns`), highest first;
+    codes by ``scanner``'s ``find_*`` settings (:mod:`fuzzypos.io.no_returns`), highest first;
     none when ``scanner.find_no_return_values`` is off (then the log is not read). A log that
     cannot be read to its end is judged on the readings before the error, silently: reporting
     it (and the reader's warnings) is the next pass's job, which keeps the scans before it."""

@@ -37,8 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .config import Config, ScannerConfig
-from .scan import LaserScan, no_return_mask
+from ..config import Config, ScannerConfig
+from ..scan import LaserScan, no_return_mask
 
 __all__ = ["TALLY_STEP", "FoundNoReturn", "RangeTally", "with_found_bands"]
 

@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from .io import LogRecord
-from .scan import LaserScan
+from ..scan import LaserScan
+from ._common import LogRecord
 
 __all__ = ["MIN_STUCK_SCANS", "MOVED_M", "MOVED_RATIO", "OdometryCoverage"]
 

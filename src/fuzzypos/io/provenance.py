@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .io import write_text_file
+from ._common import write_text_file
 
 __all__ = ["file_sha256", "git_hash", "json_safe", "write_json"]
 

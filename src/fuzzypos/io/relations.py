@@ -4,7 +4,7 @@ Format (the shared data's ``README.md``, Kümmerle et al. 2009): one relation pe
 ``t1 t2 x y z roll pitch yaw`` = the true motion of the robot from the scan at time ``t1`` to
 the scan at time ``t2``, expressed in the frame of the first (``x, y`` in metres, ``yaw`` in
 radians). :func:`read_relations` reads them into a :class:`Relations`;
-:func:`fuzzypos.evaluation.relations_errors` scores a trajectory against them.
+:func:`fuzzypos.eval.metrics.relations_errors` scores a trajectory against them.
 
 Validation is strict; anything else raises :class:`RelationsFormatError` naming the file, the
 1-based line and what is wrong:

@@ -97,14 +97,7 @@ from rosbags.typesys import (
 
 from ..geometry import Pose2D, _wrap_scalar, compose, inverse, wrap_angle
 from ..scan import LaserScan, ScanError
-from ._common import (
-    FloatArray,
-    LogFormatError,
-    LogRecord,
-    PathLike,
-    display_name,
-    spool_if_stream,
-)
+from ._common import FloatArray, LogFormatError, LogRecord, PathLike, display_name, spool_if_stream
 
 __all__ = [
     "LASERSCAN_TYPE",

@@ -1,12 +1,12 @@
 """The batch job: every log under some paths × every configuration, each run one Ray task.
 
-:func:`find_logs` tells logs by their content (:func:`~fuzzypos.logs.log_kind`: a ROS1 bag's
+:func:`find_logs` tells logs by their content (:func:`~fuzzypos.io.logs.log_kind`: a ROS1 bag's
 magic, a ROS2 bag directory's ``metadata.yaml``; a CARMEN file, plain or gzip, only when its
 first non-comment line is a CARMEN message), passing over anything else silently, but for
 a file with a log's name (``.clf``, ``.clf.gz``, ``.log``, ``.bag``: :data:`LOG_SUFFIXES`)
 that it cannot read, which is kept, to fail as a run.
 :func:`run_batch` runs each log with each configuration as a Ray task with one thread
-(:func:`~fuzzypos.run.run_log`, results in ``<out>/<log label>/<config name>/``) and writes
+(:func:`~fuzzypos.jobs.run.run_log`, results in ``<out>/<log label>/<config name>/``) and writes
 ``<out>/batch.json`` as runs finish: a row per run with its ``status`` (``ok``, ``failed``,
 ``skipped``, ``refused``), the error's first line (or why it was refused), ``seconds``
 (without ``compile_seconds``, the kernels' compiling or loading in a new worker process),
@@ -32,14 +32,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ._version import __version__
-from .config import Config
-from .folders import log_label
-from .graph import require_gtsam
-from .io import read_relations
-from .logs import UnknownLogError, log_kind
-from .provenance import file_sha256, write_json
-from .run import log_name, run_log
+from .._version import __version__
+from ..config import Config
+from ..graph import require_gtsam
+from ..io import UnknownLogError, log_kind, read_relations
+from ..io.provenance import file_sha256, write_json
+from .folders import log_name
+from .run import run_log
 from .tasks import ONE_THREAD_ENV, RayMissingError, TaskDone, require_ray, run_tasks
 
 __all__ = [
@@ -112,7 +111,8 @@ def find_logs(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
     """Every log (:func:`is_log`, or a file named as one: :data:`LOG_SUFFIXES`, whose run will
     fail where it is none) given or under the directories given, in order, once each.
     ``FileNotFoundError`` for a path that does not exist; ``ValueError`` when there is no log
-    or two have the same :func:`~fuzzypos.folders.log_label` (their folders would clash)."""
+    or two have the same name with its format (:func:`~fuzzypos.jobs.folders.log_name`;
+    their folders would clash)."""
     found: dict[Path, None] = {}
     for given in paths:
         p = Path(given)
@@ -126,9 +126,10 @@ def find_logs(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
         raise ValueError(f"no log under {', '.join(os.fspath(p) for p in paths)}")
     labels: dict[str, Path] = {}
     for log in logs:
-        other = labels.setdefault(log_label(log), log)
+        label = log_name(log, keep_format=True)
+        other = labels.setdefault(label, log)
         if other != log:
-            raise ValueError(f"{other} and {log}: two logs named {log_label(log)!r}")
+            raise ValueError(f"{other} and {log}: two logs named {label!r}")
     return logs
 
 
@@ -278,7 +279,7 @@ def _runs(
         ]
     options = (max_scans, force, preset, loop_closure)
     return [
-        _Run(str(log), cfg, name, file, str(out / log_label(log) / name), *options)
+        _Run(str(log), cfg, name, file, str(out / log_name(log, keep_format=True) / name), *options)
         for log in logs
         for name, file, cfg in loaded
     ]
@@ -389,7 +390,7 @@ def batch_table(rows: Sequence[dict[str, Any]]) -> Any:
         score = rel.get("all_trans_mean_m") if isinstance(rel, dict) else None
         sps, secs = r.get("scans_per_second"), r.get("seconds")
         table.add_row(
-            log_label(r["log"]),
+            log_name(r["log"], keep_format=True),
             r["config"],
             r["status"],
             "" if r.get("scans") is None else str(r["scans"]),

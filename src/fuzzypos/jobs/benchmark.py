@@ -3,7 +3,7 @@
 ``default`` configuration (:data:`BENCHMARK_CONFIGS`), and the default with loop closure
 (:data:`LOOP_CLOSURE_CONFIGS`: its optimised trajectory and its online poses), scored against
 the relations (:func:`run_benchmark`), one after the other or, with ``jobs``, as Ray tasks
-(:func:`~fuzzypos.tasks.run_tasks`)."""
+(:func:`~fuzzypos.jobs.tasks.run_tasks`)."""
 
 from __future__ import annotations
 
@@ -18,14 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from ._version import __version__
-from .config import Config
-from .evaluation import EvaluationError, relations_errors
-from .graph import GraphDependencyError, require_gtsam
-from .io import Relations, read_relations, write_tum
-from .logs import open_log
-from .pipeline import warm
-from .provenance import git_hash, json_safe, write_json
+from .._version import __version__
+from ..config import Config
+from ..eval.metrics import EvaluationError, relations_errors
+from ..graph import GraphDependencyError, require_gtsam
+from ..io import Relations, open_log, read_relations, write_tum
+from ..io.provenance import git_hash, json_safe, write_json
+from ..pipeline import warm
 from .run import RunSummary, run_log
 from .tasks import TaskDone, ray_installed, run_tasks
 
@@ -59,7 +58,7 @@ _Odometry = tuple[np.ndarray, np.ndarray]
 def find_benchmark_logs(data_dir: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
     """``(log, relations)`` pairs under ``data_dir`` (searched recursively, sorted): for every
     ``NAME.relations``, each of ``NAME.clf.gz``, ``NAME.clf`` and ``NAME.bag`` next to it
-    that exists (the file *names* only find the candidates; :func:`~fuzzypos.logs.open_log`
+    that exists (the file *names* only find the candidates; :func:`~fuzzypos.io.logs.open_log`
     then tells their kind by content). ``FileNotFoundError`` when ``data_dir`` is no
     directory."""
     root = Path(data_dir)
@@ -321,21 +320,21 @@ def run_benchmark(
     against the log's relations.
 
     ``jobs`` 1: the runs go one after the other in this process. More: each run (a log with
-    ``paper`` or ``default``) is a Ray task with one thread (:func:`~fuzzypos.tasks.run_tasks`:
+    ``paper`` or ``default``) is a Ray task with one thread (:func:`~fuzzypos.jobs.tasks.run_tasks`:
     a local Ray with ``jobs`` CPUs, or the cluster of ``RAY_ADDRESS``), with the same rows;
     without Ray installed a warning, and the runs go one after the other. ``progress`` then
     reports each run at its start (``done`` 0, ``total`` None) and end (its scans), not
     scan by scan.
 
     Per log ``L`` (its file name), ``out_dir/L/paper/`` and ``out_dir/L/default/`` are
-    :func:`~fuzzypos.run.run_log` results folders (with ``summary["relations"]``; an earlier
+    :func:`~fuzzypos.jobs.run.run_log` results folders (with ``summary["relations"]``; an earlier
     benchmark's are cleared, ``overwrite=True``) and
     ``out_dir/L/odometry/trajectory.tum`` holds the raw odometry poses of the same scans
     (taken from the first run: the log is not read a third time). ``max_scans`` runs only
     the first scans of each log (relations outside them are unmatched, not scored).
     ``out_dir/benchmark.json`` holds ``fuzzypos_version``, ``git_hash``, ``data_dir``,
     ``max_scans`` and ``rows``: per log and configuration the relations metric
-    (:meth:`~fuzzypos.evaluation.RelationsErrors.as_dict` keys: ``all_trans_mean_m``,
+    (:meth:`~fuzzypos.eval.metrics.RelationsErrors.as_dict` keys: ``all_trans_mean_m``,
     ``local_rot_median_deg`` …), ``scans``, ``scans_per_second``, ``scans_degraded``,
     ``odometry_jumps_rejected``, ``results`` (the folder); ``not_scored`` (why) instead of
     the metric where no relation could be scored (e.g. none within a short stretch); and

@@ -17,11 +17,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .config import Config
-from .evaluation import TrajectoryErrors, position_errors, trajectory_errors
-from .features import Features, extract_features
-from .pipeline import Positioner, warm
-from .sim import CommandedPath, ScannerModel, SimulatedRun, SlipModel, gym, simulate_run
+from ..config import Config
+from ..eval.metrics import TrajectoryErrors, position_errors, trajectory_errors
+from ..features import Features, extract_features
+from ..pipeline import Positioner, warm
+from ..sim import CommandedPath, ScannerModel, SimulatedRun, SlipModel, gym, simulate_run
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -103,7 +103,7 @@ def paths_figure(
     run: SimulatedRun, estimates: dict[str, np.ndarray], path: Path | None = None
 ) -> Figure:
     """Fig. 19: the true path, odometry and each preset's estimate in the gym."""
-    from . import plot  # matplotlib only when figures are made
+    from ..plot import figures as plot  # matplotlib only when figures are made
 
     return plot.plot_paths(
         run.true_poses,
@@ -119,7 +119,7 @@ def errors_figure(
     run: SimulatedRun, estimates: dict[str, np.ndarray], path: Path | None = None
 ) -> Figure:
     """Fig. 20: the position error of odometry and each preset against distance travelled."""
-    from . import plot
+    from ..plot import figures as plot
 
     truth = run.true_poses
     curves = {"odometry": position_errors(truth, run.odometry_poses)[0]}
@@ -139,7 +139,7 @@ def run_demo(
 ) -> DemoResult:
     """Simulate the gym circle, position the robot with both configurations, and write the
     paper's Figs. 13–20 and ``summary.json`` to ``out_dir``."""
-    from . import plot  # matplotlib only when figures are made
+    from ..plot import figures as plot  # matplotlib only when figures are made
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,4 @@
-"""Results folders: their names (:func:`log_label`, :func:`default_results_dir`), the rule
+"""Results folders: their names (:func:`log_name`, :func:`default_results_dir`), the rule
 that one holds one run (:class:`ResultsFolder`, :class:`ResultsFolderError`), and the check
 of a run's output paths before it starts (:func:`check_outputs`).
 
@@ -23,9 +23,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .config import Config
-from .errors import FuzzyposError
-from .io import OutputPathError, check_output_file
+from ..config import Config
+from ..errors import FuzzyposError
+from ..io import OutputPathError, check_output_file
 
 __all__ = [
     "RESULT_FILES",
@@ -34,13 +34,15 @@ __all__ = [
     "ResultsFolderError",
     "check_outputs",
     "default_results_dir",
-    "log_label",
+    "log_name",
 ]
 
-#: compression suffixes :func:`log_label` strips
+#: compression suffixes :func:`log_name` strips
 _COMPRESSION_SUFFIXES = (".gz", ".bz2", ".xz", ".zst", ".lz4")
+#: format suffixes :func:`log_name` strips too, unless ``keep_format``
+_FORMAT_SUFFIXES = (".clf", ".log", ".bag", ".carmen")
 
-#: the files of a results folder (:func:`~fuzzypos.run.run_log`)
+#: the files of a results folder (:func:`~fuzzypos.jobs.run.run_log`)
 RESULT_FILES = (
     "trajectory.tum",
     "trajectory.clf",
@@ -63,12 +65,21 @@ LOCK_FILE = ".fuzzypos.lock"
 _DATE_TIME = "%Y-%m-%d_%H-%M-%S"
 
 
-def log_label(path: str | os.PathLike[str]) -> str:
-    """A log's file name without a compression suffix, naming its folders of results and
-    plots: ``data/aces.clf.gz`` → ``aces.clf``, ``aces.bag`` → ``aces.bag``, ``my_bag/`` →
-    ``my_bag``."""
+def log_name(path: str | os.PathLike[str], *, keep_format: bool = False) -> str:
+    """A log's file name without a compression suffix and without its format's: the name its
+    relations are found by (``intel.clf.gz`` → ``intel``, ``aces.bag`` → ``aces``). With
+    ``keep_format`` the format's suffix stays, naming its folders of results and plots
+    (``data/aces.clf.gz`` → ``aces.clf``, ``aces.bag`` → ``aces.bag``). A folder (a ROS2
+    bag) is its name: ``my_bag/`` → ``my_bag``."""
     name = Path(path).name or Path(os.path.abspath(path)).name
-    for suffix in _COMPRESSION_SUFFIXES:
+    name = _without_suffix(name, _COMPRESSION_SUFFIXES)
+    return name if keep_format else _without_suffix(name, _FORMAT_SUFFIXES)
+
+
+def _without_suffix(name: str, suffixes: tuple[str, ...]) -> str:
+    """``name`` without the first of ``suffixes`` it ends in (any case), unless that is all
+    of it."""
+    for suffix in suffixes:
         if name.lower().endswith(suffix) and len(name) > len(suffix):
             return name[: -len(suffix)]
     return name
@@ -76,10 +87,11 @@ def log_label(path: str | os.PathLike[str]) -> str:
 
 def default_results_dir(path: str | os.PathLike[str], when: float | None = None) -> Path:
     """``results/<log>/<date-time>/``, relative to the working directory (``<log>``:
-    :func:`log_label`; the local time ``when``, default now, as ``2024-05-01_13-45-07``).
+    :func:`log_name` with ``keep_format``; the local time ``when``, default now, as
+    ``2024-05-01_13-45-07``).
     :meth:`ResultsFolder.make` creates it (adding ``-2``, ``-3`` … where it exists)."""
     stamp = time.strftime(_DATE_TIME, time.localtime(when))
-    return Path("results") / log_label(path) / stamp
+    return Path("results") / log_name(path, keep_format=True) / stamp
 
 
 class ResultsFolderError(FuzzyposError, FileExistsError):

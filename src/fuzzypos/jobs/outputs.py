@@ -1,4 +1,4 @@
-"""The run job's streamed outputs (:mod:`fuzzypos.run`): ``covariance.csv`` and the bag,
+"""The run job's streamed outputs (:mod:`fuzzypos.jobs.run`): ``covariance.csv`` and the bag,
 written scan by scan (:class:`_CovarianceOut`; its frames: :func:`resolve_bag_frames`; loop
 closure's optimised poses appended at its end), and the steps after the loop
 (:class:`Steps`): each one that fails or is interrupted is noted and makes the run partial,
@@ -16,11 +16,11 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from .geometry import Cov3Upper, covariance_to_parent3, propagate3
-from .io import BagReader, OdometryBagWriter, OutputWriteError
-from .io._common import _naming
-from .io.bag_info import OutputFrames, output_frames, read_tf_pairs
-from .pipeline import Estimate
+from ..geometry import Cov3Upper, covariance_to_parent3, propagate3
+from ..io import BagReader, OdometryBagWriter, OutputWriteError
+from ..io._common import _naming
+from ..io.bag_info import OutputFrames, output_frames, read_tf_pairs
+from ..pipeline import Estimate
 
 __all__ = [
     "COVARIANCE_COLUMNS",

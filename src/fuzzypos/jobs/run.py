@@ -1,16 +1,16 @@
 """The run job: running the positioner over a log and keeping the results.
 
-:func:`run_log` streams a log (:func:`fuzzypos.logs.open_log`) through a
+:func:`run_log` streams a log (:func:`fuzzypos.io.logs.open_log`) through a
 :class:`~fuzzypos.pipeline.Positioner` and writes a results folder, which holds one run: by
 default a new ``results/<log>/<date-time>/`` (:func:`default_results_dir`; ``<log>`` is
-:func:`log_label`, the file name without a compression suffix) with ``results/<log>/latest``
-linked to it; a folder given that holds another run's results is refused, or with
-``overwrite=True`` cleared first (:class:`ResultsFolderError`); the run locks it until it
-ends. A run stopped by an error or Ctrl-C after some scans keeps them: the files below (but
-``path.png``) for the scans done, ``summary.json`` saying ``"partial": true`` and why
-(:func:`partial_results`); so does one stopped after its loop (loop closure's final
+:func:`log_name` with ``keep_format``: the file name without a compression suffix) with
+``results/<log>/latest`` linked to it; a folder given that holds another run's results is
+refused, or with ``overwrite=True`` cleared first (:class:`ResultsFolderError`); the run locks
+it until it ends. A run stopped by an error or Ctrl-C after some scans keeps them: the files
+below (but ``path.png``) for the scans done, ``summary.json`` saying ``"partial": true`` and
+why (:func:`partial_results`); so does one stopped after its loop (loop closure's final
 optimisation: the front end's poses are written; a writer: the other files are), each step
-after the loop a :class:`~fuzzypos._run_outputs.Steps` step.
+after the loop a :class:`~fuzzypos.jobs.outputs.Steps` step.
 
 ================  ==========================================================================
 ``trajectory.tum``  the estimated pose of every scan, ``t x y z qx qy qz qw``, one line per
@@ -73,7 +73,29 @@ from typing import Any
 
 import numpy as np
 
-from ._run_outputs import (
+from .._version import __version__
+from ..config import Config
+from ..eval.metrics import EvaluationError, relations_errors, trajectory_errors
+from ..geometry import Pose2D
+from ..graph import LoopClosureResult, OnlineMapper, require_gtsam
+from ..graph.occupancy import MapScans, map_grid
+from ..io import CarmenWriter, LogRecord, OpenLog, Relations, open_log, write_text_file, write_tum
+from ..io.bag_info import OutputFrames
+from ..io.logs import empty_stretch, select_records, select_stamps, survey_log
+from ..io.no_returns import with_found_bands
+from ..io.odometry_check import OdometryCoverage
+from ..io.provenance import file_sha256, git_hash, write_json
+from ..pipeline import Positioner, Reason, warm
+from ..scan import LaserScan
+from .folders import (
+    RESULT_FILES,
+    ResultsFolder,
+    ResultsFolderError,
+    check_outputs,
+    default_results_dir,
+    log_name,
+)
+from .outputs import (
     COVARIANCE_COLUMNS,
     POSE_COVARIANCE_COLUMNS,
     STEP_COVARIANCE_COLUMNS,
@@ -84,35 +106,6 @@ from ._run_outputs import (
     one_line,
     resolve_bag_frames,
 )
-from ._version import __version__
-from .config import Config
-from .evaluation import EvaluationError, relations_errors, trajectory_errors
-from .folders import (
-    RESULT_FILES,
-    ResultsFolder,
-    ResultsFolderError,
-    check_outputs,
-    default_results_dir,
-    log_label,
-)
-from .geometry import Pose2D
-from .graph import LoopClosureResult, OnlineMapper, require_gtsam
-from .graph.occupancy import MapScans, map_grid
-from .io import CarmenWriter, LogRecord, Relations, write_text_file, write_tum
-from .io.bag_info import OutputFrames
-from .logs import (
-    OpenLog,
-    empty_stretch,
-    open_log,
-    select_records,
-    select_stamps,
-    survey_log,
-)
-from .no_returns import with_found_bands
-from .odometry_check import OdometryCoverage
-from .pipeline import Positioner, Reason, warm
-from .provenance import file_sha256, git_hash, write_json
-from .scan import LaserScan
 
 __all__ = [
     "COVARIANCE_COLUMNS",
@@ -125,8 +118,6 @@ __all__ = [
     "as_interrupt",
     "default_results_dir",
     "is_interrupt",
-    "log_label",
-    "log_name",
     "partial_results",
     "run_log",
     "write_estimate_clf",
@@ -135,8 +126,6 @@ __all__ = [
 #: ``progress(done, total)`` (``total`` None when unknown)
 Progress = Callable[[int, "int | None"], None]
 
-#: suffixes :func:`log_name` strips
-_LOG_SUFFIXES = (".gz", ".clf", ".log", ".bag", ".carmen")
 #: where :func:`partial_results` finds what a stopped run kept
 _PARTIAL = "fuzzypos_partial_results"
 
@@ -144,18 +133,6 @@ _PARTIAL = "fuzzypos_partial_results"
 _PROGRESS_EVERY = 25
 
 Row = tuple[float, float, float]
-
-
-# -- names -----------------------------------------------------------------------------------
-def log_name(path: str | os.PathLike[str]) -> str:
-    """A log's name without its usual suffixes: ``intel.clf.gz`` → ``intel``."""
-    name = Path(path).name or Path(os.path.abspath(path)).name
-    for _ in range(2):
-        for suffix in _LOG_SUFFIXES:
-            if name.lower().endswith(suffix) and len(name) > len(suffix):
-                name = name[: -len(suffix)]
-                break
-    return name
 
 
 def partial_results(exc: BaseException) -> RunSummary | None:
@@ -170,7 +147,7 @@ def _scans_in_stretch(
 ) -> int | None:
     """The scans of the stretch, for the progress bar: the whole log's count, or with
     ``start``/``end`` those its scans' stamps put in the stretch
-    (:meth:`~fuzzypos.logs.OpenLog.scan_stamps`, a quick pass); None when unknown."""
+    (:meth:`~fuzzypos.io.logs.OpenLog.scan_stamps`, a quick pass); None when unknown."""
     total: int | None = None
     if start is None and end is None:
         total = log.scan_count_hint()
@@ -369,7 +346,7 @@ def _plot_path(
     map_points: list[np.ndarray | None],
     map_every: int,
 ) -> None:
-    from . import plot as plotting  # matplotlib only when figures are made
+    from ..plot import figures as plotting  # matplotlib only when figures are made
 
     odo_xy = None if odometry is None else odometry[np.isfinite(odometry).all(axis=1)]
     plotting.plot_map(
@@ -716,19 +693,19 @@ def run_log(
     save_map: bool = False,
     compiling: Callable[[], contextlib.AbstractContextManager[object]] | None = None,
 ) -> RunSummary:
-    """Position the robot along ``log`` (an :class:`~fuzzypos.logs.OpenLog`, or a path opened
-    with :func:`~fuzzypos.logs.open_log`'s defaults) and write a results folder:
+    """Position the robot along ``log`` (an :class:`~fuzzypos.io.logs.OpenLog`, or a path opened
+    with :func:`~fuzzypos.io.logs.open_log`'s defaults) and write a results folder:
     ``trajectory.tum``, ``trajectory.clf``, ``config.toml``, ``path.png`` (unless
     ``plot=False``) and ``summary.json`` and ``covariance.csv`` (module docstring); with
     ``save_map``, the front end's occupancy map (:mod:`fuzzypos.graph.occupancy`).
     ``results_dir``: the folder (one holding another run's results is a
-    :class:`~fuzzypos.folders.ResultsFolderError` unless ``overwrite`` clears it); None: a new
-    ``results/<log>/<date-time>/`` (:mod:`fuzzypos.folders`). ``out_tum``: also write the
+    :class:`~fuzzypos.jobs.folders.ResultsFolderError` unless ``overwrite`` clears it); None: a new
+    ``results/<log>/<date-time>/`` (:mod:`fuzzypos.jobs.folders`). ``out_tum``: also write the
     trajectory there. ``bag_out``: also write the estimate into a new bag there (module
     docstring; an existing path is a :class:`FileExistsError`), ``bag_storage`` and
-    ``bag_frames`` (:func:`~fuzzypos._run_outputs.resolve_bag_frames`). All checked first.
+    ``bag_frames`` (:func:`~fuzzypos.jobs.outputs.resolve_bag_frames`). All checked first.
 
-    ``start``, ``end``, ``max_scans`` choose a stretch (:func:`~fuzzypos.logs.select_records`).
+    ``start``, ``end``, ``max_scans`` choose a stretch (:func:`~fuzzypos.io.logs.select_records`).
     ``preset`` and ``config_file`` only label the configuration in ``summary.json``.
     ``relations``: also score the trajectory against them (``summary["relations"]``).
     ``progress(done, total)`` is called every 25 scans and at the end (``total``: the scans the
@@ -736,27 +713,27 @@ def run_log(
     (or load) first, in ``compiling()`` if cold (:func:`~fuzzypos.pipeline.warm.compile_kernels`).
 
     ``summary.json`` holds: ``fuzzypos_version``, ``git_hash``
-    (:func:`~fuzzypos.provenance.git_hash`), ``input`` (``path``, ``sha256``
-    (:func:`~fuzzypos.provenance.file_sha256`; None with ``hash_input=False``), ``kind``, reader
+    (:func:`~fuzzypos.io.provenance.git_hash`), ``input`` (``path``, ``sha256``
+    (:func:`~fuzzypos.io.provenance.file_sha256`; None with ``hash_input=False``), ``kind``, reader
     ``options``), ``selection``, ``scans``, ``scans_degraded``, ``reasons``, ``odometry_noise``
     (module docstring), ``odometry_jumps_rejected``, ``seconds`` (the whole loop: reading,
     positioning, writing), ``scans_per_second`` (``scans / seconds``), ``positioner_seconds``
     and ``positioner_ms_per_scan`` (inside :meth:`Positioner.update` only), ``compile_seconds``
     (the kernels' before the run, in neither), ``config`` (``preset``, ``file``),
     ``bad_lines_skipped``, ``first_stamp``/``last_stamp``,
-    ``has_odometry``, ``truth_errors`` (:func:`~fuzzypos.evaluation.trajectory_errors` of the
+    ``has_odometry``, ``truth_errors`` (:func:`~fuzzypos.eval.metrics.trajectory_errors` of the
     estimate and of the odometry against the log's ``TRUEPOS``, where every scan has one; else
     None), ``relations`` (or None), ``no_return_values_found``, ``notes``, ``files``, and
     ``partial`` (False) with ``partial_reason`` (None), ``scan_rate_hz`` (the log's
-    :attr:`~fuzzypos.logs.OpenLog.scan_rate_hz`), ``odometry_coverage``
-    (:meth:`~fuzzypos.odometry_check.OdometryCoverage.as_dict`: the scans the odometry does
+    :attr:`~fuzzypos.io.logs.OpenLog.scan_rate_hz`), ``odometry_coverage``
+    (:meth:`~fuzzypos.io.odometry_check.OdometryCoverage.as_dict`: the scans the odometry does
     not cover are positioned without it, with a note), ``bag_out`` (the bag's frames and
     topics, or None). Loop closure: ``loop_closure``, the optimised poses.
 
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
     log) or ``OSError`` (an output path refused before the run:
     :class:`~fuzzypos.io.OutputPathError`; a folder another run holds:
-    :class:`~fuzzypos.folders.ResultsFolderBusyError`). An error or ``KeyboardInterrupt``
+    :class:`~fuzzypos.jobs.folders.ResultsFolderBusyError`). An error or ``KeyboardInterrupt``
     (numba's ``SystemError`` around one too) after some scans is raised once what was done is
     written (``"partial": true``, ``"partial_reason"``: ``"interrupted at scan N"``, ``"failed
     at scan N: …"``, or after the loop ``"interrupted in loop closure's final optimisation"``,
@@ -837,7 +814,7 @@ def _labels(
 
 
 def _survey(log: OpenLog, cfg: Config) -> tuple[Config, list[dict[str, Any]], OdometryCoverage]:
-    """A first pass over the whole log (:func:`~fuzzypos.logs.survey_log`): ``cfg`` with the
+    """A first pass over the whole log (:func:`~fuzzypos.io.logs.survey_log`): ``cfg`` with the
     "no return" codes found in its readings that no configured band holds added to
     ``scanner.no_return_bands`` (so the positioner and ``config.toml`` have them), every
     code found (``value_m``, ``readings``, ``invalid_at_range_max``, ``in_configured_band``)

@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from .errors import FuzzyposError
+from ..errors import FuzzyposError
 
 __all__ = [
     "ONE_THREAD_ENV",

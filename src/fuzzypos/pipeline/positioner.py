@@ -23,13 +23,9 @@ from numpy.typing import NDArray
 
 from .._kernels import packing
 from ..config import Config
-from ..features import (
-    Features,
-    chain_inputs,
-    extract_features,
-    features_of_chain,
-    rule_bases,
-)
+from ..features import Features, extract_features, rule_bases
+from ..features.chain import chain_inputs
+from ..features.extract import features_of_chain
 from ..geometry import Pose2D, Pose3, compose3, relative3
 from ..matching import Refinement
 from ..scan import LaserScan

@@ -26,9 +26,10 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 from numpy.typing import ArrayLike, NDArray
 
-from .config import Config
-from .features import Features, rule_bases, virtual_candidates
-from .geometry import transform_points
+from ..config import Config
+from ..features import Features, rule_bases
+from ..features.extract import virtual_candidates
+from ..geometry import transform_points
 
 FloatArray = NDArray[np.float64]
 

@@ -44,14 +44,7 @@ from .motion import MotionTrial, arc_path, drifting_odometry, random_motions
 from .raycast import cast_rays
 from .robot import CommandedPath, SimulatedRun, SlipModel, simulate_run
 from .scanner import ScannerModel, laser_pose, simulate_scan, simulate_scans, visible_corners
-from .world import (
-    ENDPOINT_TOL,
-    PARALLEL_SIN,
-    T_MIN,
-    VERTEX_TOL,
-    SimError,
-    World,
-)
+from .world import ENDPOINT_TOL, PARALLEL_SIN, T_MIN, VERTEX_TOL, SimError, World
 from .world import FloatArray as FloatArray
 from .world import _point_segment_distance as _point_segment_distance  # the tests use it
 from .worlds import (

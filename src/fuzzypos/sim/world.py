@@ -12,13 +12,13 @@ import math
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-from ..errors import FuzzyposError
-
-FloatArray = NDArray[np.float64]
+from .base import FloatArray, SimError, _polygon_segments
+from .worldfile import read_world_file, save_world
 
 __all__ = [
     "SimError",
@@ -37,10 +37,6 @@ ENDPOINT_TOL = 1e-9
 PARALLEL_SIN = 1e-12
 #: Points closer than this (metres) are the same vertex when corners are computed.
 VERTEX_TOL = 1e-7
-
-
-class SimError(FuzzyposError, ValueError):
-    """Invalid simulator input: a malformed world, scanner model or ray query."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -103,12 +99,6 @@ def _validate_polygon(poly: ArrayLike, index: int, closed: bool) -> FloatArray:
             f"(repeated vertex {v[j].tolist()})"
         )
     return v
-
-
-def _polygon_segments(v: FloatArray, closed: bool) -> FloatArray:
-    end = np.roll(v, -1, axis=0) if closed else v[1:]
-    start = v if closed else v[:-1]
-    return np.hstack([start, end])
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -182,15 +172,17 @@ class World:
         See :mod:`fuzzypos.sim.worldfile` for the format. A bad file raises :class:`SimError`
         naming the file and what is wrong with it.
         """
-        from .worldfile import load_world
-
-        return load_world(path)
+        parts = read_world_file(path)
+        try:
+            return cls(
+                parts.segments, name=parts.name, polygons=parts.polygons, closed=parts.closed
+            )
+        except SimError as exc:  # pragma: no cover - read_world_file catches what World would
+            raise SimError(f"world file {Path(path)}: {exc}") from None
 
     def to_file(self, path: str | os.PathLike[str]) -> None:
         """Write this world as TOML (``name``, ``[[polygon]]``, ``[[segment]]``) to ``path``;
         :meth:`from_file` reads it back with bit-identical coordinates."""
-        from .worldfile import save_world
-
         save_world(self, path)
 
     # ---- properties ------------------------------------------------------------------------

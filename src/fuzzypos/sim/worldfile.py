@@ -31,23 +31,48 @@ import math
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
 from ..errors import FuzzyposError
-from .world import FloatArray, SimError, World, _polygon_segments
+from .base import FloatArray, SimError, _polygon_segments
 
 if sys.version_info >= (3, 11):  # pragma: no cover - depends on the interpreter
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["load_world", "save_world", "world_to_toml"]
+__all__ = ["WorldParts", "read_world_file", "save_world", "world_to_toml"]
 
 _TOP_KEYS = ("name", "polygon", "segment")
 _POLYGON_KEYS = ("points", "closed")
 _SEGMENT_KEYS = ("start", "end")
+
+
+class WorldParts(NamedTuple):
+    """What a world file holds, as :class:`~fuzzypos.sim.World` takes it: every wall segment
+    (the polygons' edges first), the name, the polygons and whether each is closed."""
+
+    segments: FloatArray
+    name: str
+    polygons: tuple[FloatArray, ...]
+    closed: tuple[bool, ...]
+
+
+class WorldLike(Protocol):
+    """What :func:`world_to_toml` reads of a world (a :class:`~fuzzypos.sim.World`)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def segments(self) -> FloatArray: ...
+    @property
+    def polygons(self) -> tuple[FloatArray, ...]: ...
+    @property
+    def closed(self) -> tuple[bool, ...]: ...
+    @property
+    def n_segments(self) -> int: ...
 
 
 class _Bad(FuzzyposError):
@@ -130,7 +155,7 @@ def _segment(entry: dict[str, Any], i: int) -> FloatArray:
     return np.array([*a, *b], dtype=float)
 
 
-def _world_from_data(data: Any, default_name: str) -> World:
+def _world_from_data(data: Any, default_name: str) -> WorldParts:
     if not isinstance(data, dict):
         raise _Bad(f"the top level must be a table (a JSON object), got {type(data).__name__}")
     _check_keys(data, _TOP_KEYS, "top level")
@@ -144,7 +169,7 @@ def _world_from_data(data: Any, default_name: str) -> World:
     parts = [_polygon_segments(v, c) for v, c in polys]
     if segs:
         parts.append(np.vstack(segs))
-    return World(
+    return WorldParts(
         np.vstack(parts),
         name=name,
         polygons=tuple(v for v, _ in polys),
@@ -152,8 +177,9 @@ def _world_from_data(data: Any, default_name: str) -> World:
     )
 
 
-def load_world(path: str | os.PathLike[str]) -> World:
-    """Read the world file ``path`` (TOML or JSON, told apart by content)."""
+def read_world_file(path: str | os.PathLike[str]) -> WorldParts:
+    """Read the world file ``path`` (TOML or JSON, told apart by content) into the parts
+    :meth:`~fuzzypos.sim.World.from_file` builds its world of."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
@@ -173,11 +199,9 @@ def load_world(path: str | os.PathLike[str]) -> World:
         return _world_from_data(data, p.stem)
     except _Bad as exc:
         raise SimError(f"world file {p}: {exc}") from None
-    except SimError as exc:  # pragma: no cover - the checks above catch what World would
-        raise SimError(f"world file {p}: {exc}") from None
 
 
-def _loose_segments(world: World) -> tuple[bool, FloatArray]:
+def _loose_segments(world: WorldLike) -> tuple[bool, FloatArray]:
     """Whether the world's segments start with its polygons' edges, and the rest."""
     if not world.polygons:
         return True, world.segments
@@ -200,7 +224,7 @@ def _toml_points(points: FloatArray, per_line: int = 4) -> str:
     return "[\n" + "".join(f"    {line},\n" for line in lines) + "]"
 
 
-def world_to_toml(world: World) -> str:
+def world_to_toml(world: WorldLike) -> str:
     """The TOML text :func:`save_world` writes: its name, its polygons (with ``closed``) and
     the segments that are not polygon edges, one compact ``[x, y]`` pair per point. A world
     whose segments do not start with its polygons' edges (built by hand) is written as
@@ -223,9 +247,9 @@ def world_to_toml(world: World) -> str:
     return "".join(chunks)
 
 
-def save_world(world: World, path: str | os.PathLike[str]) -> None:
-    """Write ``world`` as TOML (:func:`world_to_toml`) to ``path``; :func:`load_world` reads
-    it back with bit-identical coordinates."""
+def save_world(world: WorldLike, path: str | os.PathLike[str]) -> None:
+    """Write ``world`` as TOML (:func:`world_to_toml`) to ``path``;
+    :meth:`~fuzzypos.sim.World.from_file` reads it back with bit-identical coordinates."""
     p = Path(path)
     try:
         text = world_to_toml(world)

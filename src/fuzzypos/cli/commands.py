@@ -18,7 +18,10 @@ from rich.console import Console
 from rich.progress import Progress, TaskID
 from rich.table import Table
 
-from ._cli_help import (
+from .._version import __version__
+from ..config import Config, ConfigError
+from ..config.docs import settings_lines, settings_markdown
+from .help import (
     BATCH_HELP,
     BATCH_OPTIONS,
     RUN_OPTIONS,
@@ -27,7 +30,7 @@ from ._cli_help import (
     compiling_shown,
     finish_commands,
 )
-from ._cli_tables import (
+from .tables import (
     bag_alone,
     bag_overview,
     bag_tables,
@@ -36,12 +39,9 @@ from ._cli_tables import (
     loop_closure_lines,
     relations_line,
 )
-from ._config_docs import settings_lines, settings_markdown
-from ._version import __version__
-from .config import Config, ConfigError
 
 if TYPE_CHECKING:
-    from .logs import OpenLog
+    from ..io import OpenLog
 
 
 app = typer.Typer(
@@ -91,7 +91,7 @@ def _load_config(preset: str, config: Path | None) -> Config:
 
 def _read_toml(path: Path) -> dict:
     """The parsed file, as ``Config.from_toml`` reads it (errors name the file)."""
-    from ._config_schema import read_toml
+    from ..config.schema import read_toml
 
     return read_toml(path)
 
@@ -112,8 +112,8 @@ def demo(
     """
     console.print(f"fuzzypos demo: simulating {laps:g} laps of a 4 m circle in a gym, positioning "
         f"with the paper preset and the default; figures into {out}/", highlight=False)  # fmt: skip
-    from .demo import DemoSettings, run_demo
-    from .pipeline.warm import compile_kernels
+    from ..jobs.demo import DemoSettings, run_demo
+    from ..pipeline.warm import compile_kernels
 
     settings = DemoSettings(seed=seed, laps=laps)
     try:
@@ -181,9 +181,9 @@ def simulate(
 
     FLASER lines carry the odometry, TRUEPOS lines the truth, as CARMEN's own simulator does.
     """
-    from . import sim
-    from .demo import DemoSettings
-    from .io import CarmenRecord, write_carmen, write_tum
+    from .. import sim
+    from ..io import CarmenRecord, write_carmen, write_tum
+    from ..jobs.demo import DemoSettings
 
     try:
         w = sim.world_by_name(world) if world in sim.WORLD_NAMES else sim.World.from_file(world)
@@ -306,7 +306,8 @@ def _open(
     scan_rate: float | None = None,
     base_frame: str | None = None,
 ) -> OpenLog:
-    from .logs import open_log, parse_laser_offset
+    from ..io import open_log
+    from ..io.logs import parse_laser_offset
 
     try:
         offset = None if laser_offset is None else parse_laser_offset(laser_offset)
@@ -329,7 +330,7 @@ def _open(
 
 def _kept(exc: BaseException) -> str:
     """What a run stopped by ``exc`` kept, as the end of its one line."""
-    from .run import partial_results
+    from ..jobs.run import partial_results
 
     kept = partial_results(exc)
     if kept is None:
@@ -425,9 +426,9 @@ def plot_scan(
 
     The log is read as run and info read it (the same reader options).
     """
-    from .features import extract_features
-    from .folders import log_label
-    from .plot import plot_feature_figures
+    from ..features import extract_features
+    from ..jobs.folders import log_name
+    from ..plot.figures import plot_feature_figures
 
     cfg = _load_config(preset, config_file)
     if index < 0:
@@ -450,7 +451,11 @@ def plot_scan(
         if record is None:
             _fail(f"{log}: has no scan {index} (it has {count} scans)")
         features = extract_features(record.scan, cfg)
-        folder = out if out is not None else Path("plots") / f"{log_label(log)}-scan{index}"
+        folder = (
+            out
+            if out is not None
+            else Path("plots") / f"{log_name(log, keep_format=True)}-scan{index}"
+        )
         written = plot_feature_figures(features, folder, index, config=cfg)
     except (ValueError, OSError) as exc:
         _fail(_error_text(exc))
@@ -480,7 +485,7 @@ def info(
     many readings each "no return" band of the configuration's scanner section (from
     --config) removes, and the "no return" codes found (which a run adds to those bands).
     """
-    from .logs import describe_log
+    from ..io import describe_log
 
     scanner = _load_config("default", config_file).scanner
     if scan_topic is None and bag_alone(log, odom_topic, json_out, _wide()):
@@ -603,8 +608,9 @@ def run(
     and where the results are. A run stopped by an error or Ctrl-C keeps the scans done,
     marked "partial" in summary.json.
     """
-    from .io import read_relations
-    from .run import as_interrupt, is_interrupt, run_log
+    from ..io import read_relations
+    from ..jobs.outputs import as_interrupt, is_interrupt
+    from ..jobs.run import run_log
 
     cfg = _load_config(preset, config_file)
     lc: dict[str, object] = {"enabled": True} if loop_closure else {}
@@ -714,7 +720,7 @@ def evaluate(
     many matched. --reference: the ATE (RMSE after SE(2) alignment) and the RPE over 1 frame
     and over 1 m. Give one of them or both.
     """
-    from .scoring import evaluate_trajectory
+    from ..eval.scoring import evaluate_trajectory
 
     if relations is None and reference is None:
         _fail("evaluate needs --relations FILE and/or --reference REF.tum")
@@ -791,7 +797,7 @@ def benchmark(
     (intel has 13,631 scans); --max-scans runs a stretch. --jobs N runs N at once as Ray
     tasks (a local Ray, or RAY_ADDRESS's cluster) where Ray is installed, with the same rows.
     """
-    from .benchmark import run_benchmark
+    from ..jobs.benchmark import run_benchmark
 
     if max_scans is not None and max_scans < 1:
         _fail(f"--max-scans must be at least 1, got {max_scans}")
@@ -843,7 +849,7 @@ def batch(
     force: Annotated[bool, BATCH_OPTIONS["force"]] = False,
     verbose: Annotated[bool, BATCH_OPTIONS["verbose"]] = False,
 ) -> None:
-    from .batch import batch_table, progress_bar, run_batch
+    from ..jobs.batch import batch_table, progress_bar, run_batch
 
     try:
         with progress_bar(console) as report:
