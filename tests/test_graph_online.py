@@ -50,7 +50,10 @@ def test_the_latest_poses_come_back_once_the_loop_closes(lap) -> None:
     np.testing.assert_allclose(
         [u.pose.as_array() for u in updates], online, atol=1e-9
     )  # what update() gave is what online_poses() remembers
-    after = slice(closed[0], None)
+    # once the loop has closed: its first closure may come from across the circle, from a
+    # viewpoint metres away (true to 3 cm, the closures' covariance floor), before the lap's end
+    # closes on its start
+    after = slice(closed[-1], None)
     err_online = _errors(online[after], truth[after])
     err_front = _errors(front[after], truth[after])
     assert err_front.mean() > 0.02, err_front.mean()  # the front end has drifted by then

@@ -109,11 +109,31 @@ class LoopClosureConfig:
     )
     min_inlier_fraction: float = _field(
         0.6,
-        "a closure is accepted only where 60 % of the scan's points pair with the submap's "
-        "surfaces: a false match in clutter pairs far less, a true one from a nearby viewpoint "
-        "more (the front end asks refinement.min_inlier_fraction from the previous keyframes)",
+        "a closure is accepted only where 60 % of the part of the scan that lies in the space "
+        "the submap's keyframes saw (seen_margin) pairs with the submap's surfaces: a false "
+        "match in clutter pairs far less, a true one from a nearby viewpoint more (the front "
+        "end asks refinement.min_inlier_fraction from the previous keyframes); of the whole "
+        "scan, a large hall seen from metres away by a scanner reaching tens of metres pairs "
+        "30–50 % where the match is true (the rest lies beyond what the submap saw), and every "
+        "revisit of a large building was refused; the search's search.min_inlier_fraction of "
+        "the whole scan still applies",
         ge=0.0,
         le=1.0,
+    )
+    seen_margin: float = _field(
+        0.3,
+        "a point of the scan lies in the space a submap keyframe saw where a beam of that "
+        "keyframe near its bearing (seen_beams) returned at least as far as the point less "
+        "0.3 m (refinement.max_distance, the first pairing distance): points on a wall the "
+        "keyframe saw count, points behind it or where it looked into nothing do not",
+        unit=M,
+        ge=0.0,
+    )
+    seen_beams: float = _field(
+        1.5,
+        "a keyframe's beam counts for a point within 1.5 of its beam spacings of the point's "
+        "bearing: the nearest beam on either side, not across a gap of missing returns",
+        gt=0.0,
     )
     min_constraint_ratio: float = _field(
         0.05,
@@ -139,7 +159,10 @@ class LoopClosureConfig:
     ambiguity_margin: float = _field(
         0.1,
         "the fit is ambiguous, and rejected, where another answer puts its close fraction "
-        "within 0.1 of the fit's: both explain the scan about as well",
+        "within 0.1 of the fit's, counted as a share of the part of the scan the submap saw "
+        "(as min_inlier_fraction is): both explain the scan about as well; of the whole "
+        "scan, a large hall whose far walls lie behind or beyond what the submap saw leaves "
+        "every close fraction small, and a fixed difference refused nearly every true closure",
         ge=0.0,
         le=1.0,
     )

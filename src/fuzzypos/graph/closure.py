@@ -8,10 +8,21 @@ front-end edges between them plus ``overlap_radius``² (both see the same place 
 lies within the χ²(2) gate. The nearest ``max_candidates`` are verified: the scan of ``j`` is
 searched (``search_start``) and refined (the front end's :class:`~fuzzypos.pipeline.Refiner`,
 with the search's weak prior) against the surfaces of ``i`` and ``submap_keyframes`` either side
-in ``i``'s frame, from the pose the graph predicts; the fit is accepted where enough of the scan
-lies on the submap, the translation is constrained both ways, and refinements from starts
-``ambiguity_distance`` away find no other answer nearly as good. Its covariance is the fit's
-M⁻¹ G M⁻¹ (the points' share of the front end's sandwich), as a right perturbation.
+in ``i``'s frame, from the pose the graph predicts; the fit is accepted where enough of the part
+of the scan that lies in the space the submap saw (:mod:`.overlap`) lies on the submap, the
+translation is constrained both ways, and refinements from starts ``ambiguity_distance`` away
+find no other answer nearly as good (a close fraction within ``ambiguity_margin`` of the fit's,
+counted in shares of that part). Its covariance is the fit's M⁻¹ G M⁻¹ (the points' share of
+the front end's sandwich), as a right perturbation.
+
+Both checks are relative to what the scan can show. In a large hall seen by a scanner that
+reaches tens of metres (fr-clinic) a true closure from a viewpoint metres away pairs only
+30–50 % of its scan, the rest lying behind or beyond what the submap's keyframes saw, and its
+far walls, sampled a beam spacing of tens of centimetres apart, put a quarter of the scan within
+the Huber scale of a surface where an office scan puts half: fractions of the whole scan there
+refused every revisit. (Most other candidates there had no pair at all: after a long stretch
+without a closure the graph's prediction lies metres past the search; the place candidates
+below find those revisits.)
 
 Where none of those verifies, the other keyframes within the gate are ranked by their place
 descriptors' likeness to ``j``'s (:mod:`.place`) and the ``place_candidates`` most alike are
@@ -45,6 +56,7 @@ from ..matching import Refinement, SurfacePoints, search_start, surface_points
 from ..pipeline import Refiner
 from ..pipeline.refine import ScanPoints
 from ..pipeline.uncertainty import local
+from .overlap import seen_fraction
 from .place import PlaceDescriptor, PlaceIndex, place_descriptor
 from .pose_graph import PoseGraph, PoseGraphError
 
@@ -185,12 +197,28 @@ class LoopCloser:
         self._prefix_of = (graph.poses, sums)
         return sums
 
-    def submap(self, graph: PoseGraph, i: int, j: int) -> SurfacePoints:
-        """The surfaces of keyframe ``i`` and ``submap_keyframes`` either side (none among the
-        last ``recent_keyframes`` before ``j``), in ``i``'s frame at the graph's poses."""
+    def submap_keyframes(self, graph: PoseGraph, i: int, j: int) -> range:
+        """Keyframe ``i`` and ``submap_keyframes`` either side (none among the last
+        ``recent_keyframes`` before ``j``)."""
         h = self.settings.submap_keyframes
         top = min(i + h, j - self.settings.recent_keyframes, len(graph) - 1)
-        return self.surfaces_in_frame_of(graph, i, range(max(0, i - h), max(i, top) + 1))
+        return range(max(0, i - h), max(i, top) + 1)
+
+    def submap(self, graph: PoseGraph, i: int, j: int) -> SurfacePoints:
+        """The surfaces of :meth:`submap_keyframes` in ``i``'s frame at the graph's poses."""
+        return self.surfaces_in_frame_of(graph, i, self.submap_keyframes(graph, i, j))
+
+    def seen(self, graph: PoseGraph, i: int, j: int, fit: Refinement, points: ScanPoints) -> float:
+        """The fraction of ``j``'s scan, at the fit's pose in ``i``'s frame, that lies in the
+        space the submap's keyframes saw (:mod:`.overlap`): what could pair at all."""
+        views = []
+        for k in self.submap_keyframes(graph, i, j):
+            f = graph.keyframes[k].features
+            if f is not None:
+                views.append((relative(graph.poses[i], graph.poses[k]), f.points))
+        xy = transform_points(np.asarray(fit.increment, dtype=float), points.xy)
+        s = self.settings
+        return seen_fraction(xy, views, s.seen_margin, s.seen_beams)
 
     def surfaces_in_frame_of(
         self, graph: PoseGraph, i: int, keyframes: Iterable[int]
@@ -286,7 +314,8 @@ class LoopCloser:
         the heading is checked against ``predicted`` where given."""
         if fit is None:
             return "no fit"
-        if fit.inlier_fraction < self.settings.min_inlier_fraction:
+        seen = self.seen(graph, i, j, fit, points)
+        if fit.inlier_fraction < self.settings.min_inlier_fraction * seen:
             return "inliers"
         if predicted is not None and not self._heading_agrees(
             graph, i, j, fit.increment, predicted
@@ -294,7 +323,7 @@ class LoopCloser:
             return "heading"
         if not self._constrained(fit):
             return "corridor"
-        if self._ambiguous(surface, points, fit, reach):
+        if self._ambiguous(surface, points, fit, reach, seen):
             return "ambiguous"
         return None
 
@@ -386,11 +415,17 @@ class LoopCloser:
         return bool(w[-1] > 0.0 and w[0] >= self.settings.min_constraint_ratio * w[-1])
 
     def _ambiguous(
-        self, surface: SurfacePoints, points: ScanPoints, fit: Refinement, reach: float
+        self,
+        surface: SurfacePoints,
+        points: ScanPoints,
+        fit: Refinement,
+        reach: float,
+        seen: float = 1.0,
     ) -> bool:
         """Whether a refinement from a start ``ambiguity_distance`` away on either axis (and
         twice, four times … that, up to ``reach``) ends elsewhere with nearly as good a close
-        fraction."""
+        fraction: within ``ambiguity_margin`` of the part of the scan the submap saw
+        (``seen``, :meth:`seen`), as the inlier fraction is asked of it."""
         s = self.settings
         x = np.asarray(fit.increment, dtype=float)
         steps = [s.ambiguity_distance]
@@ -403,7 +438,7 @@ class LoopCloser:
                 continue
             if math.dist(other.increment[:2], x[:2]) <= s.agree_distance:
                 continue
-            if other.close_fraction >= fit.close_fraction - s.ambiguity_margin:
+            if other.close_fraction >= fit.close_fraction - s.ambiguity_margin * seen:
                 return True
         return False
 
