@@ -8,6 +8,7 @@ import hashlib
 import json
 import math
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -343,6 +344,16 @@ def test_file_sha256_of_a_file_and_of_a_directory(tmp_path):
     assert h1 == file_sha256(d) and len(h1) == 64
     (d / "sub" / "b.db3").write_bytes(b"1235")
     assert file_sha256(d) != h1
+
+
+def test_git_hash_is_this_checkouts_commit():
+    """Run from a git checkout (as the tests are), the provenance names its commit."""
+    top = Path(__file__).resolve().parents[1]
+    done = subprocess.run(["git", "-C", str(top), "rev-parse", "HEAD"], capture_output=True,
+                          text=True)  # fmt: skip
+    if done.returncode != 0:
+        pytest.skip("not a git checkout (a source tarball): no commit to name")
+    assert git_hash() == done.stdout.strip()
 
 
 def test_git_hash_never_fails(monkeypatch):

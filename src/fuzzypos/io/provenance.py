@@ -48,7 +48,7 @@ def git_hash() -> str | None:
     """The commit of the source tree fuzzypos runs from (``git rev-parse HEAD`` in the
     package's directory), when that directory is part of a git work tree whose
     ``src/fuzzypos`` it is; None otherwise (installed package, no git, any failure)."""
-    here = Path(__file__).resolve().parent
+    here = Path(__file__).resolve().parents[1]  # src/fuzzypos (this module is in io/)
     try:
 
         def git(*args: str) -> str:
