@@ -10,7 +10,7 @@ Simulated office (``fuzzypos.sim.office``), a robot driving down the corridor, 1
 passes over the scans (default 15): the fastest pass is what the code costs, slower ones are
 the rest of the machine (on a shared 2-core virtual machine single passes vary by ±30 %).
 ``Positioner.update`` is timed with the compiled kernels (``fuzzypos._kernels``) and with
-their pure-numpy references (``FUZZYPOS_KERNELS=numpy``).
+their pure-numpy references (the tests' oracles, ``tests/oracles``, put in the kernels' place).
 
 First, in fresh processes: the time ``import fuzzypos`` takes, and the first call of every
 compiled kernel (``fuzzypos.pipeline.warm.warm_up``) with an empty numba cache (compiling
@@ -25,15 +25,16 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS
     os.environ.setdefault(_var, "1")  # one thread, set before numpy loads
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import platform  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-import fuzzypos._kernels  # noqa: E402
 from fuzzypos import Config, Positioner, extract_features  # noqa: E402
 from fuzzypos.geometry import Pose2D  # noqa: E402
 from fuzzypos.pipeline.warm import warm_up  # noqa: E402
@@ -62,17 +63,25 @@ def first_calls() -> tuple[float, float, float]:
 
 
 def _update_seconds(scans, odom, cfg: Config, repeat: int, compiled: bool) -> float:
-    """The fastest of ``repeat`` passes of ``Positioner.update`` over the scans."""
-    fuzzypos._kernels._ENABLED = compiled
+    """The fastest of ``repeat`` passes of ``Positioner.update`` over the scans (with the
+    numpy references in the kernels' place where not ``compiled``)."""
     best = np.inf
-    for _ in range(repeat):
-        pos = Positioner(cfg)
-        t0 = time.perf_counter()
-        for s, o in zip(scans, odom):
-            pos.update(s, o)
-        best = min(best, time.perf_counter() - t0)
-    fuzzypos._kernels._ENABLED = None
+    with contextlib.nullcontext() if compiled else _references():
+        for _ in range(repeat):
+            pos = Positioner(cfg)
+            t0 = time.perf_counter()
+            for s, o in zip(scans, odom):
+                pos.update(s, o)
+            best = min(best, time.perf_counter() - t0)
     return float(best)
+
+
+def _references() -> contextlib.AbstractContextManager[None]:
+    """The tests' numpy references (``tests/oracles``) in place of the compiled kernels."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from oracles import references
+
+    return references()
 
 
 def main() -> None:

@@ -27,7 +27,6 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-import fuzzypos._kernels as kernels
 from fuzzypos import sim
 from fuzzypos.geometry import compose, relative, wrap_angle
 from fuzzypos.io import CarmenRecord, write_carmen
@@ -333,18 +332,16 @@ def pipe_with(data: bytes) -> Iterator[Path]:
 # -- the compiled kernels and their references -------------------------------------------
 @contextlib.contextmanager
 def numpy_kernels() -> Iterator[None]:
-    """The numpy references in place of the compiled kernels, for the duration."""
-    saved = kernels._ENABLED
-    kernels._ENABLED = False
-    try:
+    """The numpy references (``tests/oracles``) in place of the compiled kernels' callers,
+    for the duration."""
+    from oracles import references
+
+    with references():
         yield
-    finally:
-        kernels._ENABLED = saved
 
 
 def both(call: Callable[[], Any]) -> tuple[Any, Any]:
     """``call()`` with the compiled kernels, then with the numpy references."""
-    kernels._ENABLED = True
     compiled = call()
     with numpy_kernels():
         reference = call()
@@ -358,7 +355,6 @@ def compiled_and_staged(scan: Any, cfg: Any) -> tuple[Any, Any]:
 
     from fuzzypos.features import extract as features_module
 
-    kernels._ENABLED = True
     compiled = features_module._extract_compiled(scan, features_module.rule_bases(cfg.fuzzy), cfg)
     assert compiled is not None
     with pytest.MonkeyPatch.context() as m:

@@ -24,7 +24,7 @@ from fuzzypos.config import Config
 from fuzzypos.features import extract as features_module
 from fuzzypos.features import extract_features, rule_bases
 from fuzzypos.features import segmentation as seg
-from fuzzypos.features.extract import _fit_lines_compiled, _fit_lines_numpy
+from fuzzypos.features.extract import fit_lines
 from fuzzypos.geometry import Pose2D
 from fuzzypos.matching import lines as line_matching
 from fuzzypos.matching import search as search_module
@@ -33,6 +33,11 @@ from fuzzypos.matching import surface_points
 from fuzzypos.matching.surface import SurfacePoints
 from fuzzypos.pipeline import Positioner
 from helpers import both, compiled_and_staged, numpy_kernels
+from oracles import features as features_oracle
+from oracles import io as io_oracle
+from oracles import matching as matching_oracle
+from oracles import pipeline as pipeline_oracle
+from oracles.matching import kd_tree
 
 CFG = Config()
 R = CFG.refinement
@@ -269,10 +274,9 @@ def test_the_scan_points_weights_are_the_numpy_ones(pose, seed, weight) -> None:
     scan = scan_at(pose, seed)
     f = extract_features(scan, CFG)
     refiner = Refiner(replace(R, length_weight_max=weight), CFG.search)
-    kernels._ENABLED = True
     points = refiner.points(f, scan.angle_increment)
     assert points is not None
-    reference = refiner._weights_numpy(f, scan.angle_increment)
+    reference = pipeline_oracle.weights(refiner, f, scan.angle_increment)
     np.testing.assert_allclose(points.weights, reference, rtol=TOL, atol=0)
     with numpy_kernels():
         again = refiner.points(f, scan.angle_increment)
@@ -288,7 +292,6 @@ def test_the_points_weighed_on_first_use_are_the_weighed_ones_and_can_be_replace
     from fuzzypos._kernels.refine import scan_weights
     from fuzzypos.pipeline.refine import Refiner, Starts
 
-    kernels._ENABLED = True
     a, b = scan_at((0.3, -0.2, 0.4), 5), scan_at((0.45, -0.2, 0.43), 6)
     fa, fb = extract_features(a, CFG), extract_features(b, CFG)
     refiner = Refiner(R, CFG.search)
@@ -320,11 +323,11 @@ class Margins:
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
         self.value = math.inf
-        pair, trimmed = surface_module._pair, surface_module._trimmed
-        hold, linearise = surface_module._hold_degenerate, surface_module._linearise
+        pair, trimmed = matching_oracle._pair, matching_oracle._trimmed
+        hold, linearise = matching_oracle._hold_degenerate, matching_oracle._linearise
 
         def _pair(reference, qx, qy, gate, reach):
-            d, _ = reference.tree.query(np.stack((qx, qy), axis=1), k=2)
+            d, _ = kd_tree(reference).query(np.stack((qx, qy), axis=1), k=2)
             bound = np.full(qx.shape, gate) if reach is None else np.maximum(reach, gate)
             self.note(d[:, 0] - bound)
             return pair(reference, qx, qy, gate, reach)
@@ -353,10 +356,10 @@ class Margins:
                 self.note(np.array([abs(float(v @ (start_xy - hold_xy))) - tolerance]))
             return term, on_start
 
-        monkeypatch.setattr(surface_module, "_pair", _pair)
-        monkeypatch.setattr(surface_module, "_linearise", _linearise)
-        monkeypatch.setattr(surface_module, "_trimmed", _trimmed)
-        monkeypatch.setattr(surface_module, "_hold_degenerate", _hold)
+        monkeypatch.setattr(matching_oracle, "_pair", _pair)
+        monkeypatch.setattr(matching_oracle, "_linearise", _linearise)
+        monkeypatch.setattr(matching_oracle, "_trimmed", _trimmed)
+        monkeypatch.setattr(matching_oracle, "_hold_degenerate", _hold)
 
     def note(self, *values: np.ndarray) -> None:
         for v in values:
@@ -463,9 +466,8 @@ def test_the_fused_refinement_stage_is_the_staged_one(
         return refiner.refine(surface, points, starts, wide)
 
     def staged():
-        return refiner._refine_staged(surface, points, starts, max_distance, wide)
+        return pipeline_oracle.refine_staged(refiner, surface, points, starts, max_distance, wide)
 
-    kernels._ENABLED = True
     one, each = fused(), staged()
     assert (one is None) == (each is None)
     if one is not None:
@@ -512,9 +514,8 @@ def test_the_fused_refinement_keeps_the_odometrys_fit_where_the_start_was_far_of
     points = refiner.points(fb, b.angle_increment)
     assert points is not None
     starts = Starts(motion + np.array(error), motion, motion)
-    kernels._ENABLED = True
     one = refiner.refine(surface, points, starts, False)
-    each = refiner._refine_staged(surface, points, starts, R.max_distance, False)
+    each = pipeline_oracle.refine_staged(refiner, surface, points, starts, R.max_distance, False)
     assert one is not None and each is not None
     np.testing.assert_array_equal(one.start, motion)  # the odometry's fit
     np.testing.assert_array_equal(one.increment, each.increment)
@@ -542,7 +543,7 @@ def test_a_refinement_with_too_few_pairs_or_a_singular_system_is_none() -> None:
     pts = np.zeros((5, 2))
     flat = surface_module.SurfacePoints(np.zeros((5, 2)), np.tile([1.0, 0.0], (5, 1)), np.ones(5))
     args = (flat, pts, np.ones(5), np.zeros(3), np.zeros(3), np.zeros(3), R, 0.3, 1.0)
-    for fn in (surface_module._refine_compiled, surface_module._refine_numpy):
+    for fn in (surface_module._refine_compiled, matching_oracle.refine):
         assert fn(*args, np.zeros((3, 3)), None) is None
 
 
@@ -567,7 +568,7 @@ def test_the_compiled_search_is_the_numpy_one(pose, motion, penalty, seed) -> No
     c, s = np.cos(thetas)[:, None], np.sin(thetas)[:, None]
     qx = (c * pts[:, 0] - s * pts[:, 1])[:, None, :] + tx[None, :, None]
     qy = (s * pts[:, 0] + c * pts[:, 1])[:, None, :] + ty[None, :, None]
-    d, _ = surface.tree.query(np.stack((qx.ravel(), qy.ravel()), axis=1))
+    d, _ = kd_tree(surface).query(np.stack((qx.ravel(), qy.ravel()), axis=1))
     assume(np.all(np.abs(d - search.gate) > MARGIN))
     compiled, reference = both(
         lambda: search_module.search_start(
@@ -614,7 +615,7 @@ def test_the_search_finds_the_same_best_in_any_order(seed, penalty, sides) -> No
     likeliest = best(np.argsort(np.abs(thetas), kind="stable"), pen)
     assert natural == shuffled == likeliest
     # the best by brute force: the highest score, the first of equal ones
-    hits = np.array([[np.mean(surface.tree.query(
+    hits = np.array([[np.mean(kd_tree(surface).query(
         np.column_stack((np.cos(a) * pts[:, 0] - np.sin(a) * pts[:, 1] + x,
                          np.sin(a) * pts[:, 0] + np.cos(a) * pts[:, 1] + y)))[0] < 0.05)
         for x, y in zip(tx, ty)] for a in thetas])  # fmt: skip
@@ -706,11 +707,11 @@ class LineMargins:
 
     def __init__(self, patch: pytest.MonkeyPatch) -> None:
         self.values: list[float] = [math.inf]
-        pair, keep = line_matching._pair_lines_numpy, line_matching.robust_keep
-        consensus = line_matching._translation_consensus
+        pair, keep = matching_oracle.pair_lines, matching_oracle.robust_keep
+        consensus = matching_oracle._translation_consensus
 
         def _pair_lines_numpy(prev, curr, pose, angle_gate, distance_gate, overlap_margin):
-            ang, dd, along, reach = line_matching._line_geometry(prev, curr, pose, overlap_margin)
+            ang, dd, along, reach = matching_oracle._line_geometry(prev, curr, pose, overlap_margin)
             out = (ang >= angle_gate) | (dd >= distance_gate) | (np.abs(along) > reach)
             cost = np.where(out, np.inf, ang / angle_gate + dd / distance_gate)
             self.values += [
@@ -742,9 +743,9 @@ class LineMargins:
                     self.values.append(float(score[1] - score[0]) if score.size > 1 else math.inf)
             return consensus(nx, ny, rhs, candidates, tau, min_sine)
 
-        patch.setattr(line_matching, "_pair_lines_numpy", _pair_lines_numpy)
-        patch.setattr(line_matching, "robust_keep", robust_keep)
-        patch.setattr(line_matching, "_translation_consensus", translation_consensus)
+        patch.setattr(matching_oracle, "pair_lines", _pair_lines_numpy)
+        patch.setattr(matching_oracle, "robust_keep", robust_keep)
+        patch.setattr(matching_oracle, "_translation_consensus", translation_consensus)
 
     @property
     def value(self) -> float:
@@ -829,7 +830,7 @@ def test_the_compiled_segmentation_stages_are_the_numpy_ones(n, seed, closed) ->
     p = _sequence(rng, n)
     thresholds = rng.uniform(0.05, 0.5, n)
     gap_difference = float(rng.uniform(0.0, 0.3))
-    steps = seg._steps_numpy(p, closed)
+    steps = features_oracle.steps(p, closed)
     prev, nxt = np.roll(steps, 1), np.roll(steps, -1)
     finite = np.isfinite(steps)
     near = [np.abs(steps[finite] - thresholds[finite])]
@@ -839,38 +840,38 @@ def test_the_compiled_segmentation_stages_are_the_numpy_ones(n, seed, closed) ->
         near.append(np.abs(diff[np.isfinite(diff)] - gap_difference))
     assume(all(np.all(v > MARGIN) for v in near))
     is_break, split = seg.break_points(p, thresholds, gap_difference, closed)
-    ref_break, ref_split = seg._break_points_numpy(p, thresholds, gap_difference, closed)
+    ref_break, ref_split = features_oracle.break_points(p, thresholds, gap_difference, closed)
     np.testing.assert_array_equal(is_break, ref_break)
     np.testing.assert_array_equal(split, ref_split)
     np.testing.assert_allclose(seg._steps(p, closed), steps, rtol=TOL, atol=0)
 
     beta = seg.detection_angles(p, split, closed)
     np.testing.assert_allclose(
-        beta, seg._detection_angles_numpy(p, split, closed), rtol=0, atol=TOL, equal_nan=True
+        beta, features_oracle.detection_angles(p, split, closed), rtol=0, atol=TOL, equal_nan=True
     )
     min_points = int(rng.integers(1, 8))
     cluster = seg.clusters(split, min_points)
-    np.testing.assert_array_equal(cluster, seg._clusters_numpy(split, min_points))
+    np.testing.assert_array_equal(cluster, features_oracle.clusters(split, min_points))
 
     cfg = CFG.with_overrides({"angular_points": {"neighbour_step": int(rng.integers(1, 4))}})
     ap = cfg.angular_points
-    spacing = seg._steps_numpy(p, False)
+    spacing = features_oracle.steps(p, False)
     corner, angle = seg.angular_points(p, cluster, spacing, cfg)
-    ref_corner, ref_angle = seg._angular_points_numpy(p, cluster, spacing, cfg)
+    ref_corner, ref_angle = features_oracle.angular_points(p, cluster, spacing, cfg)
     assume(np.all(np.abs(ref_angle - ap.interior_angle_threshold) > MARGIN))
     np.testing.assert_allclose(angle, ref_angle, rtol=0, atol=TOL)
     np.testing.assert_array_equal(corner, ref_corner)
 
     exclusion = int(rng.integers(0, 3))
     raw, segment = seg.segment_ids(cluster, corner, exclusion, closed)
-    ref_raw, ref_segment = seg._segment_ids_numpy(cluster, corner, exclusion, closed)
+    ref_raw, ref_segment = features_oracle.segment_ids(cluster, corner, exclusion, closed)
     np.testing.assert_array_equal(raw, ref_raw)
     np.testing.assert_array_equal(segment, ref_segment)
 
     u = rng.uniform(0.0, 1.0, n)
     bases = rule_bases(cfg.fuzzy)
     lines, ref = (
-        f(p, u, segment, cluster, bases, cfg) for f in (_fit_lines_compiled, _fit_lines_numpy)
+        f(p, u, segment, cluster, bases, cfg) for f in (fit_lines, features_oracle.fit_lines)
     )
     assert len(lines) == len(ref)
     for name in ("normal", "distance", "start", "end", "centre", "sigma", "delta",
@@ -949,7 +950,6 @@ def test_the_compiled_front_of_the_chain_is_the_staged_one(
         cfg = CFG.with_overrides({"scanner": {"no_return_bands": band}})
     bases = features_module.rule_bases(cfg.fuzzy)
     closed = bool(scan.is_full_circle)
-    kernels._ENABLED = True
     fused = seg.segment_scan_compiled(scan, closed, bases, cfg)
     with numpy_kernels():
         staged = seg.segment_scan_staged(scan, closed, bases, cfg)
@@ -1026,7 +1026,6 @@ def test_the_whole_compiled_chain_without_lines() -> None:
     ranges = np.full(np.asarray(scan.ranges).shape, np.inf)
     ranges[::40] = 2.0
     sparse = replace(scan, ranges=ranges)
-    kernels._ENABLED = True
     f = features_module._extract_compiled(sparse, rule_bases(CFG.fuzzy), CFG)
     assert f is not None and len(f.lines) == 0 and f.lines.angle_variance is None
     with pytest.MonkeyPatch.context() as m:
@@ -1065,7 +1064,6 @@ def test_the_compiled_line_stage_is_the_staged_one(x, y, theta, seed, grading) -
     _, ranges, points, scale, beta, u, _, kept_index = front[:8]
     segment, cluster = front[13], front[10]
     kp, kr, ku, kb = points[kept_index], ranges[kept_index], u[kept_index], beta[kept_index]
-    kernels._ENABLED = True
     fused = features_module._lines_compiled(kp, kr, kb, ku, segment, cluster, scale, bases, cfg)
     with numpy_kernels():
         lu, line_scale = features_module._graded_for_lines(kr, kb, ku, segment, scale, bases, cfg)
@@ -1090,7 +1088,6 @@ def test_a_gapless_ring_leaves_its_seam_to_the_staged_chain() -> None:
     scan = sim.simulate_scan(room, Pose2D(0.3, -0.2, 0.4), scanner(360, noise=0.002),
                              rng=np.random.default_rng(1))  # fmt: skip
     bases = features_module.rule_bases(CFG.fuzzy)
-    kernels._ENABLED = True
     assert seg.segment_scan_compiled(scan, True, bases, CFG) is None
     f, g = both(lambda: extract_features(scan, CFG))
     np.testing.assert_array_equal(f.is_angular_point, g.is_angular_point)
@@ -1124,12 +1121,15 @@ def test_importing_fuzzypos_loads_no_compiler() -> None:
     assert out.stdout.split() == ["False", "False", "False"]
 
 
-def test_the_environment_selects_the_numpy_references(monkeypatch) -> None:
-    monkeypatch.setattr(kernels, "_ENABLED", None)
+def test_only_numbas_own_switch_turns_the_compilation_off(monkeypatch) -> None:
+    """numba is a dependency and the kernels the one implementation: they are compiled unless
+    numba's own ``NUMBA_DISABLE_JIT`` runs them as Python (the warm-up then has nothing to
+    compile); ``FUZZYPOS_KERNELS`` is gone."""
     monkeypatch.setenv("FUZZYPOS_KERNELS", "numpy")
+    assert kernels.compiled()
+    monkeypatch.setenv("NUMBA_DISABLE_JIT", "1")
     assert not kernels.compiled()
-    monkeypatch.setattr(kernels, "_ENABLED", None)
-    monkeypatch.setenv("FUZZYPOS_KERNELS", "numba")
+    monkeypatch.setenv("NUMBA_DISABLE_JIT", "0")
     assert kernels.compiled()
 
 
@@ -1151,7 +1151,7 @@ def test_fixed_text_kernel_is_its_reference(values):
 
     v = np.array(values, dtype=np.float64)
     fast, reference = both(lambda: carmen_write._fixed_text(v))
-    assert fast == reference == carmen_write._fixed_text_numpy(v)
+    assert fast == reference == io_oracle.fixed_text(v)
     if reference is not None:
         assert reference == " ".join(f"{x:.4f}".rstrip("0").removesuffix(".") for x in values)
 
@@ -1208,11 +1208,10 @@ def test_the_compiled_parser_gives_floats_own_doubles(tokens):
     try:
         reference = np.array(many, dtype=np.float64)
     except ValueError:
-        for use in (True, False):
-            kernels._ENABLED = use
-            with pytest.raises(carmen._Bad):
-                carmen._numbers(many, "range")
-        kernels._ENABLED = True
+        with pytest.raises(carmen._Bad):
+            carmen._numbers(many, "range")
+        with numpy_kernels(), pytest.raises(carmen._Bad):
+            carmen._numbers(many, "range")
         return
     fast, ref = both(lambda: carmen._numbers(many, "range"))
     assert fast.tobytes() == ref.tobytes() == reference.tobytes()

@@ -16,7 +16,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import fuzzypos._kernels as kernels
 from fuzzypos import sim
 from fuzzypos._kernels import packing
 from fuzzypos.config import Config
@@ -67,7 +66,6 @@ def test_the_beams_directions_are_the_cosines_and_sines_of_their_bearings(
     may differ in the last bit); and the ones of the scan's own bearings where the cache hands
     back the last scanner's."""
     scan = LaserScan(np.full(n, 2.0), angle_min, increment)
-    kernels._ENABLED = True
     table = packing.scanner(scan)[0]
     assert table.shape == (2, n)
     np.testing.assert_allclose(table[0], np.cos(scan.angles), rtol=0, atol=1e-15)
@@ -82,7 +80,6 @@ def test_the_beams_directions_follow_the_scanner() -> None:
     """Another bearing, increment, beam count or the sign of a zero ``angle_min`` (which a
     clockwise scan's bearings keep: sin(−0) = −0) is another table, and whether it closes a
     turn is the scan's."""
-    kernels._ENABLED = True
     base = LaserScan(np.full(181, 2.0), 0.0, -0.01)
     for other in (
         LaserScan(np.full(181, 2.0), -0.0, -0.01),
@@ -105,7 +102,6 @@ def test_an_interlaced_scanners_two_geometries_are_each_computed_once() -> None:
     """An interlaced scanner alternates between two ``angle_min`` (a quarter of a degree
     apart): each one's table is computed once and handed back on its every scan, as long as
     no more than ``SCANNER_GEOMETRIES`` scanners come between."""
-    kernels._ENABLED = True
     inc = math.radians(1.0)
     a = LaserScan(np.full(181, 2.0), -math.pi / 2, inc)
     b = LaserScan(np.full(181, 2.0), -math.pi / 2 + inc / 4, inc)
@@ -139,7 +135,6 @@ def test_the_usable_points_are_the_numpy_ones(pose, seed, offset, clockwise) -> 
         scan = dataclasses.replace(scan, sensor_pose=Pose2D(0.12, -0.03, 0.05))
     lo, hi = seg._band_bounds_of(CFG.scanner)
     sp = scan.sensor_pose
-    kernels._ENABLED = True
     got = _front().usable_points(
         scan.ranges, packing.scanner(scan)[0], scan.valid, lo, hi,
         scan.angle_increment, sp.x, sp.y, sp.theta,
@@ -287,7 +282,6 @@ def test_packed_features_copy_pickle_and_refuse_unknown_names() -> None:
     pickled round trip and ``dataclasses.replace`` keep every field, an unknown name is an
     AttributeError (and ``hasattr`` False), and the arrays taken out are kept."""
     scan = scan_at((0.5, 0.2, 0.3), 3)
-    kernels._ENABLED = True
     f = features_module._extract_compiled(scan, rule_bases(CFG.fuzzy), CFG)
     assert f is not None and len(f.lines) > 0
     assert f.kept_index is f.kept_index  # taken out once
@@ -309,7 +303,6 @@ def test_a_scan_without_lines_has_the_empty_lines() -> None:
     ranges = np.full(np.asarray(scan.ranges).shape, np.inf)
     ranges[::40] = 2.0
     sparse = dataclasses.replace(scan, ranges=ranges)
-    kernels._ENABLED = True
     f = features_module._extract_compiled(sparse, rule_bases(CFG.fuzzy), CFG)
     assert f is not None and len(f.lines) == 0 and f.lines.angle_variance is None
     assert f.lines.normal.shape == (0, 2) and f.kept_index.shape == f.cluster.shape
@@ -341,7 +334,6 @@ def test_the_chains_settings_are_taken_apart_as_they_were_put_together(
 ) -> None:
     """``packing.chain_settings`` and ``_kernels.front.settings_of``: every array and number
     back, to the bit and in its shape (NaN bounds included)."""
-    kernels._ENABLED = True
     settings = packing.chain_settings(
         bands[0], bands[1], front, line, sine, point_tables, line_tables
     )

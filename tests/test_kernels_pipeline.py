@@ -3,6 +3,7 @@ references beside their callers."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -12,7 +13,8 @@ from hypothesis import strategies as st
 from fuzzypos._kernels.pipeline import move_surfaces
 from fuzzypos.geometry import transform_points
 from fuzzypos.matching import SurfacePoints
-from fuzzypos.pipeline.local_map import _moved_numpy
+from helpers import numpy_kernels
+from oracles import pipeline as pipeline_oracle
 
 coord = st.floats(-50.0, 50.0, allow_nan=False)
 angle = st.floats(-math.pi, math.pi, allow_nan=False, exclude_max=True)
@@ -39,7 +41,7 @@ def test_the_moved_surfaces_are_the_numpy_ones(parts_spec, seed) -> None:
     xy = np.concatenate([s.xy for s, _ in parts])
     normal = np.concatenate([s.normal for s, _ in parts])
     got_xy, got_normal = move_surfaces(xy, normal, np.array(moves), ends)
-    want_xy, want_normal = _moved_numpy(parts, moves)
+    want_xy, want_normal = pipeline_oracle.moved(parts, moves)
     np.testing.assert_allclose(got_xy, want_xy, rtol=0, atol=1e-9)
     np.testing.assert_allclose(got_normal, want_normal, rtol=0, atol=1e-9)
     by_pose = [transform_points(pose, s.xy) for s, pose in parts]
@@ -66,7 +68,6 @@ def test_the_assessment_with_the_scans_own_motion_is_the_two_calls(
     gives the assessment of ``assess`` and the motion of ``scan_only`` called after it, from
     the previous covariance it leaves: the very values, compiled (True) or in numpy (False);
     and (None) the compiled values within 1e-9 of the numpy ones."""
-    from fuzzypos._kernels import compiled as kernels_enabled
     from fuzzypos.config import Config
     from fuzzypos.matching import Refinement
     from fuzzypos.pipeline import uncertainty as stage
@@ -89,9 +90,7 @@ def test_the_assessment_with_the_scans_own_motion_is_the_two_calls(
     Scan = tuple[np.ndarray, np.ndarray] | None
 
     def run(enabled: bool, fused: bool) -> tuple[stage.Assessment, Scan]:
-        saved = stage.compiled
-        stage.compiled = lambda: enabled and kernels_enabled()
-        try:
+        with contextlib.nullcontext() if enabled else numpy_kernels():
             u = stage.Uncertainty(cfg.covariance, cfg.gate)
             u._previous = previous.copy()
             judged = u.assess(t_prev, prior, prior_cov, increment, fit, gate_open, fused)
@@ -99,8 +98,6 @@ def test_the_assessment_with_the_scans_own_motion_is_the_two_calls(
                 None if judged.rejected else u.scan_only(fit, t_prev)
             )  # fmt: skip
             return judged, scan
-        finally:
-            stage.compiled = saved
 
     def values(judged: stage.Assessment, scan: Scan) -> list[np.ndarray]:
         out = [judged.covariance, judged.keyframe_covariance, np.array([judged.gate or 0.0])]
@@ -133,7 +130,6 @@ def test_the_refinements_priors_from_the_learned_noise_are_the_numpy_ones(
     """``Uncertainty.prior_information``: the information of the features' and of the
     odometry's motion from the keyframe, in one compiled call as numpy's inverses give them
     (to 1e-9 of their size); the odometry's is the inverse of ``key_prior_covariance``."""
-    from fuzzypos import _kernels as kernels
     from fuzzypos.config import Config
     from fuzzypos.pipeline import uncertainty as stage
 
@@ -144,14 +140,8 @@ def test_the_refinements_priors_from_the_learned_noise_are_the_numpy_ones(
     prior_cov, previous = _spd(rng, odometry_scale), _spd(rng, previous_scale)
     u = stage.Uncertainty(cfg.covariance, cfg.gate)
     u._previous = previous
-    saved = kernels._ENABLED
-    try:
-        kernels._ENABLED = True
-        got = u.prior_information(t_prev, prior, prior_cov)
-        kernels._ENABLED = False
-        want = u.prior_information(t_prev, prior, prior_cov)
-    finally:
-        kernels._ENABLED = saved
+    got = u.prior_information(t_prev, prior, prior_cov)
+    want = pipeline_oracle.prior_information(u, t_prev, prior, prior_cov)
     for x, y in zip(got, want):
         np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-9 * np.abs(y).max())
     odometry = u.key_prior_covariance(t_prev, prior, prior_cov)

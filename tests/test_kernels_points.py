@@ -17,7 +17,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import fuzzypos._kernels as kernels
 from fuzzypos import sim
 from fuzzypos.config import Config
 from fuzzypos.features import FeaturePoints, rule_bases
@@ -41,7 +40,6 @@ def _context(world: str, pose: tuple[float, float, float], seed: int, cfg: Confi
         range_noise_std=0.01,
     )  # fmt: skip
     scan = sim.simulate_scan(WORLDS[world], Pose2D(*pose), model, rng=np.random.default_rng(seed))
-    kernels._ENABLED = True
     return F.extract_features(scan, cfg)._corners
 
 
@@ -172,13 +170,6 @@ def test_the_kernels_merge_keeps_what_merge_duplicates_keeps(pts, radius) -> Non
     np.testing.assert_array_equal(xy[keep], want.xy)
     np.testing.assert_array_equal(u[keep], want.uncertainty)
     np.testing.assert_array_equal(kind[keep], want.kind)
-
-
-@pytest.fixture(autouse=True)
-def _kernels_on() -> Any:
-    before = kernels._ENABLED
-    yield
-    kernels._ENABLED = before
 
 
 @pytest.mark.parametrize("shift", [0.0, 0.04, 0.2, 0.4, 0.6, 1.0])

@@ -17,9 +17,9 @@ from fuzzypos.config import Config
 from fuzzypos.features import extract_features
 from fuzzypos.geometry import Pose2D, compose, relative, transform_points
 from fuzzypos.matching import refine_point_to_line, surface_points
-from fuzzypos.matching.surface import _converged
 from fuzzypos.pipeline import Positioner, Reason
 from fuzzypos.pipeline.prior import OdometryPrior
+from oracles.matching import _converged, kd_tree
 
 CFG = Config()
 R = CFG.refinement
@@ -288,7 +288,7 @@ def test_search_start_scores_the_fraction_of_points_that_land(penalty, x, y, sta
     np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
     assert np.all(np.abs(found[:2] - start[:2]) <= 0.2 + 1e-9)
     pts = fb.points[:: max(1, fb.points.shape[0] // 60)]
-    dist, _ = surf.tree.query(transform_points(found, pts), distance_upper_bound=0.25)
+    dist, _ = kd_tree(surf).query(transform_points(found, pts), distance_upper_bound=0.25)
     assert score == pytest.approx(float(np.isfinite(dist).mean()), abs=1e-12)
     free, _ = run(0.0)
     assert np.hypot(*(found[:2] - start[:2])) <= np.hypot(*(free[:2] - start[:2])) + 1e-9

@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._kernels import compiled
 from .config import FuzzyConfig
 from .errors import FuzzyposError
 
@@ -39,11 +38,6 @@ __all__ = [
 ]
 
 LABELS = "SMB"
-
-try:  # np.interp's own compiled loop, without the wrapper's checks (real inputs; same result)
-    from numpy._core.multiarray import interp as _interp
-except ImportError:  # pragma: no cover - another numpy layout
-    _interp = np.interp
 
 
 class FuzzyError(FuzzyposError, ValueError):
@@ -135,9 +129,7 @@ class RuleBase:
         _centre_lo: float = field(init=False, repr=False)
         _centre_hi: float = field(init=False, repr=False)
         _grids: tuple[FloatArray, FloatArray] | None = field(init=False, repr=False)
-        _columns: tuple[FloatArray, ...] = field(init=False, repr=False)
         _table: FloatArray = field(init=False, repr=False)
-        _units: tuple[FloatArray, ...] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         shape = tuple(len(s) for s in self.input_sets)
@@ -159,11 +151,7 @@ class RuleBase:
         fast = self.mode == "product" and len(grids) == 2 and all(g is not None for g in grids)
         object.__setattr__(self, "_grids", tuple(grids) if fast else None)
         table = self.output_centres[self.consequents]
-        object.__setattr__(
-            self, "_columns", tuple(table[:, j].copy() for j in range(table.shape[1]))
-        )
         object.__setattr__(self, "_table", np.ascontiguousarray(table, dtype=np.float64))
-        object.__setattr__(self, "_units", tuple(np.eye(table.shape[1])))
 
     @property
     def n_rules(self) -> int:
@@ -221,14 +209,9 @@ class RuleBase:
         g1, g2 = self._grids
         if x1.shape[0] == 0:
             return np.zeros(0)
-        if compiled():
-            from ._kernels.fuzzy import bilinear
+        from ._kernels.fuzzy import bilinear
 
-            return bilinear(x1, x2, g1, g2, self._table, self._centre_lo, self._centre_hi)
-        out = np.zeros(x1.shape[0])
-        for col, unit in zip(self._columns, self._units):
-            out += _interp(x1, g1, col, None, None) * _interp(x2, g2, unit, None, None)
-        return np.minimum(np.maximum(out, self._centre_lo), self._centre_hi)
+        return bilinear(x1, x2, g1, g2, self._table, self._centre_lo, self._centre_hi)
 
     def _mamdani(self, w: FloatArray, cons: NDArray[np.int64]) -> FloatArray:
         n_out = len(self.output_sets)

@@ -1,6 +1,6 @@
 """Line-to-line matching as compiled loops: the pairing of two scans' lines and the increment
-from the pairs (the references: ``fuzzypos.matching.lines.pair_lines`` and
-``increment_from_lines`` with ``FUZZYPOS_KERNELS=numpy``)."""
+from the pairs (the references: ``pair_lines`` and ``increment_from_lines`` of
+``tests/oracles/matching.py``)."""
 
 from __future__ import annotations
 
@@ -88,7 +88,7 @@ def pair_lines(
 @kernel
 def robust_keep(values: FloatArray, floor: float, sigmas: float) -> BoolArray:
     """Values within ``sigmas`` × their median absolute deviation (at least ``floor``) of
-    their median (``fuzzypos.matching._robust.robust_keep``)."""
+    their median (the numpy reference: ``tests/oracles/matching.py``'s ``robust_keep``)."""
     center = median(values)
     dev = np.empty(values.shape[0])
     for i in range(values.shape[0]):

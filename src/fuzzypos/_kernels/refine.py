@@ -3,9 +3,8 @@ surface point (through the surface's grid, built once per local map; a point tha
 nearer to its last nearest than the bound its last search left on every other point, less
 how far it moved, keeps its nearest without a search) and each pair's robust weight and
 terms of the normal equations in the same pass, the corridor's hold and the prior, the 3×3
-solve, per Gauss-Newton iteration. The reference is
-``fuzzypos.matching.surface.refine_point_to_line`` with ``FUZZYPOS_KERNELS=numpy``
-(``_refine_numpy``), the same steps in numpy with a KD-tree query per iteration. Also the
+solve, per Gauss-Newton iteration. The reference is ``refine`` of
+``tests/oracles/matching.py``, the same steps in numpy with a KD-tree query per iteration. Also the
 inputs it is given: the scan points' weights (``Refiner.points``) and a keyframe's surface
 normals (``surface_points``)."""
 

@@ -1,6 +1,6 @@
 """The wide search's scoring as one compiled loop: every rotation, every translation, every
-scored point, a grid look-up each (the reference: ``fuzzypos.matching.search.search_start``
-with ``FUZZYPOS_KERNELS=numpy``, KD-tree queries over all candidates a chunk at a time).
+scored point, a grid look-up each (the reference: ``search_start`` of ``tests/oracles/matching.py``,
+KD-tree queries over all candidates a chunk at a time).
 
 The translations come grouped into square blocks of the lattice, blocks of blocks above them
 (:class:`TranslationBlocks`): a block is scored first with the gate widened by its radius

@@ -1,6 +1,5 @@
 """The segmentation stages as compiled loops over a scan's points (the references: the numpy
-functions of ``fuzzypos.features.segmentation`` and ``fuzzypos.features``, which
-``FUZZYPOS_KERNELS=numpy`` selects): break points (eq. 13), detection angles (eq. 3),
+functions of ``tests/oracles/features.py``): break points (eq. 13), detection angles (eq. 3),
 clusters (§3.3), angular points (eq. 14), segments (§3.5), the lines' least-squares fits
 (eq. 5–8) and their joins at angular points (§3.5 b)). The angles themselves (atan2, sin,
 cos) are left to numpy between two kernels: libm's differ from numpy's in the last bit, which

@@ -1,7 +1,8 @@
 """The CARMEN logs' numbers as text, both ways. The writer's ranges
-(``fuzzypos.io.carmen_write._fixed_text``, whose numpy reference builds the same bytes from
-digit tables): each value rounded to ``decimals`` places, written without trailing zeros
-(``f"{v:.4f}".rstrip("0").removesuffix(".")``), space-separated, as ASCII bytes. And the
+(``fuzzypos.io.carmen_write._fixed_text``, whose numpy reference, ``fixed_text`` of
+``tests/oracles/io.py``, builds the same bytes from digit tables): each value rounded to
+``decimals`` places, written without trailing zeros (``f"{v:.4f}".rstrip("0").removesuffix(".")``),
+space-separated, as ASCII bytes. And the
 reader's (``fuzzypos.io.carmen._numbers``, whose reference is ``np.array(tokens,
 dtype=float)``): space-separated plain decimals parsed in one loop, each the correctly
 rounded double ``float()`` gives, by the exact fast path of Clinger (1990): a decimal

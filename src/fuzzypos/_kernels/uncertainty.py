@@ -1,8 +1,8 @@
 """The uncertainty stage's 3×3 arithmetic as compiled loops: the sandwich of a fit and the
 gate (``Uncertainty.assess``), and the motion the scan alone gives (``Uncertainty.scan_only``).
-The references are those methods with ``FUZZYPOS_KERNELS=numpy`` (``_assess_numpy``,
-``_scan_only_numpy`` in ``fuzzypos.pipeline.uncertainty``): a few dozen numpy calls on 3×3
-matrices, each far slower than its arithmetic.
+The references are ``Uncertainty._assess_numpy`` (also the path where the gate rejects a
+match) and ``scan_only_numpy`` of ``tests/oracles/pipeline.py``: a few dozen numpy calls on
+3×3 matrices, each far slower than its arithmetic.
 
 Inside, a 3×3 is a tuple of its nine entries row by row (:data:`M3`) and a pose or a vector
 a tuple of three (:data:`V3`): values, not arrays, which cost nothing to make, where each

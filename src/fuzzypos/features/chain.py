@@ -9,7 +9,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled, packing
+from .._kernels import packing
 from ..config import Config, FuzzyConfig, LineConfig, same_as_last_call
 from ..fuzzy import RuleBases
 from ..scan import LaserScan
@@ -37,11 +37,9 @@ ChainOutputs = tuple[
 
 def chain_inputs(scan: LaserScan, config: Config, bases: RuleBases) -> ChainInputs | None:
     """What the compiled chain reads of ``scan`` and the config (``bases``: its rule bases);
-    None where the kernels are off or a rule base is off the interpolation's path (then the
+    None where a rule base is off the interpolation's path (then the
     staged chain runs). The positioner hands them to its one compiled call of a scan's
     features, match, refinement and assessment (``_kernels.step``)."""
-    if not compiled():
-        return None
     settings = chain_settings(config, bases)
     if settings is None:
         return None

@@ -23,7 +23,7 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled, packing
+from .._kernels import packing
 from .._kernels.packing import Unpacks
 from ..config import Config, FuzzyConfig, same_as_last_call
 from ..fuzzy import RuleBases
@@ -198,21 +198,8 @@ def fit_lines(
     The normal is the eigenvector of the scatter matrix's smallest eigenvalue (the orthogonal
     fit, valid for vertical and horizontal walls alike); endpoints are the projections of the
     segment's extreme points (joined at angular points later, see :func:`join_at_corners`).
+    The sums and fits in one compiled loop (``_kernels.segmentation``).
     """
-    if compiled():
-        return _fit_lines_compiled(points, uncertainty, segment, cluster, bases, cfg)
-    return _fit_lines_numpy(points, uncertainty, segment, cluster, bases, cfg)
-
-
-def _fit_lines_compiled(
-    points: FloatArray,
-    uncertainty: FloatArray,
-    segment: IntArray,
-    cluster: IntArray,
-    bases: RuleBases,
-    cfg: Config,
-) -> Lines:
-    """:func:`fit_lines` with the fits in one compiled loop (``_kernels.segmentation``)."""
     from .._kernels.segmentation import finish_lines, segment_sums
 
     p = np.ascontiguousarray(points, dtype=np.float64)
@@ -256,85 +243,6 @@ def _lines_of_table(
     )
 
 
-def _fit_lines_numpy(
-    points: FloatArray,
-    uncertainty: FloatArray,
-    segment: IntArray,
-    cluster: IntArray,
-    bases: RuleBases,
-    cfg: Config,
-) -> Lines:
-    """:func:`fit_lines` in numpy, per-segment sums by ``np.bincount`` (the compiled kernel's
-    reference)."""
-    used = segment >= 0
-    if not used.any():
-        return _empty_lines()
-    seg = segment[used]  # non-decreasing: segments are runs of the sequence
-    p = points.compress(used, axis=0)
-    px, py = p[:, 0], p[:, 1]
-    nseg = int(seg[-1]) + 1
-    count = np.bincount(seg, minlength=nseg).astype(float)
-    safe = np.maximum(count, 1.0)
-    mx = np.bincount(seg, px, nseg) / safe
-    my = np.bincount(seg, py, nseg) / safe
-    dx = px - mx[seg]
-    dy = py - my[seg]
-    sxx = np.bincount(seg, dx * dx, nseg)
-    syy = np.bincount(seg, dy * dy, nseg)
-    sxy = np.bincount(seg, dx * dy, nseg)
-    # principal direction φ of the scatter; the normal is perpendicular to it, pointing away
-    # from the robot (d ≥ 0)
-    phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
-    normal = stack_columns(-np.sin(phi), np.cos(phi))
-    dist = normal[:, 0] * mx + normal[:, 1] * my
-    flip = np.where(dist < 0, -1.0, 1.0)
-    normal *= flip[:, None]
-    dist *= flip
-    # extreme points of each segment (first and last in sequence order), projected on its line
-    ids_all = np.arange(nseg)
-    first = np.minimum(np.searchsorted(seg, ids_all, "left"), seg.shape[0] - 1)
-    last = np.maximum(np.searchsorted(seg, ids_all, "right") - 1, 0)
-    p0, p1 = p.take(first, axis=0), p.take(last, axis=0)
-    start = p0 - ((p0 * normal).sum(axis=1) - dist)[:, None] * normal
-    end = p1 - ((p1 * normal).sum(axis=1) - dist)[:, None] * normal
-    span = end - start
-    keep = (count >= cfg.lines.min_points) & ((span * span).sum(axis=1) >= cfg.lines.min_length**2)
-    ids = keep.nonzero()[0]
-    if ids.size == 0:
-        return _empty_lines()
-    # eq. 7–8 (SPEC fix: x·a + y·b + c) with a unit normal: d_i = |n·p_i − d|
-    nseg_pt = normal.take(seg, axis=0)
-    resid = np.abs(nseg_pt[:, 0] * px + nseg_pt[:, 1] * py - dist[seg])
-    sigma = (np.bincount(seg, resid, nseg) / safe)[ids]
-    delta = (np.bincount(seg, uncertainty[used], nseg) / safe)[ids]  # eq. 6
-    f_line = bases.lines(delta, sigma)  # eq. 9 / Table 2
-    # least-squares variances: residual variance s² = Σr²/(N−2) (at least 1 mm²), the
-    # normal's angle var s²/Σt² (t along the line; Σt² is the scatter's trace less Σr²) and
-    # the distance var s²/N + var_φ·(c·dir)² (c the centroid)
-    n_ids = count[ids]
-    r2 = np.bincount(seg, resid * resid, nseg)[ids]
-    s2 = np.maximum(r2 / np.maximum(n_ids - 2.0, 1.0), _MIN_LINE_NOISE**2)
-    var_phi = s2 / np.maximum(sxx[ids] + syy[ids] - r2, 1e-12)
-    normal = normal.take(ids, axis=0)
-    along = mx[ids] * normal[:, 1] - my[ids] * normal[:, 0]
-    start, end = start.take(ids, axis=0), end.take(ids, axis=0)
-    return Lines(
-        normal=normal,
-        distance=dist[ids],
-        start=start,
-        end=end,
-        centre=0.5 * (start + end),
-        n_points=n_ids.astype(np.int64),
-        sigma=sigma,
-        delta=delta,
-        uncertainty=f_line,
-        segment=ids,
-        cluster=cluster[used][first[ids]],
-        angle_variance=var_phi,
-        distance_variance=s2 / n_ids + var_phi * along * along,
-    )
-
-
 def _empty_lines() -> Lines:
     z2 = np.zeros((0, 2))
     z = np.zeros(0)
@@ -370,41 +278,20 @@ def join_at_corners(
     none = np.zeros(0, dtype=np.int64)
     if m == 0 or len(lines) < 2:
         return lines, xy, ok, none, none, np.zeros(0)
-    if compiled():
-        from .._kernels.segmentation import join_at_corners as kernel
+    from .._kernels.segmentation import join_at_corners as kernel
 
-        have_any, start, end, centre, xy, ok, ia, ib, dv = kernel(
-            np.ascontiguousarray(lines.normal, dtype=np.float64),
-            np.ascontiguousarray(lines.distance, dtype=np.float64),
-            np.ascontiguousarray(lines.start, dtype=np.float64),
-            np.ascontiguousarray(lines.end, dtype=np.float64),
-            np.ascontiguousarray(lines.segment, dtype=np.int64),
-            np.ascontiguousarray(corner_segment_before, dtype=np.int64),
-            np.ascontiguousarray(corner_segment_after, dtype=np.int64),
-            math.sin(cfg.virtual_points.min_intersection_angle),
-        )
-        if not have_any:
-            return lines, xy, ok, none, none, np.zeros(0)
-        return replace(lines, start=start, end=end, centre=centre), xy, ok, ia, ib, dv
-    a, b = _lines_around_corners(lines, corner_segment_before, corner_segment_after)
-    have = (a >= 0) & (b >= 0)
-    if not have.any():
-        return lines, xy, ok, none, none, np.zeros(0)
-    ia, ib = a[have], b[have]
-    pts, sin_ang = intersect_lines(
-        lines.normal[ia], lines.distance[ia], lines.normal[ib], lines.distance[ib]
+    have_any, start, end, centre, xy, ok, ia, ib, dv = kernel(
+        np.ascontiguousarray(lines.normal, dtype=np.float64),
+        np.ascontiguousarray(lines.distance, dtype=np.float64),
+        np.ascontiguousarray(lines.start, dtype=np.float64),
+        np.ascontiguousarray(lines.end, dtype=np.float64),
+        np.ascontiguousarray(lines.segment, dtype=np.int64),
+        np.ascontiguousarray(corner_segment_before, dtype=np.int64),
+        np.ascontiguousarray(corner_segment_after, dtype=np.int64),
+        math.sin(cfg.virtual_points.min_intersection_angle),
     )
-    good = sin_ang >= math.sin(cfg.virtual_points.min_intersection_angle)
-    hv = have.nonzero()[0][good]
-    ia, ib, pts = ia[good], ib[good], pts[good]
-    start = lines.start.copy()
-    end = lines.end.copy()
-    end[ia] = pts
-    start[ib] = pts
-    centre = 0.5 * (start + end)
-    dv = _mean_distance_to_centres(pts, centre[ia], centre[ib])
-    xy[hv] = pts
-    ok[hv] = True
+    if not have_any:
+        return lines, xy, ok, none, none, np.zeros(0)
     return replace(lines, start=start, end=end, centre=centre), xy, ok, ia, ib, dv
 
 
@@ -483,10 +370,9 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
     """Run every stage of §3.1–3.6 on one scan and keep each intermediate result."""
     cfg = config if config is not None else Config()
     bases = rule_bases(cfg.fuzzy)
-    if compiled():
-        fused = _extract_compiled(scan, bases, cfg)
-        if fused is not None:
-            return fused
+    fused = _extract_compiled(scan, bases, cfg)
+    if fused is not None:
+        return fused
     inc = scan.angle_increment
     front = segment_scan(scan, bases, cfg)
     (beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
@@ -588,12 +474,11 @@ def _graded_lines(
     cfg: Config,
 ) -> tuple[Lines, float]:
     """Step 6 on the kept points: the scale the lines are graded on and the lines fitted on
-    it, in one compiled call where the kernels are on (:func:`_lines_compiled`), else by
-    :func:`_graded_for_lines` and :func:`fit_lines`."""
-    if compiled():
-        fitted = _lines_compiled(points, ranges, beta, u, segment, cluster, scale, bases, cfg)
-        if fitted is not None:
-            return fitted
+    it, in one compiled call (:func:`_lines_compiled`), or where that declines (a rule base off
+    the interpolation's path) by :func:`_graded_for_lines` and :func:`fit_lines`."""
+    fitted = _lines_compiled(points, ranges, beta, u, segment, cluster, scale, bases, cfg)
+    if fitted is not None:
+        return fitted
     lu, line_scale = _graded_for_lines(ranges, beta, u, segment, scale, bases, cfg)
     return fit_lines(points, lu, segment, cluster, bases, cfg), line_scale
 
@@ -649,15 +534,14 @@ def _graded_for_lines(
 
 def _point_features(c: _CornerContext) -> _PointFeatures:
     """Angular points, virtual angular points (with their line pairs), break points and the
-    merged points of interest of one scan (§3.2, §3.4, §3.6): in one compiled call where the
-    kernels are on (:func:`.points.point_features_compiled`), else (or where that
-    declines) in numpy (:func:`_point_features_numpy`, its reference)."""
-    if compiled():
-        from .points import point_features_compiled
+    merged points of interest of one scan (§3.2, §3.4, §3.6): in one compiled call
+    (:func:`.points.point_features_compiled`), or where that declines in numpy
+    (:func:`_point_features_numpy`, its reference and fallback)."""
+    from .points import point_features_compiled
 
-        done = point_features_compiled(c)
-        if done is not None:
-            return done
+    done = point_features_compiled(c)
+    if done is not None:
+        return done
     return _point_features_numpy(c)
 
 

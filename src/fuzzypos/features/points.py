@@ -1,5 +1,5 @@
 """The point features of one scan in one compiled call (``fuzzypos._kernels.points``):
-what ``fuzzypos.features.extract._point_features`` runs where the kernels are on, its numpy chain
+what ``fuzzypos.features.extract._point_features`` runs, its numpy chain
 (``_point_features_numpy``) the reference and the fallback where the kernel declines."""
 
 from __future__ import annotations

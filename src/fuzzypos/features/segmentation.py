@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled, f64
+from .._kernels import f64
 from ..config import (
     AngularPointConfig,
     Config,
@@ -41,18 +41,10 @@ __all__ = [
     "filter_points",
     "clusters",
     "angular_points",
-    "segments",
-    "raw_segment_ids",
     "segment_ids",
     "segment_scan",
     "ScanSegments",
 ]
-
-
-def _running_count(mask: BoolArray) -> IntArray:
-    """``np.cumsum`` of a boolean mask as int64 (the ufunc on an int array is several times
-    faster than np.cumsum on booleans)."""
-    return np.add.accumulate(mask.astype(np.int64))
 
 
 @lru_cache(maxsize=128)
@@ -65,39 +57,9 @@ def _strict_upper(n: int) -> BoolArray:
 
 def _steps(points: FloatArray, closed: bool) -> FloatArray:
     """Distance from each point to the next one (the last: to the first if ``closed``, else inf)."""
-    if compiled():
-        from .._kernels import segmentation as kernel
+    from .._kernels import segmentation as kernel
 
-        return kernel.steps(f64(points), bool(closed))
-    return _steps_numpy(points, closed)
-
-
-def _steps_numpy(points: FloatArray, closed: bool) -> FloatArray:
-    """:func:`_steps` in numpy (the compiled kernel's reference)."""
-    n = points.shape[0]
-    d = np.empty(n)
-    if n == 0:
-        return d
-    diff = points[1:] - points[:-1]
-    d[:-1] = np.sqrt(diff[:, 0] ** 2 + diff[:, 1] ** 2)
-    d[-1] = np.hypot(*(points[0] - points[-1])) if closed else np.inf
-    return d
-
-
-def _shift_prev(a: NDArray, closed: bool, fill: object) -> NDArray:
-    """``a[i-1]`` at i (wrapping when ``closed``, else ``fill`` at 0)."""
-    out = np.empty_like(a)
-    out[1:] = a[:-1]
-    out[0] = a[-1] if closed else fill
-    return out
-
-
-def _shift_next(a: NDArray, closed: bool, fill: object) -> NDArray:
-    """``a[i+1]`` at i (wrapping when ``closed``, else ``fill`` at the end)."""
-    out = np.empty_like(a)
-    out[:-1] = a[1:]
-    out[-1] = a[0] if closed else fill
-    return out
+    return kernel.steps(f64(points), bool(closed))
 
 
 def gap_thresholds(ranges: FloatArray, angle_increment: float, cfg: Config) -> FloatArray:
@@ -117,35 +79,9 @@ def break_points(
     where ``split[j]`` says the sequence is cut between points j and j+1. The two ends of an
     open sequence are break points too (field-of-view edges, eq. 13's ``i = 1, 180``).
     """
-    if compiled():
-        from .._kernels import segmentation as kernel
+    from .._kernels import segmentation as kernel
 
-        return kernel.break_points(
-            f64(points), f64(thresholds), float(gap_difference), bool(closed)
-        )
-    return _break_points_numpy(points, thresholds, gap_difference, closed)
-
-
-def _break_points_numpy(
-    points: FloatArray, thresholds: FloatArray, gap_difference: float, closed: bool = False
-) -> tuple[BoolArray, BoolArray]:
-    """:func:`break_points` in numpy (the compiled kernel's reference)."""
-    n = points.shape[0]
-    if n == 0:
-        return np.zeros(0, bool), np.zeros(0, bool)
-    # step j joins points j and j+1; it is a gap when longer than T2 and longer (by T1) than a
-    # neighbouring step, so a uniformly sparse surface has no gaps (eq. 13)
-    step = _steps_numpy(points, closed)
-    inner = step if closed else np.where(np.isfinite(step), step, np.nan)  # no step past the end
-    before = _shift_prev(inner, closed, np.nan)
-    after = _shift_next(inner, closed, np.nan)
-    # (nan marks a missing neighbour; inf − nan is nan and compares False, without a warning)
-    differ = (step - before > gap_difference) | (step - after > gap_difference)
-    split = (step > thresholds) & differ & np.isfinite(step)
-    if not closed:
-        split[-1] = True  # the end of the field of view
-    is_break = split | _shift_prev(split, closed, True)  # both points that border a gap
-    return is_break, split
+    return kernel.break_points(f64(points), f64(thresholds), float(gap_difference), bool(closed))
 
 
 def detection_angles(
@@ -157,38 +93,14 @@ def detection_angles(
     gap (``gap_after[i]``) or does not exist. π/2 = square-on, 0 = grazing. A point with no
     neighbour on its surface (gaps on both sides) gets β = 0, so filtering removes it.
     """
-    if compiled():
-        from .._kernels.segmentation import detection_terms
+    from .._kernels.segmentation import detection_terms
 
-        cross, dot, isolated = detection_terms(
-            f64(points_sensor), np.ascontiguousarray(gap_after, dtype=np.bool_), bool(closed)
-        )
-        beta: FloatArray = np.arctan2(cross, dot)  # numpy's, as the reference's
-        beta[isolated] = 0.0
-        return beta
-    return _detection_angles_numpy(points_sensor, gap_after, closed)
-
-
-def _detection_angles_numpy(
-    points_sensor: FloatArray, gap_after: BoolArray, closed: bool = False
-) -> FloatArray:
-    """:func:`detection_angles` in numpy (the compiled kernel's reference)."""
-    n = points_sensor.shape[0]
-    if n == 0:
-        return np.zeros(0)
-    nxt = _shift_next(points_sensor, closed, np.nan)
-    prv = _shift_prev(points_sensor, closed, np.nan)
-    gap_before = _shift_prev(gap_after, closed, True)
-    use_next = ~gap_after
-    if not closed:
-        use_next[-1] = False  # the last point of an open scan has no i+1
-    step = np.where(use_next[:, None], nxt - points_sensor, points_sensor - prv)
-    beam = points_sensor
-    cross = np.abs(beam[:, 0] * step[:, 1] - beam[:, 1] * step[:, 0])
-    dot = np.abs(beam[:, 0] * step[:, 0] + beam[:, 1] * step[:, 1])
-    beta = np.arctan2(cross, dot)  # folded: both |·| put it in [0, π/2]
-    isolated = gap_after & gap_before
-    return np.where(isolated, 0.0, beta)
+    cross, dot, isolated = detection_terms(
+        f64(points_sensor), np.ascontiguousarray(gap_after, dtype=np.bool_), bool(closed)
+    )
+    beta: FloatArray = np.arctan2(cross, dot)  # numpy's, as the reference's
+    beta[isolated] = 0.0
+    return beta
 
 
 def distance_scale(ranges: FloatArray, cfg: FuzzyConfig) -> float:
@@ -257,26 +169,9 @@ def filter_points(beta: FloatArray, threshold: float) -> BoolArray:
 
 def clusters(split: BoolArray, min_points: int) -> IntArray:
     """§3.3: cluster labels 0, 1, … from cuts (``split[j]``: cut after point j); −1 = too small."""
-    if compiled():
-        from .._kernels import segmentation as kernel
+    from .._kernels import segmentation as kernel
 
-        return kernel.clusters(np.ascontiguousarray(split, dtype=np.bool_), int(min_points))
-    return _clusters_numpy(split, min_points)
-
-
-def _clusters_numpy(split: BoolArray, min_points: int) -> IntArray:
-    """:func:`clusters` in numpy (the compiled kernel's reference)."""
-    n = split.shape[0]
-    if n == 0:
-        return np.zeros(0, dtype=np.int64)
-    starts = np.empty(n, bool)
-    starts[0] = True
-    starts[1:] = split[:-1]
-    label = _running_count(starts) - 1
-    size = np.bincount(label)
-    ok = size >= min_points
-    new_id = _running_count(ok) - 1
-    return np.where(ok[label], new_id[label], -1).astype(np.int64)
+    return kernel.clusters(np.ascontiguousarray(split, dtype=np.bool_), int(min_points))
 
 
 def angular_points(
@@ -293,132 +188,35 @@ def angular_points(
     arm stays at least half that distance long. Points whose angle is at most θ_TH are candidates;
     of a run of consecutive candidates the sharpest wins.
     """
-    if compiled():
-        from .._kernels.segmentation import corner_arms, sharpest_of_runs
+    from .._kernels.segmentation import corner_arms, sharpest_of_runs
 
-        ap = cfg.angular_points
-        labels = np.ascontiguousarray(cluster, dtype=np.int64)
-        cross, dot, inside = corner_arms(
-            f64(points), labels, f64(step_spacing), float(ap.neighbour_distance),
-            int(ap.neighbour_step),
-        )  # fmt: skip
-        angle: FloatArray = np.abs(np.arctan2(cross, dot))  # numpy's, as the reference's
-        angle[~inside] = np.pi
-        return sharpest_of_runs(angle, labels, float(ap.interior_angle_threshold)), angle
-    return _angular_points_numpy(points, cluster, step_spacing, cfg)
-
-
-def _angular_points_numpy(
-    points: FloatArray, cluster: IntArray, step_spacing: FloatArray, cfg: Config
-) -> tuple[BoolArray, FloatArray]:
-    """:func:`angular_points` in numpy (the compiled kernel's reference)."""
-    n = points.shape[0]
-    if n == 0:
-        return np.zeros(0, bool), np.zeros(0)
     ap = cfg.angular_points
-    wanted = np.ceil(ap.neighbour_distance / np.maximum(step_spacing, 1e-9))
-    k = np.minimum(np.maximum(wanted, ap.neighbour_step), 4 * ap.neighbour_step).astype(np.int64)
-    idx = np.arange(n)
-    # the k-step neighbours, but never past the cluster's ends: a corner one or two points
-    # before a cluster end is still a corner (else its line swallows the stray point)
-    new_cluster = np.ones(n, bool)
-    new_cluster[1:] = cluster[1:] != cluster[:-1]
-    start = np.maximum.accumulate(np.where(new_cluster, idx, 0))
-    last = np.empty(n, bool)
-    last[:-1] = new_cluster[1:]
-    last[-1] = True
-    end = np.minimum.accumulate(np.where(last, idx, n - 1)[::-1])[::-1]
-    lo = np.maximum(idx - k, start)
-    hi = np.minimum(idx + k, end)
-    a = points.take(lo, axis=0) - points
-    b = points.take(hi, axis=0) - points
-    min_arm = 0.5 * ap.neighbour_distance
-    inside = (
-        (cluster >= 0)
-        & (lo < idx)
-        & (hi > idx)
-        & (a[:, 0] ** 2 + a[:, 1] ** 2 >= min_arm * min_arm)
-        & (b[:, 0] ** 2 + b[:, 1] ** 2 >= min_arm * min_arm)
-    )
-    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
-    angle = np.where(inside, np.abs(np.arctan2(cross, dot)), np.pi)
-    cand = angle <= ap.interior_angle_threshold
-    if not cand.any():
-        return cand, angle
-    # runs of consecutive candidates within a cluster: keep the sharpest of each run
-    prev_cand = np.concatenate([[False], cand[:-1]])
-    same_cluster_prev = np.concatenate([[False], cluster[1:] == cluster[:-1]])
-    run_start = cand & ~(prev_cand & same_cluster_prev)
-    run_id = _running_count(run_start) - 1
-    ci = cand.nonzero()[0]
-    runs = run_id[ci]
-    a = angle[ci]
-    starts = run_start[ci].nonzero()[0]
-    sharpest = np.minimum.reduceat(a, starts)[runs]
-    # the first point of each run that reaches the run's sharpest angle
-    hit = a == sharpest
-    before = _running_count(hit) - hit
-    first_hit = hit & (before == before[starts][runs])
-    is_corner = np.zeros(n, bool)
-    is_corner[ci[first_hit]] = True
-    return is_corner, angle
-
-
-def segments(
-    cluster: IntArray,
-    is_corner: BoolArray,
-    corner_exclusion: int,
-    ring: bool = False,
-    raw: IntArray | None = None,
-) -> IntArray:
-    """Cut clusters at angular points into segments (§3.5). Returns a segment id per point.
-
-    Ids are global and consecutive (see :func:`raw_segment_ids`, whose result may be passed as
-    ``raw``). Points within ``corner_exclusion`` of an angular point (circularly when the
-    points form a ``ring``), the angular point itself, and points of dropped clusters get −1
-    (no line).
-    """
-    if cluster.shape[0] == 0:
-        return np.zeros(0, dtype=np.int64)
-    seg = raw_segment_ids(cluster, is_corner) if raw is None else raw
-    excluded = is_corner.copy()
-    for s in range(1, corner_exclusion + 1):
-        if ring:
-            excluded |= np.roll(is_corner, s) | np.roll(is_corner, -s)
-        else:
-            excluded[s:] |= is_corner[:-s]
-            excluded[:-s] |= is_corner[s:]
-    excluded |= cluster < 0
-    return np.where(excluded, -1, seg)
+    labels = np.ascontiguousarray(cluster, dtype=np.int64)
+    cross, dot, inside = corner_arms(
+        f64(points), labels, f64(step_spacing), float(ap.neighbour_distance),
+        int(ap.neighbour_step),
+    )  # fmt: skip
+    angle: FloatArray = np.abs(np.arctan2(cross, dot))  # numpy's, as the reference's
+    angle[~inside] = np.pi
+    return sharpest_of_runs(angle, labels, float(ap.interior_angle_threshold)), angle
 
 
 def segment_ids(
     cluster: IntArray, is_corner: BoolArray, corner_exclusion: int, ring: bool = False
 ) -> tuple[IntArray, IntArray]:
-    """:func:`raw_segment_ids` and :func:`segments` in one: the raw id of every point and the
-    id its line is fitted with (−1: none)."""
-    if compiled():
-        from .._kernels import segmentation as kernel
+    """Cut clusters at angular points into segments (§3.5): the raw id of every point (a new
+    segment at each cluster start and after each angular point, which belongs to the segment
+    before it; global and consecutive) and the id its line is fitted with (−1: none, for the
+    points within ``corner_exclusion`` of an angular point, circularly on a ``ring``, the
+    angular point itself and the points of dropped clusters)."""
+    from .._kernels import segmentation as kernel
 
-        return kernel.segments(
-            np.ascontiguousarray(cluster, dtype=np.int64),
-            np.ascontiguousarray(is_corner, dtype=np.bool_),
-            int(corner_exclusion),
-            bool(ring),
-        )
-    return _segment_ids_numpy(cluster, is_corner, corner_exclusion, ring)
-
-
-def _segment_ids_numpy(
-    cluster: IntArray, is_corner: BoolArray, corner_exclusion: int, ring: bool = False
-) -> tuple[IntArray, IntArray]:
-    """:func:`segment_ids` in numpy (the compiled kernel's reference)."""
-    if cluster.shape[0] == 0:
-        empty = np.zeros(0, dtype=np.int64)
-        return empty, empty.copy()
-    raw = raw_segment_ids(cluster, is_corner)
-    return raw, segments(cluster, is_corner, corner_exclusion, ring=ring, raw=raw)
+    return kernel.segments(
+        np.ascontiguousarray(cluster, dtype=np.int64),
+        np.ascontiguousarray(is_corner, dtype=np.bool_),
+        int(corner_exclusion),
+        bool(ring),
+    )
 
 
 def _sharpest_ring_corner(points: FloatArray, cfg: Config) -> tuple[int, bool]:
@@ -436,29 +234,17 @@ def _sharpest_ring_corner(points: FloatArray, cfg: Config) -> tuple[int, bool]:
     return best, bool(angle[best] <= cfg.angular_points.interior_angle_threshold)
 
 
-def raw_segment_ids(cluster: IntArray, is_corner: BoolArray) -> IntArray:
-    """Segment id of every point, counting a new segment at each cluster start and after each
-    angular point; the angular point itself belongs to the segment before it."""
-    n = cluster.shape[0]
-    new_cluster = np.ones(n, bool)
-    new_cluster[1:] = cluster[1:] != cluster[:-1]
-    after_corner = np.zeros(n, bool)
-    after_corner[1:] = is_corner[:-1] & ~new_cluster[1:]
-    return _running_count(new_cluster | after_corner) - 1
-
-
 # ---------------------------------------------------------------------------------------------
 # the front of feature extraction: §3.1–3.4 and the segments of §3.5 on one scan
 # ---------------------------------------------------------------------------------------------
 def segment_scan(scan: LaserScan, bases: RuleBases, cfg: Config) -> ScanSegments:
     """Steps 1–5 of :func:`fuzzypos.features.extract_features` and the segments lines are
-    fitted to (:class:`ScanSegments`). Compiled in two calls where the kernels are on (a
+    fitted to (:class:`ScanSegments`). Compiled in two calls (a
     gapless 360° ring takes the staged chain)."""
     closed = bool(scan.is_full_circle)
-    if compiled():
-        front = segment_scan_compiled(scan, closed, bases, cfg)
-        if front is not None:
-            return front
+    front = segment_scan_compiled(scan, closed, bases, cfg)
+    if front is not None:
+        return front
     return segment_scan_staged(scan, closed, bases, cfg)
 
 

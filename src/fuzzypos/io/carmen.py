@@ -123,7 +123,6 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled
 from ..errors import FuzzyposError
 from ..geometry import Pose2D
 from ..scan import ABSURD_RANGE_M, LaserScan, ScanError
@@ -230,7 +229,7 @@ def _numbers(tok: list[str], what: str) -> FloatArray:
     """``tok`` as a float array (numpy parses; the loop only runs to name a bad field). A
     scan's ranges go through the compiled parser first (``fuzzypos._kernels.text``: the same
     doubles, several times faster), which leaves what it is not sure of to numpy."""
-    if len(tok) >= _PARSED_FROM and compiled():
+    if len(tok) >= _PARSED_FROM:
         parse = _PARSER[0] if _PARSER else _load_parser()
         text = " ".join(tok).encode("ascii", "replace")
         ok, values = parse(np.frombuffer(text, dtype=np.uint8), len(tok))

@@ -38,12 +38,3 @@ def outlier_cut(deviations: FloatArray, floor: float) -> float:
     """The outlier rule's cut for absolute ``deviations``: 3 robust standard deviations
     (1.4826 × their median), never tighter than ``floor``."""
     return max(OUTLIER_SIGMAS * MAD_TO_SIGMA * median(deviations), floor)
-
-
-def robust_keep(values: FloatArray, floor: float, center: float | None = None) -> BoolArray:
-    """Values within 3 robust sigmas (1.4826 × MAD, at least ``floor``) of their median (or
-    of ``center``)."""
-    if center is None:
-        center = median(values)
-    dev = np.abs(values - center)
-    return dev <= outlier_cut(dev, floor)

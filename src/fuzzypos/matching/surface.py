@@ -10,16 +10,12 @@ from types import ModuleType
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
-from .._kernels import compiled, f64
+from .._kernels import f64
 from ..config import RefinementConfig, same_as_last_call
-from ..geometry import stack_columns
 from ._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS, FloatArray, IntArray
 
 if TYPE_CHECKING:
-    from scipy.spatial import cKDTree
-
     from .._kernels.grid import Grid
 
 __all__ = [
@@ -37,9 +33,9 @@ __all__ = [
 @dataclass(frozen=True, eq=False)
 class SurfacePoints:
     """A keyframe's filtered points with the normal of the surface through each (unit,
-    robot frame), their certainty ``weight`` (1 − the fuzzy uncertainty of eq. 4) and a
-    KD-tree over them (the numpy references' index; the compiled kernels use ``grid``; both
-    built on first use). Points with no neighbour on their surface are left out."""
+    robot frame), their certainty ``weight`` (1 − the fuzzy uncertainty of eq. 4) and a grid
+    over them for the kernels' look-ups (built on first use). Points with no neighbour on
+    their surface are left out."""
 
     xy: FloatArray
     normal: FloatArray
@@ -47,14 +43,6 @@ class SurfacePoints:
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
-
-    @cached_property
-    def tree(self) -> cKDTree:
-        """A KD-tree over the points, built on first use (by the numpy references; scipy's
-        spatial module, a quarter of a second to import, only then)."""
-        from scipy.spatial import cKDTree
-
-        return cKDTree(self.xy)
 
     @cached_property
     def grid(self) -> Grid:
@@ -119,8 +107,7 @@ def surface_points(
     ``neighbour_distance`` or ``neighbour_ratio`` × their range, whichever is larger, so that
     far walls, sampled sparsely, stay one surface; at a run's end the chord stops at its last
     point). Only points on a straight stretch keep a normal: the chords to either side must
-    agree in direction within ``max_bend``. One compiled loop over the points
-    (``FUZZYPOS_KERNELS=numpy``: numpy, no Python loop over points)."""
+    agree in direction within ``max_bend``. One compiled loop over the points."""
     neighbour_distance, neighbour_step = settings.neighbour_distance, settings.neighbour_step
     neighbour_ratio, max_bend = settings.neighbour_ratio, settings.max_bend_angle
     xy = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -128,56 +115,16 @@ def surface_points(
     if n < 3:
         empty = np.zeros((0, 2))
         return SurfacePoints(empty, empty, np.zeros(0))
-    if compiled():
-        from .._kernels.refine import surface_normals
+    from .._kernels.refine import surface_normals
 
-        tan_bend = math.tan(max_bend) if max_bend < math.pi / 2 else math.inf
-        params = np.array([neighbour_distance, neighbour_ratio, tan_bend, settings.weight_floor])
-        return SurfacePoints(
-            *surface_normals(
-                np.ascontiguousarray(xy), np.ascontiguousarray(ranges, dtype=np.float64),
-                np.ascontiguousarray(uncertainty, dtype=np.float64), params, int(neighbour_step),
-            )
-        )  # fmt: skip
-    step = np.diff(xy, axis=0)
-    step_len = np.hypot(step[:, 0], step[:, 1])
-    rng = np.asarray(ranges, dtype=float)
-    limit = np.maximum(neighbour_distance, neighbour_ratio * np.minimum(rng[1:], rng[:-1]))
-    link = step_len <= limit
-    run = np.concatenate(([0], np.cumsum(~link)))
-    first = np.searchsorted(run, run, side="left")
-    last = np.searchsorted(run, run, side="right") - 1
-    idx = np.arange(n)
-    prev_i = np.maximum(idx - neighbour_step, first)
-    next_i = np.minimum(idx + neighbour_step, last)
-    # a point on a straight stretch: the chords to either side agree in direction within
-    # ``max_bend``, and its normal is that of the chord across it. Where they do not (next to
-    # a corner), the side whose chord agrees with the chord beyond it gives the normal; a
-    # point straight on neither side (a corner, a round pillar) and a run's ends give none
-    prev2 = np.maximum(prev_i - neighbour_step, first)
-    next2 = np.minimum(next_i + neighbour_step, last)
-    left, right = xy - xy[prev_i], xy[next_i] - xy
-    far_left, far_right = xy[prev_i] - xy[prev2], xy[next2] - xy[next_i]
     tan_bend = math.tan(max_bend) if max_bend < math.pi / 2 else math.inf
-
-    def agree(a: FloatArray, b: FloatArray) -> NDArray[np.bool_]:
-        cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-        dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
-        return (dot > 0) & (np.abs(cross) <= tan_bend * dot)
-
-    inner = (next_i > idx) & (prev_i < idx)
-    straight = inner & agree(left, right)
-    left_ok = ~straight & inner & (prev2 < prev_i) & agree(far_left, left)
-    right_ok = ~straight & inner & ~left_ok & (next2 > next_i) & agree(right, far_right)
-    chord = np.where(
-        straight[:, None], xy[next_i] - xy[prev_i], np.where(left_ok[:, None], left, right)
-    )
-    length = np.hypot(chord[:, 0], chord[:, 1])
-    ok = (straight | left_ok | right_ok) & (length > 1e-9)
-    normal = stack_columns(-chord[ok, 1], chord[ok, 0]) / length[ok, None]
-    w = np.clip(1.0 - np.asarray(uncertainty, dtype=float)[ok], settings.weight_floor, 1.0)
-    xy_ok = xy[ok]
-    return SurfacePoints(xy_ok, normal, w)
+    params = np.array([neighbour_distance, neighbour_ratio, tan_bend, settings.weight_floor])
+    return SurfacePoints(
+        *surface_normals(
+            np.ascontiguousarray(xy), np.ascontiguousarray(ranges, dtype=np.float64),
+            np.ascontiguousarray(uncertainty, dtype=np.float64), params, int(neighbour_step),
+        )
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -272,8 +219,7 @@ def refine_point_to_line(
     ``min_distance`` over ``gate_steps`` iterations. None when no point pairs."""
     if len(reference) < 3 or points.shape[0] == 0:
         return None
-    refine = _refine_compiled if compiled() else _refine_numpy
-    return refine(
+    return _refine_compiled(
         reference, points, weights, start, prior, hold, settings, max_distance, prior_scale,
         prior_information, spacing,
     )  # fmt: skip
@@ -458,130 +404,6 @@ def _kernel_settings(
     return out
 
 
-def _refine_numpy(
-    reference: SurfacePoints,
-    points: FloatArray,
-    weights: FloatArray,
-    start: FloatArray,
-    prior: FloatArray,
-    hold: FloatArray,
-    cfg: RefinementConfig,
-    max_distance: float,
-    prior_scale: float,
-    prior_information: FloatArray | None,
-    spacing: FloatArray | None,
-) -> Refinement | None:
-    """:func:`refine_point_to_line` in numpy, a KD-tree query per iteration (the compiled
-    kernel's reference)."""
-    min_distance, iterations, residual_scale = cfg.min_distance, cfg.iterations, cfg.residual_scale
-    point_sigma, degenerate_ratio = cfg.point_sigma, cfg.degenerate_ratio
-    hold_tolerance = cfg.hold_tolerance
-    pose = np.asarray(start, dtype=float).copy()
-    start_xy = pose[:2].copy()
-    hold_xy = np.asarray(hold, dtype=float)[:2]
-    prior = np.asarray(prior, dtype=float)
-    info_prior, prior_info = _prior_terms(cfg, prior_scale, prior_information)
-    gates = np.geomspace(max_distance, min_distance, cfg.gate_steps)
-    reach = _reach(cfg, spacing)
-    paired = 0
-    trimming = False
-    last = np.zeros(3)
-    for it in range(iterations):
-        gate = gates[min(it, gates.size - 1)]
-        lin = _linearise(reference, points, pose, gate, reach)
-        if lin is None:
-            return None
-        ok, j, J, r = lin
-        paired = int(ok.sum())
-        absr = np.abs(r)
-        huber = np.where(absr <= residual_scale, 1.0, residual_scale / np.maximum(absr, 1e-12))
-        w = weights[ok] * reference.weight[j] * huber / point_sigma**2
-        # degeneracy (a corridor): where the points fix the translation in one direction only,
-        # the other direction, which only the noise of the normals speaks for, stays at start
-        a, b, c = (J[0] * w) @ J[0], (J[0] * w) @ J[1], (J[1] * w) @ J[1]
-        if trimming:
-            w = _trimmed(w, absr, cfg.trim_floor)
-        H = (J * w) @ J.T
-        g = (J * w) @ r
-        info_points = H.copy()
-        jw = J * w
-        hold_info, on_start = _hold_degenerate(
-            H, g, (a, b, c), pose, start_xy, hold_xy, degenerate_ratio, hold_tolerance
-        )
-        dp = pose - prior
-        dp[2] = (dp[2] + math.pi) % (2 * math.pi) - math.pi
-        if prior_information is None:
-            H[np.diag_indices(3)] += info_prior
-            g += info_prior * dp
-        else:
-            H += prior_info
-            g += prior_info @ dp
-        try:
-            delta = -np.linalg.solve(H, g)
-        except np.linalg.LinAlgError:
-            return None
-        pose += delta
-        if it >= gates.size - 1 and _converged(delta, last if it >= gates.size else None, cfg):
-            if trimming:
-                break
-            trimming = True  # converged: trim the false pairs and converge again
-        last = delta
-    pose[2] = (pose[2] + math.pi) % (2 * math.pi) - math.pi
-    close = int(np.count_nonzero(absr < 0.5 * residual_scale))
-    return Refinement(
-        pose,
-        paired,
-        paired / points.shape[0],
-        close / points.shape[0],
-        information=info_points,
-        prior_information=prior_info,
-        hold_information=hold_info,
-        hold_on_start=on_start,
-        start=np.asarray(start, dtype=float).copy(),
-        prior=prior.copy(),
-        gradient_covariance=_residual_variance(w, r, residual_scale) * (jw @ jw.T),
-    )
-
-
-def _converged(delta: FloatArray, last: FloatArray | None, cfg: RefinementConfig) -> bool:
-    """Whether Gauss-Newton has converged with the step ``delta``: the step is below
-    ``converged_translation`` (|dx| + |dy|) and ``converged_rotation``, or, given the step
-    before (``last``, both at the final gate), the two steps cancel to within those (a
-    two-cycle: a point at the gate's edge paired and unpaired by turns puts the pose back
-    where it stood two steps before, and the steps would repeat to the last iteration)."""
-    conv_t, conv_r = cfg.converged_translation, cfg.converged_rotation
-    if abs(delta[0]) + abs(delta[1]) < conv_t and abs(delta[2]) < conv_r:
-        return True
-    if last is None:
-        return False
-    back = delta + last
-    return bool(abs(back[0]) + abs(back[1]) < conv_t and abs(back[2]) < conv_r)
-
-
-def _linearise(
-    reference: SurfacePoints,
-    points: FloatArray,
-    pose: FloatArray,
-    gate: float,
-    reach: FloatArray | None,
-) -> tuple[NDArray[np.bool_], IntArray, FloatArray, FloatArray] | None:
-    """The points moved by ``pose``, paired with the reference: which paired, their reference
-    points, the Jacobian (3, m) of the point-to-line residuals n·(T·p − q) and the residuals;
-    None with fewer than 3 pairs."""
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    rx = c * points[:, 0] - s * points[:, 1]
-    ry = s * points[:, 0] + c * points[:, 1]
-    qx, qy = rx + pose[0], ry + pose[1]
-    ok, j = _pair(reference, qx, qy, gate, reach)
-    if int(ok.sum()) < 3:
-        return None
-    j = j[ok]
-    nx, ny = reference.normal[j, 0], reference.normal[j, 1]
-    r = nx * (qx[ok] - reference.xy[j, 0]) + ny * (qy[ok] - reference.xy[j, 1])
-    jt = nx * (-ry[ok]) + ny * rx[ok]  # d r / d θ
-    return ok, j, np.stack((nx, ny, jt)), r
-
-
 def _prior_terms(
     cfg: RefinementConfig, prior_scale: float, prior_information: FloatArray | None
 ) -> tuple[FloatArray, FloatArray]:
@@ -594,87 +416,3 @@ def _prior_terms(
     if prior_information is None:
         return info_prior, np.diag(info_prior)
     return info_prior, np.asarray(prior_information, dtype=float) / prior_scale**2
-
-
-def _reach(cfg: RefinementConfig, spacing: FloatArray | None) -> FloatArray | None:
-    """How far each point may pair by its own beam spacing (None where no point is so sparse
-    that it reaches beyond the smallest pairing distance: the fixed distances decide)."""
-    if spacing is None or cfg.pairing_spacing <= 0.0:
-        return None
-    reach = cfg.pairing_spacing * np.asarray(spacing, dtype=float)
-    return reach if np.any(reach > cfg.min_distance) else None
-
-
-def _pair(
-    reference: SurfacePoints, qx: FloatArray, qy: FloatArray, gate: float, reach: FloatArray | None
-) -> tuple[NDArray[np.bool_], IntArray]:
-    """Each point's nearest reference point within ``gate`` (or its own ``reach``, where
-    larger): whether it paired, and the reference index."""
-    if reach is None:
-        dist, j = reference.tree.query(stack_columns(qx, qy), distance_upper_bound=gate)
-        return np.isfinite(dist), j
-    # sparse far points reach further: their own beam spacing times the factor
-    bound = np.maximum(reach, gate)
-    dist, j = reference.tree.query(stack_columns(qx, qy), distance_upper_bound=float(bound.max()))
-    return dist <= bound, j
-
-
-def _trimmed(w: FloatArray, absr: FloatArray, trim_floor: float) -> FloatArray:
-    """Once converged: pairs far beyond the residuals' robust spread are false (a far wall's
-    point next to a nearer object) and get no weight (never a tighter cut than
-    ``trim_floor``)."""
-    m = absr.size // 2
-    cut = max(OUTLIER_SIGMAS * MAD_TO_SIGMA * float(np.partition(absr, m)[m]), trim_floor)
-    out: FloatArray = np.where(absr > cut, 0.0, w)
-    return out
-
-
-def _residual_variance(weights: FloatArray, residuals: FloatArray, scale: float) -> float:
-    """The points' noise variance (m²) from the residuals of the points that had weight
-    (clipped at the Huber scale, as the fit sees them), with the fit's 3 degrees of freedom
-    taken off their count."""
-    used = weights > 0.0
-    n = int(np.count_nonzero(used))
-    if n <= 3:
-        return scale * scale
-    clipped = np.minimum(np.abs(residuals[used]), scale)
-    return float(clipped @ clipped) / (n - 3)
-
-
-def _hold_degenerate(
-    H: FloatArray,
-    g: FloatArray,
-    block: tuple[float, float, float],
-    pose: FloatArray,
-    start_xy: FloatArray,
-    hold_xy: FloatArray,
-    degenerate_ratio: float,
-    hold_tolerance: float,
-) -> tuple[FloatArray, bool]:
-    """Where the points fix the translation in one direction less than ``degenerate_ratio``
-    times the other (``block``: the translation block ``(a, b, c)`` of their information), a
-    strong term (in place, on ``H`` and ``g``) keeps the translation along it at ``start_xy``'s
-    where that lies within ``hold_tolerance`` of ``hold_xy``'s (the odometry), else at
-    ``hold_xy``'s. Returns the term added to ``H`` (zero where none) and whether it holds the
-    start's value."""
-    a, b, c = block
-    half = math.hypot(0.5 * (a - c), b)
-    lo, hi = 0.5 * (a + c) - half, 0.5 * (a + c) + half  # eigenvalues of the 2×2 block
-    term = np.zeros((3, 3))
-    if not lo < degenerate_ratio * hi:
-        return term, False
-    # its eigenvector for ``lo``: the direction the points hardly fix
-    v = (
-        np.array([b, lo - a])
-        if abs(b) > 1e-12 * hi
-        else (np.array([1.0, 0.0]) if a <= c else np.array([0.0, 1.0]))
-    )
-    v /= math.hypot(v[0], v[1])
-    # keep the start's value along v where it agrees with ``hold`` (the odometry)
-    # within ``hold_tolerance``, else the odometry's
-    on_start = abs(float(v @ (start_xy - hold_xy))) <= hold_tolerance
-    target = start_xy if on_start else hold_xy
-    term[:2, :2] = hi * np.outer(v, v)
-    H[:2, :2] += term[:2, :2]
-    g[:2] += hi * v * float(v @ (pose[:2] - target))
-    return term, on_start

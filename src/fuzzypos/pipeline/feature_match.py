@@ -12,7 +12,7 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled, f64, packing
+from .._kernels import f64, packing
 from ..config import FusionConfig, MatchingConfig
 from ..features import FeaturePoints, Features, Lines
 from ..matching import estimate_increment, increment_from_lines, pair_features, pair_lines
@@ -138,7 +138,7 @@ class FeatureMatcher:
         the keyframe's line arrays, the prior's gates, the params, the passes and the least
         pairs; None where that try is not the compiled one's."""
         m = self.matching
-        if not (m.match_lines and m.lines_first and compiled()):
+        if not (m.match_lines and m.lines_first):
             return None
         a = prev.lines
         last = self._keyframe_lines
@@ -180,7 +180,7 @@ class FeatureMatcher:
             pose, gates = prior, (m.line_angle_gate_prior, m.line_distance_gate_prior)
         else:
             pose, gates = start, (m.line_angle_gate, m.line_distance_gate)
-        if compiled() and _has_variances(prev) and _has_variances(curr):
+        if _has_variances(prev) and _has_variances(curr):
             return self._match_lines_compiled(prev, curr, pose, start is None, prior)
         est, n_pairs = None, 0
         for _ in range(m.line_passes):

@@ -11,10 +11,10 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled, f64
+from .._kernels import f64
 from ..config import MatchingConfig, RefinementConfig
 from ..features import Features
-from ..geometry import Pose3, compose3, relative3, stack_columns
+from ..geometry import Pose3, compose3, relative3
 from ..matching import SurfacePoints, surface_points
 
 __all__ = ["LocalMap"]
@@ -160,25 +160,9 @@ class LocalMap:
             n += surf.xy.shape[0]
             ends.append(n)
         weight = np.concatenate([surf.weight for surf, _ in parts])
-        if compiled():  # every part moved in one loop (the numpy below, a few calls a part)
-            xy, normal = _kernels().move_surfaces(
-                f64(np.concatenate([surf.xy for surf, _ in parts])),
-                f64(np.concatenate([surf.normal for surf, _ in parts])),
-                np.array(moves), np.array(ends, dtype=np.int64),
-            )  # fmt: skip
-            return SurfacePoints(xy, normal, weight)
-        return SurfacePoints(*_moved_numpy(parts, moves), weight)
-
-
-def _moved_numpy(
-    parts: list[tuple[SurfacePoints, FloatArray]], moves: list[tuple[float, float, float, float]]
-) -> tuple[FloatArray, FloatArray]:
-    """The parts' points and normals, each part moved by its ``(x, y, cos θ, sin θ)`` (the
-    reference of the kernel ``move_surfaces``)."""
-    xy, normal = [], []
-    for (surf, _), (x, y, c, s_) in zip(parts, moves):
-        p = surf.xy
-        xy.append(stack_columns(x + c * p[:, 0] - s_ * p[:, 1], y + s_ * p[:, 0] + c * p[:, 1]))
-        n = surf.normal
-        normal.append(np.stack((c * n[:, 0] - s_ * n[:, 1], s_ * n[:, 0] + c * n[:, 1]), axis=1))
-    return np.concatenate(xy), np.concatenate(normal)
+        xy, normal = _kernels().move_surfaces(  # every part moved in one loop
+            f64(np.concatenate([surf.xy for surf, _ in parts])),
+            f64(np.concatenate([surf.normal for surf, _ in parts])),
+            np.array(moves), np.array(ends, dtype=np.int64),
+        )  # fmt: skip
+        return SurfacePoints(xy, normal, weight)

@@ -13,7 +13,7 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled, f64
+from .._kernels import f64
 from ..config import RefinementConfig, SearchConfig
 from ..features import Features
 from ..matching import (
@@ -23,9 +23,7 @@ from ..matching import (
     refine_both_settings,
     refine_point_to_line,
     refinement_of,
-    surface_lengths,
 )
-from ..matching._robust import median as _median
 from ..matching.surface import Weighing
 
 __all__ = ["Refiner", "ScanPoints", "Starts"]
@@ -190,11 +188,9 @@ class Refiner:
         if pts.shape[0] < r.min_points:
             return None
         ranges = features.ranges
-        if compiled():  # (weighed in the fused refinement's call, or on first use)
-            weighing = self.weighing_settings(angle_increment)
-            return _WeighedOnUse._lazy(pts, (ranges, features.uncertainty, weighing))
-        spacing = ranges * abs(float(angle_increment))
-        return ScanPoints._of(pts, self._weights_numpy(features, angle_increment), spacing)
+        # (weighed in the fused refinement's call, or on first use)
+        weighing = self.weighing_settings(angle_increment)
+        return _WeighedOnUse._lazy(pts, (ranges, features.uncertainty, weighing))
 
     def checks(self, wide: bool) -> FloatArray:
         """The fused refinement's checks (``_kernels.refine.CHECKS``), after an odometry jump
@@ -211,23 +207,6 @@ class Refiner:
             last = self._weighing = (angle_increment, settings)
         return last[1]
 
-    def _weights_numpy(self, features: Features, angle_increment: float) -> FloatArray:
-        """The points' weights in numpy (the compiled kernel's reference)."""
-        r = self.refinement
-        pts = features.points
-        weights: FloatArray = np.clip(1.0 - features.uncertainty, r.weight_floor, 1.0)
-        if r.length_weight_max > 1.0:
-            # each point weighs the stretch of surface it stands for (over the scan's median):
-            # the fit is one over the surfaces' length, not over the beams, and dense clutter
-            # next to the robot (people, a desk) no longer outvotes the walls
-            length = surface_lengths(pts, features.ranges, angle_increment, r.length_cap)
-            median = _median(length)
-            if median > 0.0:
-                weights = weights * np.clip(
-                    length / median, 1.0 / r.length_weight_max, r.length_weight_max
-                )
-        return weights
-
     def refine(
         self, surface: SurfacePoints, points: ScanPoints, starts: Starts, wide: bool
     ) -> Refinement | None:
@@ -239,20 +218,19 @@ class Refiner:
         r = self.refinement
         start, hold = starts.start, starts.hold
         max_distance = self.search.jump_distance if wide else r.max_distance
-        if compiled():  # both fits and the choice in one compiled call
-            if isinstance(points, _WeighedOnUse) and "_weights" not in points.__dict__:
-                weights, spacing, weighing = None, None, points.weighing  # (weighed in it)
-                assert weighing is not None
-            else:
-                weights, spacing, weighing = points.weights, points.spacing, None
-            return refine_both(
-                surface, points.xy, weights, start, starts.prior, hold, r,
-                self._checks[wide], max_distance=max_distance,
-                prior_information=starts.prior_information,
-                hold_information=starts.odometry_information, spacing=spacing,
-                weighing=weighing,
-            )  # fmt: skip
-        return self._refine_staged(surface, points, starts, max_distance, wide)
+        # both fits and the choice in one compiled call
+        if isinstance(points, _WeighedOnUse) and "_weights" not in points.__dict__:
+            weights, spacing, weighing = None, None, points.weighing  # (weighed in it)
+            assert weighing is not None
+        else:
+            weights, spacing, weighing = points.weights, points.spacing, None
+        return refine_both(
+            surface, points.xy, weights, start, starts.prior, hold, r,
+            self._checks[wide], max_distance=max_distance,
+            prior_information=starts.prior_information,
+            hold_information=starts.odometry_information, spacing=spacing,
+            weighing=weighing,
+        )  # fmt: skip
 
     def lines_start_inputs(
         self, surface: SurfacePoints, points: ScanPoints, information: FloatArray | None
@@ -315,40 +293,6 @@ class Refiner:
             which_from_start, paired, close, on_start, result, points.xy.shape[0],
             (starts.start, starts.prior, info, full), (starts.hold, starts.hold, info, full),
         )  # fmt: skip
-
-    def _refine_staged(
-        self,
-        surface: SurfacePoints,
-        points: ScanPoints,
-        starts: Starts,
-        max_distance: float,
-        wide: bool,
-    ) -> Refinement | None:
-        """:meth:`refine` fit by fit (the numpy references'; the fused call's reference)."""
-        r = self.refinement
-        start, hold = starts.start, starts.hold
-        best = self.fit(
-            surface, points, start, starts.prior, hold, max_distance=max_distance,
-            prior_information=starts.prior_information,
-        )  # fmt: skip
-        if not wide and r.also_from_odometry and self._differ(start, hold):
-            other = self.fit(
-                surface, points, hold, hold, hold, max_distance=r.max_distance,
-                prior_information=starts.odometry_information,
-            )  # fmt: skip
-            if other is not None and (
-                best is None or other.close_fraction > best.close_fraction + r.both_min_gain
-            ):
-                best = other
-        return best
-
-    def _differ(self, start: FloatArray, hold: FloatArray) -> bool:
-        """Whether the features' motion and the odometry's differ by more than
-        ``both_distance`` or ``both_angle`` (in floats: ``start - hold`` elementwise)."""
-        r = self.refinement
-        sx, sy, st = start.tolist()
-        hx, hy, ht = hold.tolist()
-        return math.hypot(sx - hx, sy - hy) > r.both_distance or abs(st - ht) > r.both_angle
 
     def fit(
         self,

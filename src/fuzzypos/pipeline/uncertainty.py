@@ -30,7 +30,7 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import compiled, f64
+from .._kernels import f64
 from ..config import CovarianceConfig, GateConfig
 from ..geometry import compose3, compose_jacobians, relative
 from ..matching import Refinement
@@ -191,18 +191,12 @@ class Uncertainty:
         """The information of the features' motion from the keyframe (the inverse of
         :meth:`key_prior_covariance` plus :meth:`feature_covariance`) and of the odometry's
         (the inverse of :meth:`key_prior_covariance`): the refinement's priors from the learned
-        noise. One compiled call (``_kernels.pipeline.prior_information``), else numpy."""
-        if compiled():
-            out = _pipeline_kernels().prior_information(
-                f64(t_prev), f64(prior), self._previous, f64(prior_covariance), self.floor,
-                self._feature,
-            )  # fmt: skip
-            return out[0], out[1]
-        odometry = self.key_prior_covariance(t_prev, prior, prior_covariance)
-        features = odometry + self.feature_covariance()
-        inv_features = np.asarray(np.linalg.inv(features), dtype=np.float64)
-        inv_odometry = np.asarray(np.linalg.inv(odometry), dtype=np.float64)
-        return inv_features, inv_odometry
+        noise. One compiled call (``_kernels.pipeline.prior_information``)."""
+        out = _pipeline_kernels().prior_information(
+            f64(t_prev), f64(prior), self._previous, f64(prior_covariance), self.floor,
+            self._feature,
+        )  # fmt: skip
+        return out[0], out[1]
 
     def feature_covariance(self) -> FloatArray:
         """The features' own error, isotropic in translation (read-only)."""
@@ -231,7 +225,7 @@ class Uncertainty:
         ``with_scan_only`` also :meth:`scan_only` of the fit where it stands (the compiled path
         computes both in one kernel call). ``key_prior``: ``compose(t_prev, prior)`` where the
         caller has it to the bit (else computed where needed)."""
-        if from_key is not None and compiled():
+        if from_key is not None:
             return self._assess_compiled(
                 t_prev, prior, prior_covariance, from_key, fit, gate_open, with_scan_only,
                 key_prior,
@@ -340,7 +334,8 @@ class Uncertainty:
         fit: Refinement | None,
         gate_open: bool,
     ) -> Assessment:
-        """:meth:`assess` in numpy (the compiled kernel's reference)."""
+        """:meth:`assess` in numpy: the compiled kernel's reference, and its fallback where the
+        gate rejects the match or nothing was matched (``from_key`` None)."""
         ja, jb = compose_jacobians(t_prev, prior)
         prev = ja @ self._previous @ ja.T
         odo = jb @ prior_covariance @ jb.T
@@ -419,36 +414,13 @@ class Uncertainty:
         points alone do not fix the motion (a corridor held, or too little information)."""
         if np.count_nonzero(fit.hold_information):  # (an .any() costs a microsecond)
             return None
-        if compiled():
-            ok, inc, cov = _kernels().scan_only(
-                f64(fit.information), f64(fit.prior_information),
-                f64(fit.gradient_covariance), f64(fit.increment), f64(fit.prior),
-                f64(t_prev), self._previous, self.floor,
-                self._point_correlation, _MAX_CONDITION,
-            )  # fmt: skip
-            return (inc, cov) if ok else None
-        return self._scan_only_numpy(fit, t_prev)
-
-    def _scan_only_numpy(
-        self, fit: Refinement, t_prev: FloatArray
-    ) -> tuple[FloatArray, FloatArray] | None:
-        """:meth:`scan_only` of a fit without a hold, in numpy (the compiled kernel's
-        reference)."""
-        a = fit.information
-        if not np.isfinite(a).all() or np.linalg.cond(a) > _MAX_CONDITION:
-            return None
-        m = a + fit.prior_information
-        x_f = np.asarray(fit.increment, dtype=float)
-        # the prior's error is an additive one in the keyframe's frame: wrap its heading near x
-        p = np.asarray(fit.prior, dtype=float).copy()
-        p[2] = x_f[2] + math.remainder(p[2] - x_f[2], math.tau)
-        x_s = np.linalg.solve(a, m @ x_f - fit.prior_information @ p)
-        a_inv = np.linalg.inv(a)
-        points = self.settings.point_correlation * fit.gradient_covariance
-        inc = relative(t_prev, x_s)
-        ja, jb = compose_jacobians(t_prev, inc)
-        cov = jb.T @ (a_inv @ points @ a_inv + ja @ self._previous @ ja.T) @ jb
-        return inc, local(cov, float(inc[2])) + self.floor
+        ok, inc, cov = _kernels().scan_only(
+            f64(fit.information), f64(fit.prior_information),
+            f64(fit.gradient_covariance), f64(fit.increment), f64(fit.prior),
+            f64(t_prev), self._previous, self.floor,
+            self._point_correlation, _MAX_CONDITION,
+        )  # fmt: skip
+        return (inc, cov) if ok else None
 
     def _fallback(
         self,

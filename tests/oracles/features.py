@@ -1,0 +1,361 @@
+"""The numpy references of ``fuzzypos.features``' kernels (``_kernels.segmentation``,
+``_kernels.front``): the code each replaced, the tests' oracles."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fuzzypos.config import Config
+from fuzzypos.features import chain, extract, points, segmentation
+from fuzzypos.features.extract import (
+    _MIN_LINE_NOISE,
+    _empty_lines,
+    _lines_around_corners,
+    _mean_distance_to_centres,
+    intersect_lines,
+)
+from fuzzypos.features.types import Lines
+from fuzzypos.fuzzy import RuleBases
+from fuzzypos.geometry import stack_columns
+from oracles import _declines
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+
+def steps(points: FloatArray, closed: bool) -> FloatArray:
+    """:func:`_steps` in numpy (the compiled kernel's reference)."""
+    n = points.shape[0]
+    d = np.empty(n)
+    if n == 0:
+        return d
+    diff = points[1:] - points[:-1]
+    d[:-1] = np.sqrt(diff[:, 0] ** 2 + diff[:, 1] ** 2)
+    d[-1] = np.hypot(*(points[0] - points[-1])) if closed else np.inf
+    return d
+
+
+def _shift_prev(a: NDArray, closed: bool, fill: object) -> NDArray:
+    """``a[i-1]`` at i (wrapping when ``closed``, else ``fill`` at 0)."""
+    out = np.empty_like(a)
+    out[1:] = a[:-1]
+    out[0] = a[-1] if closed else fill
+    return out
+
+
+def _shift_next(a: NDArray, closed: bool, fill: object) -> NDArray:
+    """``a[i+1]`` at i (wrapping when ``closed``, else ``fill`` at the end)."""
+    out = np.empty_like(a)
+    out[:-1] = a[1:]
+    out[-1] = a[0] if closed else fill
+    return out
+
+
+def break_points(
+    points: FloatArray, thresholds: FloatArray, gap_difference: float, closed: bool = False
+) -> tuple[BoolArray, BoolArray]:
+    """:func:`break_points` in numpy (the compiled kernel's reference)."""
+    n = points.shape[0]
+    if n == 0:
+        return np.zeros(0, bool), np.zeros(0, bool)
+    # step j joins points j and j+1; it is a gap when longer than T2 and longer (by T1) than a
+    # neighbouring step, so a uniformly sparse surface has no gaps (eq. 13)
+    step = steps(points, closed)
+    inner = step if closed else np.where(np.isfinite(step), step, np.nan)  # no step past the end
+    before = _shift_prev(inner, closed, np.nan)
+    after = _shift_next(inner, closed, np.nan)
+    # (nan marks a missing neighbour; inf − nan is nan and compares False, without a warning)
+    differ = (step - before > gap_difference) | (step - after > gap_difference)
+    split = (step > thresholds) & differ & np.isfinite(step)
+    if not closed:
+        split[-1] = True  # the end of the field of view
+    is_break = split | _shift_prev(split, closed, True)  # both points that border a gap
+    return is_break, split
+
+
+def detection_angles(
+    points_sensor: FloatArray, gap_after: BoolArray, closed: bool = False
+) -> FloatArray:
+    """:func:`detection_angles` in numpy (the compiled kernel's reference)."""
+    n = points_sensor.shape[0]
+    if n == 0:
+        return np.zeros(0)
+    nxt = _shift_next(points_sensor, closed, np.nan)
+    prv = _shift_prev(points_sensor, closed, np.nan)
+    gap_before = _shift_prev(gap_after, closed, True)
+    use_next = ~gap_after
+    if not closed:
+        use_next[-1] = False  # the last point of an open scan has no i+1
+    step = np.where(use_next[:, None], nxt - points_sensor, points_sensor - prv)
+    beam = points_sensor
+    cross = np.abs(beam[:, 0] * step[:, 1] - beam[:, 1] * step[:, 0])
+    dot = np.abs(beam[:, 0] * step[:, 0] + beam[:, 1] * step[:, 1])
+    beta = np.arctan2(cross, dot)  # folded: both |·| put it in [0, π/2]
+    isolated = gap_after & gap_before
+    return np.where(isolated, 0.0, beta)
+
+
+def clusters(split: BoolArray, min_points: int) -> IntArray:
+    """:func:`clusters` in numpy (the compiled kernel's reference)."""
+    n = split.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    starts = np.empty(n, bool)
+    starts[0] = True
+    starts[1:] = split[:-1]
+    label = _running_count(starts) - 1
+    size = np.bincount(label)
+    ok = size >= min_points
+    new_id = _running_count(ok) - 1
+    return np.where(ok[label], new_id[label], -1).astype(np.int64)
+
+
+def angular_points(
+    points: FloatArray, cluster: IntArray, step_spacing: FloatArray, cfg: Config
+) -> tuple[BoolArray, FloatArray]:
+    """:func:`angular_points` in numpy (the compiled kernel's reference)."""
+    n = points.shape[0]
+    if n == 0:
+        return np.zeros(0, bool), np.zeros(0)
+    ap = cfg.angular_points
+    wanted = np.ceil(ap.neighbour_distance / np.maximum(step_spacing, 1e-9))
+    k = np.minimum(np.maximum(wanted, ap.neighbour_step), 4 * ap.neighbour_step).astype(np.int64)
+    idx = np.arange(n)
+    # the k-step neighbours, but never past the cluster's ends: a corner one or two points
+    # before a cluster end is still a corner (else its line swallows the stray point)
+    new_cluster = np.ones(n, bool)
+    new_cluster[1:] = cluster[1:] != cluster[:-1]
+    start = np.maximum.accumulate(np.where(new_cluster, idx, 0))
+    last = np.empty(n, bool)
+    last[:-1] = new_cluster[1:]
+    last[-1] = True
+    end = np.minimum.accumulate(np.where(last, idx, n - 1)[::-1])[::-1]
+    lo = np.maximum(idx - k, start)
+    hi = np.minimum(idx + k, end)
+    a = points.take(lo, axis=0) - points
+    b = points.take(hi, axis=0) - points
+    min_arm = 0.5 * ap.neighbour_distance
+    inside = (
+        (cluster >= 0)
+        & (lo < idx)
+        & (hi > idx)
+        & (a[:, 0] ** 2 + a[:, 1] ** 2 >= min_arm * min_arm)
+        & (b[:, 0] ** 2 + b[:, 1] ** 2 >= min_arm * min_arm)
+    )
+    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
+    angle = np.where(inside, np.abs(np.arctan2(cross, dot)), np.pi)
+    cand = angle <= ap.interior_angle_threshold
+    if not cand.any():
+        return cand, angle
+    # runs of consecutive candidates within a cluster: keep the sharpest of each run
+    prev_cand = np.concatenate([[False], cand[:-1]])
+    same_cluster_prev = np.concatenate([[False], cluster[1:] == cluster[:-1]])
+    run_start = cand & ~(prev_cand & same_cluster_prev)
+    run_id = _running_count(run_start) - 1
+    ci = cand.nonzero()[0]
+    runs = run_id[ci]
+    a = angle[ci]
+    starts = run_start[ci].nonzero()[0]
+    sharpest = np.minimum.reduceat(a, starts)[runs]
+    # the first point of each run that reaches the run's sharpest angle
+    hit = a == sharpest
+    before = _running_count(hit) - hit
+    first_hit = hit & (before == before[starts][runs])
+    is_corner = np.zeros(n, bool)
+    is_corner[ci[first_hit]] = True
+    return is_corner, angle
+
+
+def segment_ids(
+    cluster: IntArray, is_corner: BoolArray, corner_exclusion: int, ring: bool = False
+) -> tuple[IntArray, IntArray]:
+    """:func:`segment_ids` in numpy (the compiled kernel's reference)."""
+    if cluster.shape[0] == 0:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty.copy()
+    raw = raw_segment_ids(cluster, is_corner)
+    return raw, segments(cluster, is_corner, corner_exclusion, ring=ring, raw=raw)
+
+
+def fit_lines(
+    points: FloatArray,
+    uncertainty: FloatArray,
+    segment: IntArray,
+    cluster: IntArray,
+    bases: RuleBases,
+    cfg: Config,
+) -> Lines:
+    """:func:`fit_lines` in numpy, per-segment sums by ``np.bincount`` (the compiled kernel's
+    reference)."""
+    used = segment >= 0
+    if not used.any():
+        return _empty_lines()
+    seg = segment[used]  # non-decreasing: segments are runs of the sequence
+    p = points.compress(used, axis=0)
+    px, py = p[:, 0], p[:, 1]
+    nseg = int(seg[-1]) + 1
+    count = np.bincount(seg, minlength=nseg).astype(float)
+    safe = np.maximum(count, 1.0)
+    mx = np.bincount(seg, px, nseg) / safe
+    my = np.bincount(seg, py, nseg) / safe
+    dx = px - mx[seg]
+    dy = py - my[seg]
+    sxx = np.bincount(seg, dx * dx, nseg)
+    syy = np.bincount(seg, dy * dy, nseg)
+    sxy = np.bincount(seg, dx * dy, nseg)
+    # principal direction φ of the scatter; the normal is perpendicular to it, pointing away
+    # from the robot (d ≥ 0)
+    phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
+    normal = stack_columns(-np.sin(phi), np.cos(phi))
+    dist = normal[:, 0] * mx + normal[:, 1] * my
+    flip = np.where(dist < 0, -1.0, 1.0)
+    normal *= flip[:, None]
+    dist *= flip
+    # extreme points of each segment (first and last in sequence order), projected on its line
+    ids_all = np.arange(nseg)
+    first = np.minimum(np.searchsorted(seg, ids_all, "left"), seg.shape[0] - 1)
+    last = np.maximum(np.searchsorted(seg, ids_all, "right") - 1, 0)
+    p0, p1 = p.take(first, axis=0), p.take(last, axis=0)
+    start = p0 - ((p0 * normal).sum(axis=1) - dist)[:, None] * normal
+    end = p1 - ((p1 * normal).sum(axis=1) - dist)[:, None] * normal
+    span = end - start
+    keep = (count >= cfg.lines.min_points) & ((span * span).sum(axis=1) >= cfg.lines.min_length**2)
+    ids = keep.nonzero()[0]
+    if ids.size == 0:
+        return _empty_lines()
+    # eq. 7–8 (SPEC fix: x·a + y·b + c) with a unit normal: d_i = |n·p_i − d|
+    nseg_pt = normal.take(seg, axis=0)
+    resid = np.abs(nseg_pt[:, 0] * px + nseg_pt[:, 1] * py - dist[seg])
+    sigma = (np.bincount(seg, resid, nseg) / safe)[ids]
+    delta = (np.bincount(seg, uncertainty[used], nseg) / safe)[ids]  # eq. 6
+    f_line = bases.lines(delta, sigma)  # eq. 9 / Table 2
+    # least-squares variances: residual variance s² = Σr²/(N−2) (at least 1 mm²), the
+    # normal's angle var s²/Σt² (t along the line; Σt² is the scatter's trace less Σr²) and
+    # the distance var s²/N + var_φ·(c·dir)² (c the centroid)
+    n_ids = count[ids]
+    r2 = np.bincount(seg, resid * resid, nseg)[ids]
+    s2 = np.maximum(r2 / np.maximum(n_ids - 2.0, 1.0), _MIN_LINE_NOISE**2)
+    var_phi = s2 / np.maximum(sxx[ids] + syy[ids] - r2, 1e-12)
+    normal = normal.take(ids, axis=0)
+    along = mx[ids] * normal[:, 1] - my[ids] * normal[:, 0]
+    start, end = start.take(ids, axis=0), end.take(ids, axis=0)
+    return Lines(
+        normal=normal,
+        distance=dist[ids],
+        start=start,
+        end=end,
+        centre=0.5 * (start + end),
+        n_points=n_ids.astype(np.int64),
+        sigma=sigma,
+        delta=delta,
+        uncertainty=f_line,
+        segment=ids,
+        cluster=cluster[used][first[ids]],
+        angle_variance=var_phi,
+        distance_variance=s2 / n_ids + var_phi * along * along,
+    )
+
+
+def join_at_corners(
+    lines: Lines,
+    corner_segment_before: IntArray,
+    corner_segment_after: IntArray,
+    cfg: Config,
+) -> tuple[Lines, FloatArray, BoolArray, IntArray, IntArray, FloatArray]:
+    """:func:`fuzzypos.features.extract.join_at_corners` in numpy (the kernel's reference)."""
+    m = corner_segment_before.shape[0]
+    xy = np.full((m, 2), np.nan)
+    ok = np.zeros(m, bool)
+    none = np.zeros(0, dtype=np.int64)
+    if m == 0 or len(lines) < 2:
+        return lines, xy, ok, none, none, np.zeros(0)
+    a, b = _lines_around_corners(lines, corner_segment_before, corner_segment_after)
+    have = (a >= 0) & (b >= 0)
+    if not have.any():
+        return lines, xy, ok, none, none, np.zeros(0)
+    ia, ib = a[have], b[have]
+    pts, sin_ang = intersect_lines(
+        lines.normal[ia], lines.distance[ia], lines.normal[ib], lines.distance[ib]
+    )
+    good = sin_ang >= math.sin(cfg.virtual_points.min_intersection_angle)
+    hv = have.nonzero()[0][good]
+    ia, ib, pts = ia[good], ib[good], pts[good]
+    start = lines.start.copy()
+    end = lines.end.copy()
+    end[ia] = pts
+    start[ib] = pts
+    centre = 0.5 * (start + end)
+    dv = _mean_distance_to_centres(pts, centre[ia], centre[ib])
+    xy[hv] = pts
+    ok[hv] = True
+    return replace(lines, start=start, end=end, centre=centre), xy, ok, ia, ib, dv
+
+
+def _running_count(mask: BoolArray) -> IntArray:
+    """``np.cumsum`` of a boolean mask as int64 (the ufunc on an int array is several times
+    faster than np.cumsum on booleans)."""
+    return np.add.accumulate(mask.astype(np.int64))
+
+
+def segments(
+    cluster: IntArray,
+    is_corner: BoolArray,
+    corner_exclusion: int,
+    ring: bool = False,
+    raw: IntArray | None = None,
+) -> IntArray:
+    """Cut clusters at angular points into segments (§3.5). Returns a segment id per point.
+
+    Ids are global and consecutive (see :func:`raw_segment_ids`, whose result may be passed as
+    ``raw``). Points within ``corner_exclusion`` of an angular point (circularly when the
+    points form a ``ring``), the angular point itself, and points of dropped clusters get −1
+    (no line).
+    """
+    if cluster.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    seg = raw_segment_ids(cluster, is_corner) if raw is None else raw
+    excluded = is_corner.copy()
+    for s in range(1, corner_exclusion + 1):
+        if ring:
+            excluded |= np.roll(is_corner, s) | np.roll(is_corner, -s)
+        else:
+            excluded[s:] |= is_corner[:-s]
+            excluded[:-s] |= is_corner[s:]
+    excluded |= cluster < 0
+    return np.where(excluded, -1, seg)
+
+
+def raw_segment_ids(cluster: IntArray, is_corner: BoolArray) -> IntArray:
+    """Segment id of every point, counting a new segment at each cluster start and after each
+    angular point; the angular point itself belongs to the segment before it."""
+    n = cluster.shape[0]
+    new_cluster = np.ones(n, bool)
+    new_cluster[1:] = cluster[1:] != cluster[:-1]
+    after_corner = np.zeros(n, bool)
+    after_corner[1:] = is_corner[:-1] & ~new_cluster[1:]
+    return _running_count(new_cluster | after_corner) - 1
+
+
+#: (module, attribute, its reference) for :func:`oracles.references`; a fused call's
+#: reference declines (``_declines``), so the staged chain runs
+STAND_INS = [
+    (segmentation.__name__, "_steps", steps),
+    (segmentation.__name__, "break_points", break_points),
+    (segmentation.__name__, "detection_angles", detection_angles),
+    (segmentation.__name__, "clusters", clusters),
+    (segmentation.__name__, "angular_points", angular_points),
+    (segmentation.__name__, "segment_ids", segment_ids),
+    (segmentation.__name__, "segment_scan_compiled", _declines),
+    (extract.__name__, "fit_lines", fit_lines),
+    (extract.__name__, "join_at_corners", join_at_corners),
+    (extract.__name__, "_extract_compiled", _declines),
+    (extract.__name__, "_lines_compiled", _declines),
+    (points.__name__, "point_features_compiled", _declines),
+    (chain.__name__, "chain_inputs", _declines),
+]
