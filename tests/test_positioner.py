@@ -503,8 +503,7 @@ def test_a_refined_estimate_is_matched_even_where_the_point_pairs_were_too_few(
     )
     poses = [Pose2D(0.0, 0.0, 0.0), Pose2D(0.1, 0.05, 0.02)]
     scans = [sim.simulate_scan(room, p, scanner, stamp=0.1 * k) for k, p in enumerate(poses)]
-    pos = Positioner()
-    pos._fused = False  # (the staged calls, where the matcher's match is called: test_step.py)
+    pos = Positioner(fused=False)  # (the staged calls, where the matcher's match is called)
     monkeypatch.setattr(
         pos.feature_matcher, "match", lambda *_: FeatureMatch(None, 3, Reason.TOO_FEW_PAIRS)
     )

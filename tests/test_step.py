@@ -1,7 +1,7 @@
 """The positioner's one compiled call for a scan's features, line matching, refinement and
 assessment (``fuzzypos._kernels.step.features_and_step``, ``match_refine_assess`` inside it;
-``Positioner._features_match_refine_assess``, ``_match_refine_assess``) against its reference,
-the staged calls it replaces (``Positioner._fused`` switched off: the feature chain, the line
+``Positioner._features_match_refine_assess``) against its reference, the staged calls it
+replaces (``Positioner(fused=False)``: the feature chain, the line
 matcher, the refiner and the uncertainty stage called one after the other): the same
 estimates to the bit, scan by scan, on simulated runs that reach every stage where the call
 hands over to the staged path (the lines give no motion, neither fit counts, the assessment is
@@ -88,8 +88,7 @@ def _odometry(run: sim.SimulatedRun, shifts: dict[int, float] | None) -> Iterato
 
 def _estimates(name: str, fused: bool) -> tuple[list[Estimate], Positioner]:
     overrides, shifts = SCENARIOS[name]
-    positioner = Positioner(Config().with_overrides(overrides))
-    positioner._fused = fused
+    positioner = Positioner(Config().with_overrides(overrides), fused=fused)
     run = _run(KINDS.get(name, "office"))
     estimates = [positioner.update(s, o) for s, o in zip(run.scans, _odometry(run, shifts))]
     return estimates, positioner
@@ -127,7 +126,7 @@ class _Stages:
         self.reached: collections.Counter[int] = collections.Counter()
         self.full = 0
         step = positioner_module._step()
-        call, chained = step.match_refine_assess, step.features_and_step
+        chained = step.features_and_step
 
         def count(stage: int, gate: float, full: bool, gate_open: bool, threshold: float) -> None:
             self.reached[stage] += 1
@@ -135,19 +134,14 @@ class _Stages:
             if stage == step.ASSESSED and gate_open and gate > threshold:
                 self.reached[-1] += 1  # (rejected)
 
-        def counted(*args: Any) -> Any:
-            values = call(*args)
-            count(values[0], values[6], args[24], args[34], args[35])
-            return values
-
-        def counted_chained(*args: Any) -> Any:  # (the scan's features and the call in one)
+        def counted(*args: Any) -> Any:  # (args: the scan's, the keyframe's, the settings)
             values = chained(*args)
             if values[7] != step.FEATURES_ONLY:
-                count(values[7], values[13], args[29], args[39], args[40])
+                refine, assess = args[3], args[4]
+                count(values[7], values[13], refine.full, assess.gate_open, assess.threshold)
             return values
 
-        monkeypatch.setattr(step, "match_refine_assess", counted)
-        monkeypatch.setattr(step, "features_and_step", counted_chained)
+        monkeypatch.setattr(step, "features_and_step", counted)
 
 
 @pytest.mark.parametrize("name", SCENARIOS)

@@ -249,11 +249,10 @@ def learning_run(turn_at: int | None, gap_at: int | None, n: int = 60) -> list:
     rng = np.random.default_rng(0)
     scans = [sim.simulate_scan(world, p, scanner(0.005, 360, 360.0), rng, stamp=t)
              for p, t in zip(truth, stamps)]  # fmt: skip
-    pos = Positioner(GATED)
+    # (the false match forced in the staged refinement: the compiled call that fuses it with
+    # the matching and the assessment off, tests/test_step.py checks both agree)
+    pos = Positioner(GATED, fused=turn_at is None)
     if turn_at is not None:
-        # (the false match forced in the staged refinement: the compiled call that fuses it
-        # with the matching and the assessment off, tests/test_step.py checks both agree)
-        pos._fused = False
         real = pos.refiner.refine
 
         def false_match(surface, points, starts, wide):

@@ -31,11 +31,11 @@ from ..matching import Refinement
 from ..scan import LaserScan
 from ._window import Window
 from .estimate import Estimate, Reason
-from .feature_match import FeatureMatch, FeatureMatcher, _LinesFirst
+from .feature_match import FeatureMatch, FeatureMatcher
 from .local_map import LocalMap
 from .noise import OdometryNoise
 from .prior import OdometryPrior, Prior
-from .refine import Refiner, ScanPoints, Starts, _FromLines
+from .refine import Refiner, ScanPoints, Starts
 from .search import Relocaliser
 from .uncertainty import Assessment, Uncertainty, _AssessmentInputs
 
@@ -76,10 +76,12 @@ class Positioner:
     odometry prior (:class:`~.prior.OdometryPrior`), the local map of keyframes
     (:class:`~.local_map.LocalMap`), feature matching (:class:`~.feature_match.FeatureMatcher`),
     the refinement (:class:`~.refine.Refiner`) and the relocalisation search
-    (:class:`~.search.Relocaliser`).
+    (:class:`~.search.Relocaliser`). ``fused``: a scan's features, line matching,
+    refinement and assessment in one compiled call where they can be (the same values to the
+    bit as the staged calls; False: the staged calls alone).
     """
 
-    def __init__(self, config: Config | None = None) -> None:
+    def __init__(self, config: Config | None = None, *, fused: bool = True) -> None:
         self.config = config if config is not None else Config()
         cfg = self.config
         noise = cfg.odometry_noise
@@ -90,10 +92,17 @@ class Positioner:
         self.refiner = Refiner(cfg.refinement, cfg.search)
         self.relocaliser = Relocaliser(cfg.search, self.refiner)
         self.uncertainty = Uncertainty(cfg.covariance, cfg.gate)
-        # the common path's one compiled call (False: the staged calls it fuses, which give
-        # the same values to the bit; the tests' reference and ``warm_up``'s second drive)
-        self._fused = True
+        # the common path in one compiled call (:meth:`_features_match_refine_assess`), fixed
+        # for the positioner's life; False: the staged calls it fuses, which give the same
+        # values to the bit (the tests' reference, and ``warm_up``'s second drive)
+        self._fused = fused
         self.reset()
+
+    @property
+    def fused(self) -> bool:
+        """Whether a scan's features, line matching, refinement and assessment are one
+        compiled call where they can be (the constructor's ``fused``)."""
+        return self._fused
 
     def reset(self) -> None:
         """Forget every scan: the next one starts a new trajectory."""
@@ -205,27 +214,12 @@ class Positioner:
         angle_increment: float,
     ) -> tuple[int, Reason, bool, FloatArray | None, Assessment]:
         """The scan's features matched against the keyframe's, the refinement, the
-        assessment and what it teaches the odometry's noise (:meth:`_learn`). Returns the
-        match's pairs and reason, whether a fit gave the motion, the motion from the keyframe
-        (None: the prior stands) and the assessment. Its common path (the lines from the
-        prior give a motion, a fit from it counts and the gate lets it stand) is one
-        compiled call (``_kernels.step``); where a stage leaves it, the staged calls go on
-        from that stage with what the call gave (the same values to the bit: ``tests``)."""
-        prev = self.local_map.features
-        fused = self._fused_inputs(prev, features, prior, information, angle_increment)
-        if fused is None:
-            match = self.feature_matcher.match(prev, features, key_prior)
-            return self._staged(match, features, key_prior, prior, prior_cov, information,
-                                t_prev, angle_increment)  # fmt: skip
-        lines, points, refinement = fused
-        gate_open, assessment = self._assessment_inputs(prior, prior_cov, t_prev)
-        stepped = _step().match_refine_assess(
-            *lines, key_prior, *refinement, *assessment, self._is_key_prior(t_prev)
-        )
-        return self._after_step(
-            stepped, gate_open, features, key_prior, prior, prior_cov, information, t_prev,
-            angle_increment, (points, refinement),
-        )  # fmt: skip
+        assessment and what it teaches the odometry's noise (:meth:`_learn`), in the staged
+        calls. Returns the match's pairs and reason, whether a fit gave the motion, the motion
+        from the keyframe (None: the prior stands) and the assessment."""
+        match = self.feature_matcher.match(self.local_map.features, features, key_prior)
+        return self._staged(match, features, key_prior, prior, prior_cov, information,
+                            t_prev, angle_increment)  # fmt: skip
 
     def _features_match_refine_assess(
         self,
@@ -252,34 +246,39 @@ class Positioner:
         of_surface = self.refiner.surface_inputs(self.local_map.surface(), held)
         if of_surface is None:
             return None
+        step = _step()
         (prev, prev_first, prev_n), line_gates, line_params, passes, min_pairs = keyframe
         geometry, shape, cells, table, gates, params, iterations, diag, info, full = of_surface
-        refiner = self.refiner
+        r = self.config.refinement
         gate_open, assessment = self._assessment_inputs(prior, prior_cov, t_prev)
-        done, scale, line_scale, sizes, fl, it, bl, *stepped = _step().features_and_step(
-            *chain, packing.lines_at(), int(self.config.refinement.min_points), prev,
-            prev_first, prev_n, line_gates, line_params, passes, min_pairs, key_prior, geometry,
-            shape, cells, table,
-            refiner.weighing_settings(scan.angle_increment), gates, params, iterations, diag,
-            info, full, bool(self.config.refinement.prior_from_features), refiner.checks(False),
-            *assessment, self._is_key_prior(t_prev),
+        match = step.MatchSettings(
+            line_gates, line_params, passes, min_pairs, packing.lines_at(), int(r.min_points)
+        )
+        refine = step.RefineSettings(
+            self.refiner.weighing_settings(scan.angle_increment), gates, params, iterations,
+            diag, info, full, bool(r.prior_from_features), self.refiner.checks(False),
         )  # fmt: skip
+        surface = step.KeyframeInputs(prev, prev_first, prev_n, geometry, shape, cells, table)
+        assess = step.AssessInputs(*assessment, key_prior, self._is_key_prior(t_prev))
+        done, scale, line_scale, sizes, fl, it, bl, *stepped = step.features_and_step(
+            step.ScanInputs(*chain), surface, match, refine, assess
+        )
         if not done:  # (a gapless 360° ring: the staged chain's)
             features = extract_features(scan, self.config)
         else:
             features = features_of_chain(scan, self.config, (scale, line_scale, sizes, fl, it, bl))
-        if not done or stepped[0] == _step().FEATURES_ONLY:
+        if not done or stepped[0] == step.FEATURES_ONLY:
             return features, self._match_refine_assess(
                 features, key_prior, prior, prior_cov, information, t_prev, scan.angle_increment
             )
         return features, self._after_step(
             tuple(stepped), gate_open, features, key_prior, prior, prior_cov, information,
-            t_prev, scan.angle_increment, None,
+            t_prev, scan.angle_increment,
         )  # fmt: skip
 
     def _fuses(self, prior: Prior) -> bool:
-        """Whether the staged calls would be the ones a compiled call fuses: it is switched on
-        (``_fused``), the refinement too, and the prior is no odometry jump's."""
+        """Whether the staged calls would be the ones the compiled call fuses: it is switched on
+        (``fused``), the refinement too, and the prior is no odometry jump's."""
         return self._fused and not prior.odometry_rejected and self.config.refinement.enabled
 
     def _assessment_inputs(
@@ -305,11 +304,9 @@ class Positioner:
         information: tuple[FloatArray, FloatArray] | None,
         t_prev: FloatArray,
         angle_increment: float,
-        inputs: tuple[ScanPoints, _FromLines] | None,
     ) -> tuple[int, Reason, bool, FloatArray | None, Assessment]:
         """:meth:`_match_refine_assess` from the compiled call's values (``stepped``), going
-        on with the staged calls where it left the common path; ``inputs``: the scan's points
-        and the refinement's inputs it was handed (None: made here where a stage needs them)."""
+        on with the staged calls where it left the common path."""
         step = _step()
         stage, n_pairs, which, paired, close, on_start, gate, ok, out = stepped
         prev = self.local_map.features
@@ -324,11 +321,12 @@ class Positioner:
             if judged is not None:  # (a fit's own values are read for a rejected match only)
                 self._learn(prior, t_prev, None, judged)
                 return n_pairs, Reason.MATCHED, True, out[step.FIT, 0], judged
-        if inputs is None:  # (the compiled call read them from the chain's arrays)
-            made = self._fused_inputs(prev, features, prior, information, angle_increment)
-            assert made is not None  # (the call ran: they are there)
-            inputs = made[1], made[2]
-        points, refinement = inputs
+        # (the compiled call read the points from the chain's arrays: they are there)
+        points = self.refiner.points(features, angle_increment)
+        assert points is not None
+        held = None if information is None else information[1]
+        refinement = self.refiner.lines_start_inputs(self.local_map.surface(), points, held)
+        assert refinement is not None
         if stage == step.NOT_REFINED:  # (neither fit counts: the search, as _refine goes on)
             starts = self._starts(match, key_prior, information)
             fit, on_previous = self._searched(None, points, starts, prior)
@@ -356,30 +354,6 @@ class Positioner:
         fit, on_previous = self._refine(features, match, key_prior, prior, angle_increment,
                                         information)  # fmt: skip
         return self._judged(match, fit, on_previous, t_prev, prior, prior_cov, key_prior)
-
-    def _fused_inputs(
-        self,
-        prev: Features,
-        features: Features,
-        prior: Prior,
-        information: tuple[FloatArray, FloatArray] | None,
-        angle_increment: float,
-    ) -> tuple[_LinesFirst, ScanPoints, _FromLines] | None:
-        """What :meth:`_match_refine_assess`' compiled call reads of the matcher's and the
-        refiner's: None where the staged calls would not make those very calls (no
-        refinement, an odometry jump, the lines not matched first in the compiled way, too
-        few points), and where the fused call is switched off (``_fused``)."""
-        if not self._fuses(prior):
-            return None
-        lines = self.feature_matcher.lines_first_inputs(prev, features)
-        if lines is None:
-            return None
-        points = self.refiner.points(features, angle_increment)
-        if points is None:
-            return None
-        held = None if information is None else information[1]
-        refinement = self.refiner.lines_start_inputs(self.local_map.surface(), points, held)
-        return None if refinement is None else (lines, points, refinement)
 
     def _judged(
         self,

@@ -70,8 +70,7 @@ def warm_up(config: Config | None = None) -> float:
     # calls it fuses (those the rarer paths make: after an odometry jump, where a stage hands
     # over; a kernel called from Python is compiled apart from its call inside another)
     for fused in (False, True):
-        positioner = Positioner(cfg)
-        positioner._fused = fused
+        positioner = Positioner(cfg, fused=fused)
         pose = np.array([-2.0, -1.0, 0.1])
         scans = []
         for k in range(8):
