@@ -74,7 +74,7 @@ def stack_columns(*cols: NDArray) -> NDArray:
 def _wrap_scalar(a: float) -> float:
     """:func:`wrap_angle` for one float, to the bit: Python's float ``%`` is numpy's
     ``np.mod`` for finite floats (the fmod, its sign turned to the divisor's), without the
-    arrays (a few µs, where a pose's heading crosses ±π)."""
+    arrays."""
     if -math.pi <= a < math.pi:
         return a
     if not math.isfinite(a):
@@ -297,8 +297,8 @@ Cov3Upper = tuple[float, float, float, float, float, float]
 def propagate3(pose_cov: Cov3Upper, increment: Pose3, increment_cov: Cov3Upper) -> Cov3Upper:
     """:func:`propagate` in floats, the covariances as upper triangles (:data:`Cov3Upper`):
     ``A·pose_cov·Aᵀ + increment_cov`` with ``A = [[c, s, s·u_x − c·u_y], [−s, c, s·u_y +
-    c·u_x], [0, 0, 1]]`` (``c, s = cos u_θ, sin u_θ``); equal to it to rounding, a few µs
-    where the arrays take tens (once a scan, for a whole run). No checks."""
+    c·u_x], [0, 0, 1]]`` (``c, s = cos u_θ, sin u_θ``); equal to it to rounding, without
+    the arrays (once a scan, for a whole run). No checks."""
     p00, p01, p02, p11, p12, p22 = pose_cov
     ux, uy, ut = increment
     c, s = math.cos(ut), math.sin(ut)

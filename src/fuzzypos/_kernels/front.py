@@ -590,8 +590,8 @@ def scan_features(
     ``_kernels.segmentation.join_at_corners`` (§3.5 b)), with nothing but glue between them
     (what ``extract_features`` did in numpy between the four calls). Returns whether it is
     done (False: a gapless 360° ring, the staged chain's), the points' and the lines' distance
-    scales, the :data:`ChainSizes` and the arrays packed end to end in three (each array
-    handed to Python costs half a microsecond): the floats, the integers and the masks, in
+    scales, the :data:`ChainSizes` and the arrays packed end to end in three (few arrays
+    to hand back to Python): the floats, the integers and the masks, in
     the order ``features._unpacked`` takes them apart (the front's arrays, as
     ``segmentation.ScanSegments`` without the raw segments; the kept points, uncertainty and
     ranges; the arrays of ``features.Lines``, joined at the corners; the corners' context,

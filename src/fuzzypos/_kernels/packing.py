@@ -1,7 +1,7 @@
 """How :func:`~fuzzypos._kernels.front.scan_features` hands its arrays to Python and how
 ``fuzzypos.features`` takes them apart, in plain Python (no numba: ``fuzzypos.features``
-imports this on import). Each array a compiled call returns costs numba about half a
-microsecond to box, so the call packs its three dozen end to end in three (floats, integers,
+imports this on import). Each array a compiled call returns is boxed by numba, so the
+call packs its three dozen end to end in three (floats, integers,
 masks; :data:`LAYOUT` says where each sits) and the features are views of them, those the
 positioner does not read per scan taken out on first use (:class:`Unpacks`). Also the
 scanner's beam directions, computed once per scanner (:func:`scanner`)."""
@@ -131,7 +131,7 @@ LAYOUT: dict[str, dict[str, _Where]] = {
 class Unpacks:
     """A dataclass whose fields the compiled chain may leave in its packed arrays (a
     ``_packed`` entry of the instance's dict, :class:`Packed`): each is taken out on first
-    use and kept (the positioner reads few of them per scan; each view costs about 0.15 µs).
+    use and kept (the positioner reads few of them per scan).
     Instances made by their constructor have every field and never get here."""
 
     __slots__ = ()
@@ -158,7 +158,7 @@ def chain_settings(
     line_params: FloatArray, min_sine: float, point_tables: _Tables, line_tables: _Tables,
 ) -> FloatArray:  # fmt: skip
     """:func:`~fuzzypos._kernels.front.scan_features`' settings of a config in one float
-    array (each array handed to a compiled call costs about 0.1 µs, a tuple of them more):
+    array (one argument for the compiled call, not one per setting):
     the sizes (the no-return bands, then each rule base's two grids and its table's rows and
     columns), the rule bases' bounds (points', lines'), the sine of the least angle lines are
     joined at, the front's and the lines' params, then the bands' bounds and each rule base's
@@ -214,7 +214,7 @@ _T = TypeVar("_T")
 def new(cls: type[_T], values: dict[str, Any]) -> _T:
     """An instance of the frozen dataclass ``cls`` with its fields' ``values`` put straight
     into its dict: what ``cls(**values)`` makes, without the frozen ``__init__``'s
-    ``object.__setattr__`` per field (about 0.1 µs each); the fields left out an
+    ``object.__setattr__`` per field; the fields left out an
     :class:`Unpacks` class takes from its ``_packed`` arrays."""
     obj = object.__new__(cls)
     obj.__dict__.update(values)

@@ -209,8 +209,7 @@ _R = TypeVar("_R")
 def same_as_last_call(func: Callable[_P, _R]) -> Callable[_P, _R]:
     """``func`` (a function of frozen config sections and plain values, cached or not) that
     returns its last result again when called with the very same objects: an identity check
-    per argument, where an ``lru_cache`` hashes a section's every field on each call (about a
-    microsecond a section, several per scan)."""
+    per argument, where an ``lru_cache`` hashes a section's every field on each call."""
     last: tuple[tuple[Any, ...], _R] | None = None
 
     @functools.wraps(func)

@@ -217,8 +217,8 @@ _PARSER: list[Callable[[NDArray[np.uint8], int], tuple[bool, FloatArray]]] = []
 
 
 def _load_parser() -> Callable[[NDArray[np.uint8], int], tuple[bool, FloatArray]]:
-    """``fuzzypos._kernels.text.parse_decimals``, imported (with numba) on first use and kept:
-    an import statement per scan costs about a microsecond."""
+    """``fuzzypos._kernels.text.parse_decimals``, imported (with numba) on first use and kept
+    (``import fuzzypos`` does not import numba)."""
     from .._kernels.text import parse_decimals
 
     _PARSER.append(parse_decimals)

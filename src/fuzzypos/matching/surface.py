@@ -172,7 +172,7 @@ class Refinement:
     ) -> Refinement:
         """The refinement of every field, as the constructor builds it, straight into the
         instance's dict (the frozen dataclass's ``__init__`` sets each of the eleven through
-        ``object.__setattr__``, over a microsecond a call more; the compiled refinement's)."""
+        ``object.__setattr__``; the compiled refinement's)."""
         r = object.__new__(cls)
         r.__dict__.update(
             increment=increment,

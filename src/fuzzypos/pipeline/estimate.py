@@ -98,7 +98,7 @@ class Estimate:
     ) -> Estimate:
         """The estimate of every field, as the constructor builds it, straight into the
         instance's dict (the frozen dataclass's ``__init__`` sets each of the fourteen through
-        ``object.__setattr__``, about a microsecond a scan more; the positioner's own)."""
+        ``object.__setattr__``; the positioner's own)."""
         e = object.__new__(cls)
         e.__dict__.update(
             stamp=stamp, pose=pose, increment=increment, prior=prior, n_pairs=n_pairs,

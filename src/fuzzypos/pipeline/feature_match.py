@@ -26,8 +26,8 @@ FloatArray = NDArray[np.float64]
 
 @functools.cache
 def _kernels() -> ModuleType:
-    """The compiled kernels (``_kernels.lines``), imported with numba on first use and kept:
-    an import statement in the per-scan path costs over a microsecond a call."""
+    """The compiled kernels (``_kernels.lines``), imported with numba on first use and kept
+    (``import fuzzypos`` does not import numba)."""
     return importlib.import_module("fuzzypos._kernels.lines")
 
 

@@ -409,7 +409,7 @@ class Positioner:
         """d² of the match ``from_key``'s increment from ``increment`` (the odometry's) under
         ``prior_cov`` plus the features' own error and the floor, all three diagonal (the
         learned noise's, :meth:`OdometryNoise.covariance`, or the broad one; and two
-        constants): in floats, a few microseconds a scan."""
+        constants), in floats."""
         ex, ey, et = relative3(increment.tolist(), relative3(t_prev.tolist(), from_key.tolist()))
         fx, fy, ft = self._feature_floor
         return (
@@ -434,7 +434,6 @@ class Positioner:
         increment = self.odometry_noise.calibrated(prior.increment)
         if increment is prior.increment:  # no calibration to apply
             return prior
-        # (not dataclasses.replace: a few µs less per scan)
         return Prior._of(
             increment, prior.odometry, prior.dt, prior.odometry_rejected, prior.standing_still,
             prior.stale,

@@ -50,8 +50,8 @@ _TINY.flags.writeable = False
 
 @functools.cache
 def _kernels() -> ModuleType:
-    """The compiled kernels (``_kernels.uncertainty``), imported with numba on first use and kept:
-    an import statement in the per-scan path costs over a microsecond a call."""
+    """The compiled kernels (``_kernels.uncertainty``), imported with numba on first use and kept
+    (``import fuzzypos`` does not import numba)."""
     return importlib.import_module("fuzzypos._kernels.uncertainty")
 
 
@@ -412,7 +412,7 @@ class Uncertainty:
         covariance A⁻¹ G A⁻¹ carried on from the previous scan. What the odometry's noise is
         learned from: the fused increment would teach it its own weight back. None where the
         points alone do not fix the motion (a corridor held, or too little information)."""
-        if np.count_nonzero(fit.hold_information):  # (an .any() costs a microsecond)
+        if np.count_nonzero(fit.hold_information):
             return None
         ok, inc, cov = _kernels().scan_only(
             f64(fit.information), f64(fit.prior_information),
