@@ -9,11 +9,11 @@ almost every scan. fuzzypos refuses such a log (exit 2, naming ``--scan-rate``);
 such a log from a shared one and times the command a user types:
 
 1. the shared log thinned to keyframes, a scan each time the odometry has moved 0.5 m or
-   turned 10° (``bench_thinned.thin_indices``; every relation's end scans kept too, so the
+   turned 10° (``thinning.thin_indices``; every relation's end scans kept too, so the
    run can be scored), the first ``--scans`` of them;
 2. their stamps corrupted as such tools write them (:func:`corrupt_stamps`: each stamp
    rounded down to a multiple of 10 s, and every third scan put 0.2 s before the scan before
-   it), written as a CARMEN log (``bench_thinned.write_thinned``), and the same scans with
+   it), written as a CARMEN log (``thinning.write_thinned``), and the same scans with
    their own stamps beside it;
 3. ``fuzzypos run`` on the corrupt log without ``--scan-rate`` (must exit 2 naming it), then
    with ``--scan-rate`` at the keyframes' mean rate (scans ÷ the span of their true stamps),
@@ -46,7 +46,7 @@ from fuzzypos.io import Relations, open_log, read_relations, read_tum
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_honesty import commit, machine
-from bench_thinned import LOGS, thin_indices, write_thinned
+from thinning import LOGS, thin_indices, write_thinned
 
 #: keyframes: a scan kept each time the odometry has moved this far (m) or turned (degrees)
 KEYFRAME_STEP = (0.5, 10.0)

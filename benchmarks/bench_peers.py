@@ -82,6 +82,9 @@ from fuzzypos.io import open_log, read_relations  # noqa: E402
 from fuzzypos.io.provenance import git_hash, write_json  # noqa: E402
 from fuzzypos.pipeline.warm import warm_up  # noqa: E402
 
+sys.path.insert(0, os.fspath(Path(__file__).resolve().parent))
+import thinning  # noqa: E402
+
 try:
     import small_gicp
 except ImportError:  # optional peer
@@ -393,19 +396,9 @@ def simulated_log(folder: Path, name: str) -> tuple[Path, Path]:
 
 
 # -- thinned logs ------------------------------------------------------------------------
-def thinned_module() -> Any:
-    """``bench_thinned`` (imported when asked for: it imports this module)."""
-    here = os.fspath(Path(__file__).resolve().parent)
-    if here not in sys.path:
-        sys.path.insert(0, here)
-    import bench_thinned
-
-    return bench_thinned
-
-
 def thinned_names() -> list[str]:
-    """The thinned logs' names (``bench_thinned.thinned_names``)."""
-    return list(thinned_module().thinned_names())
+    """The thinned logs' names (``thinning.thinned_names``)."""
+    return list(thinning.thinned_names())
 
 
 # -- running and scoring -----------------------------------------------------------------
@@ -592,9 +585,7 @@ def main() -> None:
         if name in SIMULATED:
             log_path, rel_path = simulated_log(Path(scratch.name), name)
         elif name in thinned:
-            log_path, rel_path = thinned_module().thinned_log(
-                Path(scratch.name), Path(args.data), name
-            )
+            log_path, rel_path = thinning.thinned_log(Path(scratch.name), Path(args.data), name)
         else:
             log_path = Path(args.data) / LOGS[name]
             rel_path = log_path.parent / f"{name}.relations"

@@ -1,6 +1,6 @@
-"""The thinned logs of ``benchmarks/bench_thinned.py``: which scans the rule keeps on known
-odometry, and the thinned CARMEN logs (FLASER and ROBOTLASER1) reading back as the scans
-kept."""
+"""The thinned logs of ``benchmarks/thinning.py`` (``bench_thinned.py`` and ``bench_peers.py``
+run them): which scans the rule keeps on known odometry, and the thinned CARMEN logs (FLASER
+and ROBOTLASER1) reading back as the scans kept."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from helpers import load_benchmark
 
 @pytest.fixture(scope="module")
 def bench() -> ModuleType:
-    return load_benchmark("bench_thinned")
+    return load_benchmark("thinning")
 
 
 def path_odometry() -> list[tuple[float, float, float] | None]:
