@@ -45,6 +45,7 @@ from .rosbag import (
     _frame,
     _typestore,
     open_bag,
+    raw_messages,
 )
 
 __all__ = [
@@ -179,7 +180,7 @@ def _stream(bag: _Bag, name: str, topic: str, msgtype: str, conns: list[Any]) ->
     frames: Counter[str] = Counter()
     children: Counter[str] = Counter()
     stamps: list[float] = []
-    for k, (_, t_ns, raw) in enumerate(_raw(bag, name, conns), start=1):
+    for k, (_, t_ns, raw) in enumerate(raw_messages(bag, conns, name), start=1):
         try:
             t, frame, child = _header(raw, bag.is2, odometry)
         except (struct.error, UnicodeDecodeError, IndexError) as exc:
@@ -205,22 +206,6 @@ def _stream(bag: _Bag, name: str, topic: str, msgtype: str, conns: list[Any]) ->
     return info
 
 
-def _raw(bag: _Bag, name: str, conns: list[Any]) -> Iterable[tuple[Any, int, bytes]]:
-    """The messages of ``conns`` in bag order; read errors become :class:`BagFormatError`."""
-    if not conns:  # an empty filter would read every message
-        return
-    gen = bag.reader.messages(connections=conns)
-    while True:
-        try:
-            conn, t_ns, raw = next(gen)
-        except StopIteration:
-            return
-        except _READ_ERRORS as exc:
-            topics = ", ".join(sorted({c.topic for c in conns}))
-            raise BagFormatError(name, 0, f"{topics}: cannot read the bag: {exc!r}") from exc
-        yield conn, t_ns, raw
-
-
 def _tf_pairs(bag: _Bag, name: str) -> list[TfPair]:
     """The ``parent → child`` pairs on :data:`TF_TOPICS`, most frequent first per topic."""
     conns = [c for c in bag.reader.connections if c.topic in TF_TOPICS]
@@ -233,7 +218,7 @@ def _tf_pairs(bag: _Bag, name: str) -> list[TfPair]:
         raise BagFormatError(name, 0, f"bad message definitions in the bag: {exc!r}") from exc
     counts: Counter[tuple[str, str, str]] = Counter()
     seen: Counter[str] = Counter()
-    for conn, _, raw in _raw(bag, name, conns):
+    for conn, _, raw in raw_messages(bag, conns, name):
         seen[conn.topic] += 1
         try:
             if bag.is2:

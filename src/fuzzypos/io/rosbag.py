@@ -290,6 +290,26 @@ class _Bag:
         return out
 
 
+def raw_messages(
+    bag: _Bag, connections: Sequence[Connection], name: PathLike
+) -> Iterator[tuple[Connection, int, bytes]]:
+    """``(connection, record time ns, serialized message)`` for the messages of
+    ``connections`` in bag order (none for no connections); a read error becomes
+    :class:`BagFormatError` naming the bag (``name``) and the topics."""
+    if not connections:  # an empty filter would read every message
+        return
+    gen = bag.reader.messages(connections=connections)
+    while True:
+        try:
+            conn, t_ns, raw = next(gen)
+        except StopIteration:
+            return
+        except _READ_ERRORS as exc:
+            topics = ", ".join(sorted({c.topic for c in connections}))
+            raise BagFormatError(name, 0, f"{topics}: cannot read the bag: {exc!r}") from exc
+        yield conn, t_ns, raw
+
+
 def open_bag(path: PathLike, stack: ExitStack, name: str | None = None) -> _Bag:
     """Open the bag at ``path`` (closed with ``stack``), sniffing its kind from the content:
     :class:`FileNotFoundError` where nothing is there (``name``: how to call it), else
@@ -502,18 +522,8 @@ class BagReader:
         """``(connection, record time ns, serialized message, 1-based index in its topic)`` for
         the messages of ``connections`` in bag order; read errors become
         :class:`BagFormatError`."""
-        if not connections:  # an empty filter would read every message
-            return
         counts: dict[str, int] = {}
-        gen = bag.reader.messages(connections=connections)
-        while True:
-            try:
-                conn, t_ns, raw = next(gen)
-            except StopIteration:
-                return
-            except _READ_ERRORS as exc:
-                topics = ", ".join(sorted({c.topic for c in connections}))
-                raise self._error(f"cannot read the bag: {exc!r}", 0, topics) from exc
+        for conn, t_ns, raw in raw_messages(bag, connections, self.path):
             k = counts[conn.topic] = counts.get(conn.topic, 0) + 1
             yield conn, t_ns, raw, k
 
