@@ -5,21 +5,8 @@ the same relations (issue 34, item 5).
     OMP_NUM_THREADS=1 python benchmarks/bench_thinned.py [--data ../shared/data]
         [--logs intel,aces,fr079,fr-clinic] [--thinnings 0.5,1] [--keep DIR] [--out PATH]
 
-Thinning (:func:`thin_indices`), in file order: every relation's two end scans are kept (the
-scans whose stamps are the relation's, as the metric matches them), and the first scan; any
-other scan is kept when its odometry pose has moved at least the distance (straight, from
-pose to pose) or turned at least the angle since the last scan kept (for whatever reason). A
-scan without odometry is kept only as a relation's end. The kept records (read with
-``fuzzypos.io.logs.open_log(path).records()``) are written as a CARMEN log
-(:func:`write_thinned`): FLASER lines (``fuzzypos.io.write_carmen``) where the scans fit
-FLASER's beam geometry, with one maximum range above every valid reading and each scan's
-invalid readings written as it (:func:`one_range_max`: the reader learns a FLASER log's "no
-return" value from the scans it streams, which thinning changes); else (fr-clinic: 180 and
-181 beams, interlaced start angles, a laser 0.22 m ahead) ``ROBOTLASER1`` lines with their
-own angles and mount (``CarmenWriter``), the odometry as the robot pose (which a reader
-takes as the odometry) and in an ``ODOM`` line before each. Each thinned log is read back
-and checked scan by scan against the kept records (stamps, odometry, beams, ranges, mount)
-before it is run.
+The logs are thinned by ``thinning.py`` (its docstring says which scans are kept and how
+the thinned log is written and checked before it is run).
 
 Both logs go through ``Positioner()`` (the default front end) as ``bench_peers.py`` runs it,
 one thread, and are scored with ``fuzzypos.eval.metrics.relations_errors`` on the log's
@@ -30,7 +17,7 @@ at most 1.15). The table is printed and written as markdown to ``--out`` (defaul
 beside it. With ``--peers``, ``bench_peers.py``'s small_gicp variants run on the same full and
 thinned logs too, and fuzzypos's local rotational error is compared with the better
 variant's (the issue's target: at most 1.2 times it); ``bench_peers.py --logs
-intel-thin-0.5,…`` runs every peer on the same thinned logs (:func:`thinned_log`).
+intel-thin-0.5,…`` runs every peer on the same thinned logs (``thinning.thinned_log``).
 """
 
 from __future__ import annotations
