@@ -488,7 +488,8 @@ def info(
     from ..io import describe_log
 
     scanner = _load_config("default", config_file).scanner
-    if scan_topic is None and bag_alone(log, odom_topic, json_out, _wide()):
+    shown, look = (False, None) if scan_topic else bag_alone(log, odom_topic, json_out, _wide())
+    if shown:
         return
     opened = _open(
         log,
@@ -499,7 +500,7 @@ def info(
         convention=convention,
         scan_rate=scan_rate,
     )
-    bag = bag_overview(opened)
+    bag = bag_overview(opened, look)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")

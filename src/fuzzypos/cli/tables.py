@@ -299,16 +299,23 @@ def bag_tables(info: BagInfo | None) -> list[Table]:
     return tables
 
 
-def bag_overview(log: OpenLog) -> BagInfo | None:
+def bag_overview(log: OpenLog, seen: BagInfo | None = None) -> BagInfo | None:
     """``info``'s look into an opened bag (:func:`~fuzzypos.io.bag_info.describe_bag`, with
     the topics its reader picked; :func:`bag_tables` shows it); None for a CARMEN log. An
-    error: one line, exit 2."""
+    error: one line, exit 2. ``seen``: the look :func:`bag_alone` already took, used where it
+    picked the reader's topics (the bag is not read twice)."""
     from ..io import BagReader
     from ..io.bag_info import describe_bag
 
     reader = log.reader
     if not isinstance(reader, BagReader):
         return None
+    if seen is not None and (seen.scan_topic, seen.odom_topic) == (
+        reader.scan_topic,
+        reader.odom_topic,
+    ):
+        seen.path = log.name
+        return seen
     try:
         info = describe_bag(reader.path, scan_topic=reader.scan_topic, odom_topic=reader.odom_topic)
     except (ValueError, OSError) as exc:
@@ -318,25 +325,29 @@ def bag_overview(log: OpenLog) -> BagInfo | None:
     return info
 
 
-def bag_alone(path: Path, odom_topic: str | None, json_out: bool, console: Console) -> bool:
-    """``info`` on a bag without one LaserScan topic to read (none, as in a bag that
-    ``run --bag-out`` wrote, or several without ``--scan-topic``): its topics, transforms and
-    defaults (:func:`bag_tables`; ``{"bag": …}`` with ``json_out``) and a note on stderr of
-    what ``run`` needs; True. False for anything else (a CARMEN log, a bag with one scan
-    topic, a path that is no bag): ``info`` goes on as before."""
+def bag_alone(
+    path: Path, odom_topic: str | None, json_out: bool, console: Console
+) -> tuple[bool, BagInfo | None]:
+    """``info``'s first look into a bag: ``(shown, info)``. A bag without one LaserScan topic
+    to read (none, as in a bag that ``run --bag-out`` wrote, or several without
+    ``--scan-topic``) is shown here: its topics, transforms and defaults (:func:`bag_tables`;
+    ``{"bag": …}`` with ``json_out``) and a note on stderr of what ``run`` needs. A bag with
+    one scan topic is not shown, and its ``info`` is kept for ``info`` to show beside the
+    log's table. ``(False, None)`` for anything else (a CARMEN log, a pipe, a path that is no
+    bag or cannot be read): ``info`` reads it itself and says what is wrong."""
     from ..io import log_kind
     from ..io.bag_info import describe_bag
 
     try:
         if not (path.is_file() or path.is_dir()):  # a pipe is read once, by info itself
-            return False
+            return False, None
         if log_kind(path) not in ("ros1", "ros2"):
-            return False
+            return False, None
         info = describe_bag(path, odom_topic=odom_topic)
     except (ValueError, OSError):
-        return False  # info's own reading says what is wrong, in one line
+        return False, None  # info's own reading says what is wrong, in one line
     if info.scan_topic is not None:
-        return False
+        return False, info
     if json_out:
         typer.echo(json.dumps({"bag": info.as_dict()}, indent=2))
     else:
@@ -348,7 +359,7 @@ def bag_alone(path: Path, odom_topic: str | None, json_out: bool, console: Conso
         "pick one for its scans (and for run)"
     )
     typer.echo(f"note: {path}: {why}", err=True)
-    return True
+    return True, info
 
 
 def log_table(title: str, result: LogInfo, scanner: ScannerConfig) -> Table:
