@@ -64,7 +64,7 @@ class OccupancyMap:
 def read_map_yaml(path: str | Path) -> OccupancyMap:
     """The map of a map_server ``yaml`` (``image``, ``resolution``, ``origin``, ``negate``,
     ``occupied_thresh``, ``free_thresh``; ``mode`` trinary only so far)."""
-    import yaml
+    import yaml  # type: ignore[import-untyped]
     from PIL import Image
 
     path = Path(path)
