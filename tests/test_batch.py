@@ -197,6 +197,8 @@ def test_ctrl_c_exits_130(monkeypatch: pytest.MonkeyPatch, data: Path, tmp_path:
     monkeypatch.setattr("fuzzypos.jobs.batch.run_batch", interrupted)
     res = runner.invoke(app, ["batch", str(data), "--out", str(tmp_path)])
     assert res.exit_code == 130 and "interrupted" in res.output
+    line = f"fuzzypos: interrupted; the runs finished are in {tmp_path / 'batch.json'}"
+    assert res.output.splitlines() == [line]
 
 
 def test_preset_and_loop_closure_are_recorded_and_part_of_the_run(

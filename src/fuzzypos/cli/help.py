@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import Progress
 from typer.core import TyperArgument, TyperCommand, TyperGroup
+from typer.models import CommandInfo
 
 from .._version import __version__
 from ..config import Config, ConfigError
@@ -27,7 +28,7 @@ __all__ = [
     "Group",
     "compiling_shown",
     "escape_markup",
-    "finish_commands",
+    "finish_command",
 ]
 
 
@@ -182,14 +183,13 @@ def _unwrap(doc: str) -> str:
     return "\n\n".join(" ".join(p.split()) for p in paragraphs)
 
 
-def finish_commands(app: typer.Typer) -> None:
-    """Every command of ``app``: its help from its docstring, unwrapped (where not given), and
+def finish_command(command: CommandInfo) -> None:
+    """A command as registered: its help from its docstring, unwrapped (where not given), and
     its class :class:`Command`."""
-    for command in app.registered_commands:
-        if command.help is None and command.callback is not None and command.callback.__doc__:
-            command.help = _unwrap(command.callback.__doc__)
-        if command.cls in (None, TyperCommand):
-            command.cls = Command
+    if command.help is None and command.callback is not None and command.callback.__doc__:
+        command.help = _unwrap(command.callback.__doc__)
+    if command.cls in (None, TyperCommand):
+        command.cls = Command
 
 
 #: said once, on stderr, where the kernels' cache is cold (before they compile)

@@ -16,14 +16,14 @@ import stat
 import tempfile
 import weakref
 import zlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any, NamedTuple, Union, cast
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import FuzzyposError
+from ..errors import FuzzyposError, worded
 from ..geometry import Pose2D
 from ..scan import LaserScan
 
@@ -81,6 +81,10 @@ class LogFormatError(FuzzyposError, ValueError):
 
     def __reduce__(self) -> tuple[type, tuple[str, int, str]]:  # picklable across processes
         return (type(self), (self.path, self.line, self.reason))
+
+    def worded(self, names: Mapping[str, str]) -> str:
+        where = f"{self.path}:{self.line}" if self.line > 0 else self.path
+        return f"{where}: {worded(self.reason, names)}"
 
 
 def numeric_rows(

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+from ..errors import Argument, ArgumentError, Words
+
 __all__ = [
     "CONVENTIONS",
     "GEOMETRY_TOL",
@@ -22,6 +24,8 @@ GEOMETRY_TOL = 1e-7
 
 #: decimals of the ranges written to a CARMEN log (0.1 mm; poses and stamps get repr)
 RANGE_DECIMALS = 4
+
+_FOV = Argument("field_of_view_deg")
 
 
 def carmen_beam_geometry(
@@ -46,17 +50,21 @@ def carmen_beam_geometry(
 
 
 def check_fov(field_of_view_deg: float) -> float:
-    """``field_of_view_deg`` as a float in (0, 360]; ``ValueError`` otherwise."""
+    """``field_of_view_deg`` as a float in (0, 360]; :class:`ArgumentError` (a ``ValueError``)
+    otherwise."""
     try:
         fov = float(field_of_view_deg)
     except (TypeError, ValueError):
-        raise ValueError(f"field_of_view_deg must be a number, got {field_of_view_deg!r}") from None
+        raise ArgumentError(Words(_FOV, f" must be a number, got {field_of_view_deg!r}")) from None
     if not 0.0 < fov <= 360.0:
-        raise ValueError(f"field_of_view_deg must be in (0, 360], got {fov}")
+        raise ArgumentError(Words(_FOV, f" must be in (0, 360], got {fov}"))
     return fov
 
 
 def check_convention(convention: str) -> None:
-    """``ValueError`` unless ``convention`` is one of :data:`CONVENTIONS`."""
+    """:class:`ArgumentError` (a ``ValueError``) unless ``convention`` is one of
+    :data:`CONVENTIONS`."""
     if convention not in CONVENTIONS:
-        raise ValueError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
+        raise ArgumentError(
+            Words(Argument("convention"), f" must be one of {CONVENTIONS}, got {convention!r}")
+        )

@@ -123,7 +123,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import FuzzyposError
+from ..errors import Argument, ArgumentError, FuzzyposError, Words
 from ..geometry import Pose2D
 from ..scan import ABSURD_RANGE_M, LaserScan, ScanError
 from ._common import (
@@ -153,6 +153,7 @@ __all__ = [
 
 #: where a scan's odometry comes from: its own fields, or the ODOM stream at its stamp
 ODOMETRY_SOURCES = ("scan", "interpolated")
+_ODOMETRY = Argument("odometry")
 
 #: odometry="interpolated": how many ODOM lines before a scan (in file order) it may use ...
 _ODOM_HISTORY = 16
@@ -329,12 +330,16 @@ class CarmenReader:
         if max_range is not None:
             mr = float(max_range)
             if math.isnan(mr) or mr <= 0.0:
-                raise ValueError(f"max_range must be > 0 (or None), got {max_range!r}")
+                raise ArgumentError(
+                    Words(Argument("max_range"), f" must be > 0 (or None), got {max_range!r}")
+                )
             max_range = mr
         self.max_range = max_range
         self.skip_bad_lines = bool(skip_bad_lines)
         if odometry not in ODOMETRY_SOURCES:
-            raise ValueError(f"odometry must be one of {ODOMETRY_SOURCES}, got {odometry!r}")
+            raise ArgumentError(
+                Words(_ODOMETRY, f" must be one of {ODOMETRY_SOURCES}, got {odometry!r}")
+            )
         self.odometry = odometry
         self.laser_offset = _check_offset(laser_offset)
         with open(self.path, "rb"):  # fail here, not at the first record, if it cannot be read
@@ -681,9 +686,12 @@ class CarmenReader:
             raise CarmenFormatError(
                 self.path,
                 held.lineno,
-                f"odometry='interpolated', but no ODOM line comes within "
-                f"{_ODOM_HISTORY} ODOM lines before this scan or {_MAX_HELD_SCANS} scans after "
-                f"it (does the log have ODOM lines?)",
+                Words(
+                    Argument.given("odometry"),
+                    "'interpolated', but no ODOM line comes within "
+                    f"{_ODOM_HISTORY} ODOM lines before this scan or {_MAX_HELD_SCANS} scans "
+                    "after it (does the log have ODOM lines?)",
+                ),
             )
         if before is None or after is None or after[0] == before[0]:
             pose = before[1] if before is not None else after[1]  # type: ignore[index]

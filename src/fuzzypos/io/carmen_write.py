@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._version import __version__
+from ..errors import Argument, ArgumentError, Words
 from ..geometry import Pose2D
 from ..scan import ABSURD_RANGE_M, LaserScan
 from ._common import LogRecord, OutputWriteError, PathLike, _naming, output_target
@@ -365,12 +366,18 @@ class CarmenWriter:
         expected = _misfit(scan, fov, convention)
         if expected is not None:
             a0, inc = expected
-            raise ValueError(
-                f"{name}: record {index}: scan geometry (angle_min "
-                f"{math.degrees(scan.angle_min):.6g}°, increment "
-                f"{math.degrees(scan.angle_increment):.6g}°, {n} beams) does not fit "
-                f"FLASER with field_of_view_deg={fov:g}, convention={convention!r} "
-                f"(expects angle_min {math.degrees(a0):.6g}°, increment {math.degrees(inc):.6g}°)"
+            raise ArgumentError(
+                Words(
+                    f"{name}: record {index}: scan geometry (angle_min "
+                    f"{math.degrees(scan.angle_min):.6g}°, increment "
+                    f"{math.degrees(scan.angle_increment):.6g}°, {n} beams) does not fit "
+                    "FLASER with ",
+                    Argument.given("field_of_view_deg"),
+                    f"{fov:g}, ",
+                    Argument.given("convention"),
+                    f"{convention!r} (expects angle_min {math.degrees(a0):.6g}°, increment "
+                    f"{math.degrees(inc):.6g}°)",
+                )
             )
         first = self.first
         if first is None:

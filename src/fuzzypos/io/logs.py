@@ -48,7 +48,7 @@ from typing import Any, TypeVar, Union
 import numpy as np
 
 from ..config import ScannerConfig
-from ..errors import FuzzyposError
+from ..errors import Argument, ArgumentError, Words
 from ..geometry import Pose2D
 from ..scan import LaserScan, no_return_counts
 from ._common import GZIP_MAGIC, LogFormatError, LogRecord, display_name, spool_if_stream
@@ -100,7 +100,11 @@ class UnknownLogError(LogFormatError):
         return (type(self), (self.path, self.reason))
 
 
-class SelectionError(FuzzyposError, ValueError):
+_MAX_SCANS = Argument("max_scans")
+_RATE = Argument("scan_rate_hz")
+
+
+class SelectionError(ArgumentError):
     """A bad ``start`` / ``end`` / ``max_scans`` (or ``--laser-offset``) argument."""
 
 
@@ -280,9 +284,13 @@ class OpenLog:
             raise StampError(
                 self.path,
                 0,
-                f"{check.remark()}; fuzzypos needs the time between scans to judge the "
-                f"odometry (see `fuzzypos info {self.name}`); to take the scans as evenly "
-                "spaced in file order at the scanner's rate, pass scan_rate_hz=HZ",
+                Words(
+                    f"{check.remark()}; fuzzypos needs the time between scans to judge the "
+                    f"odometry (see `fuzzypos info {self.name}`); to take the scans as evenly "
+                    "spaced in file order at the scanner's rate, pass ",
+                    Argument.given("scan_rate_hz"),
+                    "HZ",
+                ),
             )
         remark = check.remark()
         if remark is not None:
@@ -302,9 +310,9 @@ def _scan_rate(scan_rate_hz: float | None) -> float | None:
     try:
         rate = float(scan_rate_hz)
     except (TypeError, ValueError):
-        raise SelectionError(f"scan_rate_hz must be a number, got {scan_rate_hz!r}") from None
+        raise SelectionError(Words(_RATE, f" must be a number, got {scan_rate_hz!r}")) from None
     if not (math.isfinite(rate) and rate > 0.0):
-        raise SelectionError(f"scan_rate_hz must be a finite rate > 0 (Hz), got {scan_rate_hz!r}")
+        raise SelectionError(Words(_RATE, f" must be a finite rate > 0 (Hz), got {scan_rate_hz!r}"))
     return rate
 
 
@@ -414,13 +422,17 @@ def _seconds(name: str, value: float | None) -> float | None:
     if value is None:
         return None
     if isinstance(value, bool):
-        raise SelectionError(f"{name} must be a number of seconds, got {value!r}")
+        raise SelectionError(Words(Argument(name), f" must be a number of seconds, got {value!r}"))
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise SelectionError(f"{name} must be a number of seconds, got {value!r}") from None
+        raise SelectionError(
+            Words(Argument(name), f" must be a number of seconds, got {value!r}")
+        ) from None
     if not math.isfinite(v) or v < 0.0:
-        raise SelectionError(f"{name} must be a finite number of seconds >= 0, got {value!r}")
+        raise SelectionError(
+            Words(Argument(name), f" must be a finite number of seconds >= 0, got {value!r}")
+        )
     return v
 
 
@@ -480,13 +492,19 @@ def empty_stretch(log: OpenLog, start: float | None, end: float | None) -> Selec
     if stamps.shape[0] == 0:
         return None
     first, last = float(stamps[0]), float(stamps[-1])
-    asked = " and ".join(
-        f"{name}={v:g} s" for name, v in (("start", start), ("end", end)) if v is not None
-    )
+    asked: list[str | Argument] = []
+    for name, v in (("start", start), ("end", end)):
+        if v is not None:
+            asked += [" and "] if asked else []
+            asked += [Argument.given(name), f"{v:g} s"]
     return SelectionError(
-        f"{log.name}: the stretch ({asked}, counted from the first scan's stamp) holds no "
-        f"scans: the log's {stamps.shape[0]:,} scans run from stamp {first!r} to {last!r} "
-        f"({last - first:.3f} s)"
+        Words(
+            f"{log.name}: the stretch (",
+            *asked,
+            ", counted from the first scan's stamp) holds no scans: the log's "
+            f"{stamps.shape[0]:,} scans run from stamp {first!r} to {last!r} "
+            f"({last - first:.3f} s)",
+        )
     )
 
 
@@ -497,12 +515,19 @@ def _selection(
     s = _seconds("start", start)
     e = _seconds("end", end)
     if s is not None and e is not None and e < s:
-        raise SelectionError(f"end ({e:g} s) must not come before start ({s:g} s)")
+        raise SelectionError(
+            Words(
+                Argument("end"),
+                f" ({e:g} s) must not come before ",
+                Argument("start"),
+                f" ({s:g} s)",
+            )
+        )
     if max_scans is not None:
         if isinstance(max_scans, bool) or not isinstance(max_scans, int):
-            raise SelectionError(f"max_scans must be a whole number, got {max_scans!r}")
+            raise SelectionError(Words(_MAX_SCANS, f" must be a whole number, got {max_scans!r}"))
         if max_scans < 1:
-            raise SelectionError(f"max_scans must be at least 1, got {max_scans}")
+            raise SelectionError(Words(_MAX_SCANS, f" must be at least 1, got {max_scans}"))
     return s or 0.0, e
 
 

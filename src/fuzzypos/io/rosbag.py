@@ -95,6 +95,7 @@ from rosbags.typesys import (
     get_typestore,
 )
 
+from ..errors import Argument, Words
 from ..geometry import Pose2D, _wrap_scalar, compose, inverse, wrap_angle
 from ..scan import LaserScan, ScanError
 from ._common import FloatArray, LogFormatError, LogRecord, PathLike, display_name, spool_if_stream
@@ -494,14 +495,22 @@ class BagReader:
         if given is not None:
             if given not in topics:
                 raise BagTopicError(
-                    self.path, 0, f"{arg}={given!r}: no such topic ({msgtype} topics: {listing})"
+                    self.path,
+                    0,
+                    Words(
+                        Argument.given(arg),
+                        f"{given!r}: no such topic ({msgtype} topics: {listing})",
+                    ),
                 )
             if topics[given][0] != msgtype:
                 raise BagTopicError(
                     self.path,
                     0,
-                    f"{arg}={given!r} is a {topics[given][0]} topic, not {msgtype} "
-                    f"(candidates: {listing})",
+                    Words(
+                        Argument.given(arg),
+                        f"{given!r} is a {topics[given][0]} topic, not {msgtype} "
+                        f"(candidates: {listing})",
+                    ),
                 )
             return given
         if len(candidates) == 1:
@@ -513,7 +522,11 @@ class BagReader:
         raise BagTopicError(
             self.path,
             0,
-            f"{len(candidates)} {msgtype} topics ({listing}): pass {arg}= to pick one",
+            Words(
+                f"{len(candidates)} {msgtype} topics ({listing}): pass ",
+                Argument(arg, "="),
+                " to pick one",
+            ),
         )
 
     def _raw_messages(

@@ -34,6 +34,7 @@ from typing import Any
 
 from .._version import __version__
 from ..config import Config
+from ..errors import Argument, ArgumentError, Words
 from ..graph import require_gtsam
 from ..io import UnknownLogError, log_kind, read_relations
 from ..io.provenance import file_sha256, write_json
@@ -314,9 +315,9 @@ def run_batch(
     input, a configuration file's :class:`~fuzzypos.config.ConfigError`) or ``OSError``
     before any run; ``KeyboardInterrupt`` stops the tasks, keeping what finished."""
     if jobs is not None and jobs < 1:
-        raise ValueError(f"jobs must be at least 1, got {jobs}")
+        raise ArgumentError(Words(Argument("jobs"), f" must be at least 1, got {jobs}"))
     if max_scans is not None and max_scans < 1:
-        raise ValueError(f"max_scans must be at least 1, got {max_scans}")
+        raise ArgumentError(Words(Argument("max_scans"), f" must be at least 1, got {max_scans}"))
     require_ray("fuzzypos batch")
     if loop_closure:
         require_gtsam()
