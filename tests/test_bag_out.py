@@ -18,9 +18,11 @@ import fuzzypos.jobs.run as run_module
 from fuzzypos.cli import app
 from fuzzypos.geometry import Pose2D, covariance_to_parent, propagate
 from fuzzypos.io import BagWriteError, OdometryBagWriter, covariance6, open_log, read_tum
+from fuzzypos.io.bag_info import OutputFrames
 from fuzzypos.io.rosbag_write import UNUSED_VARIANCE, bag_storage_for
 from fuzzypos.jobs import run_log
 from fuzzypos.jobs.outputs import COVARIANCE_COLUMNS
+from fuzzypos.jobs.sinks import BagSink, CovarianceSink, PoseCovariances, ScanResult, Track
 from fuzzypos.pipeline import Positioner
 from helpers import write_sim_log
 
@@ -320,10 +322,22 @@ def test_the_bag_glue_on_known_estimates(tmp_path):
         Estimate(0.5, Pose2D(0, 1, math.pi / 2), ident, ident, 0, False, covariance=COV),
     ]
     bag = tmp_path / "glue.bag"
-    outputs = run_module._CovarianceOut(tmp_path, "hand", bag, None)
+    covariances = PoseCovariances("hand")
+    track = Track("hand")
+    sinks = [
+        CovarianceSink(tmp_path, "hand", required=True),
+        BagSink(bag, None, OutputFrames(), track, "hand"),
+    ]
+    for sink in sinks:
+        sink.open()
     for k, est in enumerate(ests):
-        outputs.write(k, est)
-    assert outputs.close() == {"covariance.csv": tmp_path / "covariance.csv", "bag": bag}
+        result = ScanResult(k, None, est, covariances.of(k, est))
+        for sink in sinks:
+            sink.write(result)
+    assert {**sinks[0].close(partial=False), **sinks[1].close(partial=False)} == {
+        "covariance.csv": tmp_path / "covariance.csv",
+        "bag": bag,
+    }
     odom = [m for _, m in _read(bag)["/fuzzypos/odom"]]
     block = [
         np.asarray(m.pose.covariance).reshape(6, 6)[np.ix_([0, 1, 5], [0, 1, 5])] for m in odom

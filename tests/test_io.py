@@ -312,8 +312,9 @@ def test_carmen_writer_estimate_mode_follows_the_first_scan(tmp_path):
 
 @pytest.mark.parametrize("compress", [False, True])
 def test_estimate_log_takes_other_poses_at_close(tmp_path, compress):
-    """close(poses): each scan's estimate replaced (FLASER's x y θ; ROBOTLASER1's robot pose
-    and its laser pose, the mount kept), the odometry, ranges and truth as written."""
+    """poses_at_close: close(poses) writes each scan at its pose (FLASER's x y θ; ROBOTLASER1's
+    robot pose and its laser pose, the mount kept), the odometry, ranges and truth as given;
+    a writer that streams takes no poses at close."""
     a0, inc = -math.pi / 2, math.pi / 179
     mount = Pose2D(0.1, 0.0, 0.0)
     forward = LaserScan(np.linspace(1.0, 3.0, 180), a0, inc, range_max=8.0, stamp=1.0,
@@ -321,11 +322,11 @@ def test_estimate_log_takes_other_poses_at_close(tmp_path, compress):
     other = make_scan(stamp=2.0, sensor_pose=mount)  # another geometry: ROBOTLASER1
     odom = [Pose2D(5.0, 6.0, 0.5), Pose2D(5.5, 6.0, 0.6)]
     path = tmp_path / "trajectory.clf"
-    w = CarmenWriter(path, estimate_of="some.log", compress=compress)
+    w = CarmenWriter(path, estimate_of="some.log", compress=compress, poses_at_close=True)
     w.write(forward, odom[0], Pose2D(9.0, 9.0, 0.0), pose=Pose2D(1.0, 0.0, 0.0))
     w.write(other, odom[1], pose=Pose2D(2.0, 0.0, 0.0))
     new = np.array([[1.5, -0.25, 0.3], [2.5, 0.75, -3.0]])
-    bad = CarmenWriter(tmp_path / "x.clf", estimate_of="y")
+    bad = CarmenWriter(tmp_path / "x.clf", estimate_of="y", poses_at_close=True)
     bad.write(forward, odom[0])
     with pytest.raises(ValueError, match="expected 1 finite poses"):
         bad.close(new, "")  # one row per scan written
@@ -346,6 +347,18 @@ def test_estimate_log_takes_other_poses_at_close(tmp_path, compress):
                                atol=1e-12)  # fmt: skip
     odom_line = next(ln.split() for ln in text.splitlines() if ln.startswith("ODOM"))
     assert [float(v) for v in odom_line[1:4]] == list(odom[1].as_array())  # as written
+    streams = CarmenWriter(tmp_path / "s.clf", estimate_of="y")
+    streams.write(forward, odom[0])
+    with pytest.raises(ValueError, match="poses_at_close"):
+        streams.close(new[:1], "")
+    assert not (tmp_path / "s.clf").exists()
+    held = CarmenWriter(tmp_path / "h.clf", estimate_of="y", poses_at_close=True)
+    plain = CarmenWriter(tmp_path / "p.clf", estimate_of="y")
+    for wr in (held, plain):
+        wr.write(forward, odom[0], pose=Pose2D(1.0, 0.0, 0.0))
+        wr.write(other, None, pose=Pose2D(2.0, 0.0, 0.0))
+        assert wr.close()
+    assert (tmp_path / "h.clf").read_bytes() == (tmp_path / "p.clf").read_bytes()
 
 
 # -- reader: formats and skipping ----------------------------------------------------------

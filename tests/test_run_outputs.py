@@ -279,7 +279,7 @@ def test_a_file_too_large_mid_run_names_it_and_keeps_the_scans_before(
     sim_log, tmp_path, monkeypatch
 ):
     """covariance.csv, written scan by scan, fails at its 6th row (EFBIG)."""
-    import fuzzypos.jobs.outputs as run_outputs
+    import fuzzypos.jobs.sinks as run_outputs
 
     path, _run = sim_log
 
@@ -384,13 +384,13 @@ def test_ctrl_c_inside_the_loop_from_numba_is_an_interrupt(sim_log, tmp_path, mo
 
 @pytest.mark.parametrize("step", ["path.png", "config.toml"])
 def test_ctrl_c_in_a_writer_keeps_the_rest(sim_log, tmp_path, monkeypatch, step):
-    import fuzzypos.jobs.run as run_module
+    import fuzzypos.jobs.sinks as sinks
 
     path, run = sim_log
     if step == "path.png":
-        monkeypatch.setattr(run_module, "_plot_path", ctrl_c)
+        monkeypatch.setattr(sinks.PlotSink, "close", ctrl_c)
     else:
-        monkeypatch.setattr(run_module, "write_text_file", numba_ctrl_c)
+        monkeypatch.setattr(sinks, "write_text_file", numba_ctrl_c)
     out = tmp_path / "res"
     res = runner.invoke(app, ["run", str(path), "--results", str(out)])
     assert res.exit_code == 130 and "Traceback" not in res.output, res.output
@@ -444,19 +444,20 @@ def test_ctrl_c_in_the_final_optimisation_keeps_the_front_end(
 
 
 def test_ctrl_c_while_trajectory_clf_takes_the_optimised_poses(loop_log, tmp_path, monkeypatch):
-    """No stray ``.trajectory.clf.PID.tmp.poses``; the other files are written."""
+    """trajectory.clf is written once, at the optimised poses: Ctrl-C on the way leaves no
+    stray temporary file; the other files are written."""
     import fuzzypos.io.carmen_write as carmen_write
 
     path, run = loop_log
-    real, calls = carmen_write._with_pose, []
+    real, calls = carmen_write._held_text, []
 
-    def with_pose(line, pose):
+    def held_text(held, pose):
         calls.append(1)
         if len(calls) == 10:
             raise KeyboardInterrupt
-        return real(line, pose)
+        return real(held, pose)
 
-    monkeypatch.setattr(carmen_write, "_with_pose", with_pose)
+    monkeypatch.setattr(carmen_write, "_held_text", held_text)
     out = tmp_path / "res"
     res = runner.invoke(app, ["run", str(path), "--loop-closure", "--results", str(out)])
     assert res.exit_code == 130 and "Traceback" not in res.output, res.output

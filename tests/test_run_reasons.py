@@ -25,6 +25,7 @@ from fuzzypos.jobs.outputs import (
     POSE_COVARIANCE_COLUMNS,
     STEP_COVARIANCE_COLUMNS,
 )
+from fuzzypos.jobs.sinks import CovarianceSink, PoseCovariances, ScanResult
 from fuzzypos.pipeline import Estimate, OdometryNoise, Positioner, Reason
 from helpers import write_sim_log
 
@@ -173,10 +174,11 @@ def test_the_pose_covariance_on_known_estimates(tmp_path):
         Estimate(0.6, Pose2D(0, 1, math.pi / 2), ident, ident, 0, True, covariance=step,
                  reason=Reason.TOO_FEW_PAIRS),
     ]  # fmt: skip
-    outputs = run_module._CovarianceOut(tmp_path, "hand", None, None)
+    covariances, csv = PoseCovariances("hand"), CovarianceSink(tmp_path, "hand", required=False)
+    csv.open()
     for k, est in enumerate(ests):
-        outputs.write(k, est)
-    assert outputs.close() == {"covariance.csv": tmp_path / "covariance.csv"}
+        csv.write(ScanResult(k, None, est, covariances.of(k, est)))
+    assert csv.close(partial=False) == {"covariance.csv": tmp_path / "covariance.csv"}
     _header, rows = _rows(tmp_path / "covariance.csv")
     pose = [_full([float(v) for v in r[7:13]]) for r in rows]
     np.testing.assert_allclose(pose[0], np.diag([1e-6, 4e-6, 1e-8]), rtol=1e-12, atol=1e-20)

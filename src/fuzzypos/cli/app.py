@@ -91,7 +91,12 @@ def fail(message: str, code: int = 2) -> NoReturn:
 
 
 def error_text(exc: BaseException) -> str:
-    """One line for a library or file-system error, its arguments named as flags."""
+    """One line for a library or file-system error, its arguments named as flags (a run's that
+    stopped it, for a partial run)."""
+    from ..jobs.run import PartialRunError
+
+    if isinstance(exc, PartialRunError):
+        exc = exc.stopped
     if isinstance(exc, OSError) and type(exc).__str__ is not OSError.__str__:
         return " ".join(str(exc).split())  # a typed error that words itself
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
@@ -145,7 +150,7 @@ def _kept(exc: BaseException) -> str:
         if "summary.json" in kept.files
         else "(summary.json could not be written)"
     )
-    reason = str(kept.summary.get("partial_reason") or "")
+    reason = kept.partial_reason or ""
     if reason.startswith(("interrupted at scan", "failed at scan")):  # in the loop
         where = f"the {kept.scans} scans before it are kept in {kept.results_dir}/ {marked}"
         if isinstance(exc, KeyboardInterrupt):

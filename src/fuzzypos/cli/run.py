@@ -169,24 +169,24 @@ def run(
                 compiling=lambda: compiling_shown(err_console, progress),
             )
     print_warnings(caught)
-    s = summary.summary
-    bad = f", {s['bad_lines_skipped']} bad lines skipped" if s["bad_lines_skipped"] else ""
+    bad = summary.bad_lines_skipped
     typer.echo(
         f"{summary.scans} scans in {summary.seconds:.2f} s: "
         f"{summary.scans_per_second:.1f} scans/s (positioner "
-        f"{s['positioner_ms_per_scan']:.2f} ms per scan); {summary.scans_degraded} degraded, "
-        f"{summary.odometry_jumps_rejected} odometry jumps rejected{bad}"
+        f"{summary.positioner_ms_per_scan:.2f} ms per scan); {summary.scans_degraded} degraded, "
+        f"{summary.odometry_jumps_rejected} odometry jumps rejected"
+        + (f", {bad} bad lines skipped" if bad else "")
     )
-    if s["truth_errors"]:
-        e = s["truth_errors"]["estimate"]
+    if summary.truth_errors:
+        e = summary.truth_errors["estimate"]
         typer.echo(
             f"against the log's truth: final {e['final_position_error_m']:.3f} m, mean "
             f"{e['mean_position_error_m']:.3f} m, mean heading {e['mean_heading_error_deg']:.2f}°"
         )
-    for line in loop_closure_lines(s):
+    for line in loop_closure_lines(summary.loop_closure, summary.relations):
         typer.echo(line)
-    if s["relations"] and not s.get("loop_closure"):  # (loop closure's lines have them)
-        typer.echo(relations_line(s["relations"]))
+    if summary.relations and not summary.loop_closure:  # (loop closure's lines have them)
+        typer.echo(relations_line(summary.relations))
     for note in summary.notes:
         typer.echo(f"note: {note}", err=True)
     typer.echo(

@@ -154,10 +154,10 @@ def benchmark_table(
     return table, problems
 
 
-def loop_closure_lines(summary: dict[str, Any]) -> list[str]:
-    """``fuzzypos run --loop-closure``'s lines: the closures, and where the run was scored
-    against relations, the front end's, the online and the optimised figures side by side."""
-    lc = summary.get("loop_closure")
+def loop_closure_lines(lc: dict[str, Any] | None, relations: dict[str, Any] | None) -> list[str]:
+    """``fuzzypos run --loop-closure``'s lines: the closures (``lc``, ``summary.json``'s
+    ``loop_closure``), and where the run was scored against relations, the front end's, the
+    online and the optimised (``relations``) figures side by side."""
     if not lc:
         return []
     head = (
@@ -171,7 +171,7 @@ def loop_closure_lines(summary: dict[str, Any]) -> list[str]:
         for name, rel in (
             ("front end", lc.get("relations_frontend")),
             ("online", lc.get("relations_online")),
-            ("optimised", summary.get("relations")),
+            ("optimised", relations),
         )
         if rel
     ]

@@ -19,8 +19,9 @@ ranges to 0.1 mm.
 The file is written to a temporary file next to where ``path`` points (through symlinks)
 that :meth:`CarmenWriter.close` renames over it (:meth:`CarmenWriter.abort` removes it), so a
 failure leaves no partial log; a pipe or character device is written to directly
-(:func:`~fuzzypos.io._common.output_target`). One scan is held at a time; a failure to write
-is an :class:`~fuzzypos.io._common.OutputWriteError` naming ``path``.
+(:func:`~fuzzypos.io._common.output_target`). One scan is held at a time (but with
+``poses_at_close``, which holds them all for poses known at the end); a failure to write is
+an :class:`~fuzzypos.io._common.OutputWriteError` naming ``path``.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import io
 import math
 import os
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, cast
@@ -180,20 +182,25 @@ def _pose_text(p: Pose2D) -> str:
     return f"{p.x!r} {p.y!r} {p.theta!r}"
 
 
-def _with_pose(line: str, pose: Pose2D) -> str:
-    """A FLASER or ROBOTLASER1 line as :class:`CarmenWriter` wrote it, at ``pose`` instead."""
-    t = line.split(" ")
-    if t[0] == "FLASER":
-        i = 2 + int(t[1])  # FLASER n r_1 … r_n x y θ …
-        t[i : i + 3] = _pose_text(pose).split(" ")
-        return " ".join(t)
-    # ROBOTLASER1 type start fov res max acc mode n r_1 … r_n 0 laser(3) robot(3) …
-    i = 9 + int(t[8]) + 1
-    laser = Pose2D(float(t[i]), float(t[i + 1]), float(t[i + 2]))
-    robot = Pose2D(float(t[i + 3]), float(t[i + 4]), float(t[i + 5]))
-    mount = robot.inverse().compose(laser)
-    t[i : i + 6] = f"{_pose_text(pose.compose(mount))} {_pose_text(pose)}".split(" ")
-    return " ".join(t)
+@dataclass(frozen=True, slots=True)
+class _Held:
+    """A scan's lines held for its pose (:class:`CarmenWriter` with ``poses_at_close``): the
+    text before and after the estimate's fields, the laser's mount (ROBOTLASER1, whose laser
+    pose comes first) or None (FLASER), and the pose it was given."""
+
+    before: str
+    mount: Pose2D | None
+    after: str
+    pose: Pose2D
+
+
+def _held_text(held: _Held, pose: Pose2D) -> str:
+    """A held scan's lines at ``pose``: FLASER's ``x y θ``; ROBOTLASER1's laser pose (``pose``
+    composed with the mount) and robot pose."""
+    at = _pose_text(pose)
+    if held.mount is None:
+        return f"{held.before}{at}{held.after}"
+    return f"{held.before}{_pose_text(pose.compose(held.mount))} {at}{held.after}"
 
 
 # -- the writer ------------------------------------------------------------------------------
@@ -235,6 +242,10 @@ class CarmenWriter:
     the raw readings; :attr:`notes` says where the two kinds mix. ``field_of_view_deg``,
     ``convention`` and ``header_comment`` are not used.
 
+    ``poses_at_close`` (estimate mode): the scans' lines are held (as text, about the
+    file's size in memory) and written once by :meth:`close`, at the poses it is given (loop
+    closure's optimised poses) or else at those :meth:`write` had.
+
     ``compress``: gzip the file (None: when the name ends in ``.gz``). :attr:`written`: the
     scans written so far.
     """
@@ -249,6 +260,7 @@ class CarmenWriter:
         header_comment: str | None = None,
         estimate_of: str | None = None,
         compress: bool | None = None,
+        poses_at_close: bool = False,
     ) -> None:
         self.estimate_of = estimate_of
         self.geometry: tuple[float, str] | None = None
@@ -273,6 +285,11 @@ class CarmenWriter:
         self.first: LaserScan | None = None
         self._fill = "0"
         self._raw: IO[bytes] | None = None
+        if poses_at_close and estimate_of is None:
+            raise ValueError(f"{self.name}: poses_at_close is for an estimate's log (estimate_of)")
+        #: poses_at_close: the header and the scans' lines, held for :meth:`close`
+        self._held: list[_Held] | None = [] if poses_at_close else None
+        self._header: list[str] = []
         gz = self.path.name.endswith(".gz") if compress is None else compress
         self._gz = gz
         self._fh: IO[str] | None = self._open(gz)
@@ -402,12 +419,33 @@ class CarmenWriter:
             )
         return []
 
+    def _estimate_lines(
+        self,
+        fh: IO[str],
+        scan: LaserScan,
+        at: Pose2D,
+        odometry: Pose2D | None,
+        odo: str,
+        trailer: str,
+        truepos: str,
+    ) -> _Held:
+        """A scan's lines in the estimate's log, around the estimate ``at``: FLASER, or ODOM
+        and ROBOTLASER1 where FLASER cannot describe the scan; ``truepos`` after them."""
+        if self._is_flaser(fh, scan):
+            before = f"FLASER {scan.n_beams} {_ranges_raw(scan)} "
+            return _Held(before, None, f" {odo} {trailer}\n{truepos}", at)
+        self.robotlaser1 += 1
+        before, after = self._robotlaser1(scan, at, odometry, trailer)
+        return _Held(before, scan.sensor_pose, after + truepos, at)
+
     def _is_flaser(self, fh: IO[str], scan: LaserScan) -> bool:
         """Whether the estimate log's FLASER geometry and mount describe the scan (else it is
-        written as ROBOTLASER1); the header goes out with the first scan."""
+        written as ROBOTLASER1); the header goes out (or is held) with the first scan."""
         if self.first is None:
             self.first = scan
-            fh.write("".join(self._estimate_header(scan)))
+            self._header = self._estimate_header(scan)
+            if self._held is None:
+                fh.write("".join(self._header))
         return (
             self.geometry is not None
             and scan.n_beams >= 2
@@ -416,17 +454,17 @@ class CarmenWriter:
         )
 
     @staticmethod
-    def _robotlaser1(scan: LaserScan, pose: Pose2D, odometry: Pose2D | None, trailer: str) -> str:
-        """The ``ODOM`` (``odometry``, else ``pose``) and ``ROBOTLASER1`` lines of a scan at
-        ``pose``."""
+    def _robotlaser1(
+        scan: LaserScan, pose: Pose2D, odometry: Pose2D | None, trailer: str
+    ) -> tuple[str, str]:
+        """The ``ODOM`` (``odometry``, else ``pose``) and ``ROBOTLASER1`` lines of a scan,
+        before and after its laser pose (in the world: ``pose`` composed with the mount) and
+        robot pose (:func:`_held_text`)."""
         odom = f"ODOM {_pose_text(odometry if odometry is not None else pose)} 0 0 0 {trailer}\n"
         n, res = scan.n_beams, scan.angle_increment
-        laser = pose.compose(scan.sensor_pose)  # CARMEN's laser pose is in the world
         head = f"{_UNKNOWN_LASER} {scan.angle_min!r} {abs(res) * (n - 1)!r} {res!r}"
-        return (
-            f"{odom}ROBOTLASER1 {head} {scan.range_max!r} 0 0 {n} {_ranges_raw(scan)} 0 "
-            f"{_pose_text(laser)} {_pose_text(pose)} 0 0 0 0 0 {trailer}\n"
-        )
+        before = f"{odom}ROBOTLASER1 {head} {scan.range_max!r} 0 0 {n} {_ranges_raw(scan)} 0 "
+        return before, f" 0 0 0 0 0 {trailer}\n"
 
     def write(
         self,
@@ -457,12 +495,15 @@ class CarmenWriter:
             params = "".join(self._check_log_scan(scan))
             ranges = _ranges_filled(scan, self._fill)
             text = f"{params}FLASER {scan.n_beams} {ranges} {xyt} {odo} {trailer}\n"
-        elif self._is_flaser(fh, scan):
-            text = f"FLASER {scan.n_beams} {_ranges_raw(scan)} {xyt} {odo} {trailer}\n"
         else:
-            text = self._robotlaser1(scan, at, odometry, trailer)
-            self.robotlaser1 += 1
-        if truth is not None:
+            truepos = "" if truth is None else f"TRUEPOS {_pose_text(truth)} {odo} {trailer}\n"
+            held = self._estimate_lines(fh, scan, at, odometry, odo, trailer, truepos)
+            if self._held is not None:
+                self._held.append(held)
+                self.written += 1
+                return
+            text = _held_text(held, at)
+        if truth is not None and self.estimate_of is None:
             text += f"TRUEPOS {_pose_text(truth)} {odo} {trailer}\n"
         try:
             fh.write(text)
@@ -487,16 +528,20 @@ class CarmenWriter:
     def close(self, poses: NDArray[np.float64] | None = None, why: str = "") -> bool:
         """Finish the log and rename it over ``path``; return whether it was. In estimate mode
         a log without a scan is not kept (False; no file) and the scans left out are noted.
-        ``poses`` (estimate mode, one row (x, y, θ) per scan written): the scans' poses
-        replaced by these (the optimised poses after loop closure), with ``why`` in the
-        header; the odometry, the truth and the ranges stay as written."""
+        ``poses`` (``poses_at_close``: one row (x, y, θ) per scan written): the scans'
+        estimates, written now (the optimised poses after loop closure), with ``why`` in the
+        header; the odometry, the truth and the ranges as :meth:`write` had them."""
         if self._fh is None:
             return False
         try:
+            if self._held is not None:
+                self._write_held(poses, why)
+            elif poses is not None:
+                raise ValueError(
+                    f"{self.name}: poses are taken at close by a writer made with poses_at_close"
+                )
             with _naming(self.name, self.tmp):
                 self._close_files()
-            if poses is not None:
-                self._replace_poses(np.asarray(poses, dtype=float), why)
             if self.estimate_of is not None:
                 if 0 < self.robotlaser1 < self.written:
                     self.notes.append(
@@ -515,40 +560,29 @@ class CarmenWriter:
             raise
         return True
 
-    def _replace_poses(self, poses: NDArray[np.float64], why: str) -> None:
-        """Rewrite the closed temporary file with ``poses`` as the scans' estimates: FLASER's
-        ``x y θ``, ROBOTLASER1's robot pose and its laser pose (the new robot pose composed
-        with the mount, as :meth:`write` wrote it)."""
-        if self.estimate_of is None or self.streamed:
-            what = "a pipe or device" if self.streamed else "a log that is not an estimate's"
-            raise ValueError(f"{self.name}: poses cannot be replaced in {what}")
-        if poses.shape != (self.written, 3) or not np.isfinite(poses).all():
+    def _write_held(self, poses: NDArray[np.float64] | None, why: str) -> None:
+        """Write the held header and scans, at ``poses`` (else at :meth:`write`'s), once."""
+        at = None if poses is None else np.asarray(poses, dtype=float)
+        if at is not None and (at.shape != (self.written, 3) or not np.isfinite(at).all()):
             raise ValueError(
                 f"{self.name}: expected {self.written} finite poses (x, y, θ), got an array "
-                f"of shape {poses.shape}"
+                f"of shape {at.shape}"
             )
-        new = self.tmp.with_name(self.tmp.name + ".poses")
-        opener: Any = gzip.open if self._gz else open
-        k = 0
-        try:
-            with (
-                _naming(self.name, new),
-                opener(self.tmp, "rt", encoding="utf-8") as src,
-                opener(new, "wt", encoding="utf-8", newline="\n") as dst,
-            ):
-                for line in src:
-                    kind = line[: line.find(" ")]
-                    if kind == "FLASER" or kind == "ROBOTLASER1":
-                        line = _with_pose(line, Pose2D.from_array(poses[k]))
-                        k += 1
-                    elif line.startswith("# written by") and why:
-                        line += f"# {why}\n"
-                    dst.write(line)
-            os.replace(new, self.tmp)
-        except BaseException:  # Ctrl-C too: no stray file
-            with contextlib.suppress(OSError):
-                os.unlink(new)
-            raise
+        held, self._held = self._held or [], []
+        fh = self._fh
+        assert fh is not None
+        header = [
+            line
+            + (f"# {why}\n" if why and at is not None and line.startswith("# written by") else "")
+            for line in self._header
+        ]
+        with _naming(self.name, self.tmp):
+            try:
+                fh.write("".join(header))
+                for k, h in enumerate(held):
+                    fh.write(_held_text(h, h.pose if at is None else Pose2D.from_array(at[k])))
+            except OSError as exc:
+                raise self._write_error(exc) from exc
 
     def abort(self) -> None:
         """Give up: close and remove the temporary file (``path`` is left as it was)."""

@@ -251,8 +251,8 @@ class OpenLog:
 
     def scan_stamps(self) -> np.ndarray:
         """Every scan's stamp in file (bag) order, read without parsing the scans (read-only;
-        the first call reads them, :meth:`CarmenReader.scan_stamps` /
-        :meth:`BagReader.scan_stamps`)."""
+        the first call reads them, unless :func:`survey_log` took them:
+        :meth:`CarmenReader.scan_stamps` / :meth:`BagReader.scan_stamps`)."""
         if self._stamps is None:
             stamps = self.reader.scan_stamps()
             if self.scan_rate_hz is not None:
@@ -862,9 +862,11 @@ def survey_log(
     (:func:`find_no_return_values`, none when ``scanner.find_no_return_values`` is off) and
     which scans the odometry covers (:class:`~fuzzypos.io.odometry_check.OdometryCoverage`). A
     log that cannot be read to its end is judged on the records before the error, silently
-    (the run's own pass reports it)."""
+    (the run's own pass reports it). A CARMEN log read to its end also gives its scans'
+    stamps (:meth:`OpenLog.scan_stamps`, which need not read it again)."""
     tally = RangeTally() if scanner.find_no_return_values else None
     coverage = OdometryCoverage(expected=log.has_odometry)
+    stamps: list[float] | None = [] if log.kind == "carmen" else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
@@ -872,8 +874,14 @@ def survey_log(
                 coverage.add(rec)
                 if tally is not None:
                     tally.add(rec.scan, rec.odometry)
+                if stamps is not None:
+                    stamps.append(rec.scan.stamp)
         except (ValueError, OSError):
-            pass
+            stamps = None
+    if stamps is not None and log._stamps is None:
+        kept = np.array(stamps, dtype=np.float64)
+        kept.setflags(write=False)
+        log._stamps = kept
     return ([] if tally is None else tally.find(scanner)), coverage.finish()
 
 

@@ -8,7 +8,7 @@ from .batch import BatchResult, run_batch
 from .benchmark import BenchmarkResult, run_benchmark
 from .demo import DemoResult, DemoSettings, run_demo
 from .folders import ResultsFolder, ResultsFolderError, default_results_dir, log_name
-from .run import RunSummary, partial_results, run_log, write_estimate_clf
+from .run import PartialRunError, RunJob, RunSummary, partial_results, run_log, write_estimate_clf
 from .tasks import TaskDone, run_tasks
 
 __all__ = [
@@ -16,8 +16,10 @@ __all__ = [
     "BenchmarkResult",
     "DemoResult",
     "DemoSettings",
+    "PartialRunError",
     "ResultsFolder",
     "ResultsFolderError",
+    "RunJob",
     "RunSummary",
     "TaskDone",
     "default_results_dir",

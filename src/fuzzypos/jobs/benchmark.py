@@ -223,7 +223,7 @@ def _loop_closure_rows(
     rows = []
     for config, poses in zip(LOOP_CLOSURE_CONFIGS, (res.poses, res.online_poses)):
         row = _run_row(label, config, res, poses, relations, folder)
-        row["loop_closure_seconds"] = res.summary["loop_closure"]["seconds"]
+        row["loop_closure_seconds"] = (res.loop_closure or {})["seconds"]
         rows.append(row)
     return rows
 

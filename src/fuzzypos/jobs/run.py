@@ -8,9 +8,13 @@ default a new ``results/<log>/<date-time>/`` (:func:`default_results_dir`; ``<lo
 refused, or with ``overwrite=True`` cleared first (:class:`ResultsFolderError`); the run locks
 it until it ends. A run stopped by an error or Ctrl-C after some scans keeps them: the files
 below (but ``path.png``) for the scans done, ``summary.json`` saying ``"partial": true`` and
-why (:func:`partial_results`); so does one stopped after its loop (loop closure's final
+why (:class:`PartialRunError`); so does one stopped after its loop (loop closure's final
 optimisation: the front end's poses are written; a writer: the other files are), each step
 after the loop a :class:`~fuzzypos.jobs.outputs.Steps` step.
+
+One :class:`RunJob` runs it over the outputs as sinks of one protocol
+(:mod:`fuzzypos.jobs.sinks`: open, write each scan's result, close once, partial or not);
+its :class:`RunSummary` is ``summary.json`` typed (:meth:`RunSummary.to_json`).
 
 ================  ==========================================================================
 ``trajectory.tum``  the estimated pose of every scan, ``t x y z qx qy qz qw``, one line per
@@ -42,12 +46,13 @@ after the loop a :class:`~fuzzypos.jobs.outputs.Steps` step.
                     codes found in the log's readings (:func:`_no_returns`)
 ================  ==========================================================================
 
-With ``bag_out=`` the estimate also goes into a bag as it runs (:class:`_CovarianceOut`,
-:class:`~fuzzypos.io.OdometryBagWriter`): ``nav_msgs/Odometry`` on ``/fuzzypos/odom`` and
-``/tf`` (odom → base), in REP-105 frames (``bag_frames``, else the input bag's, else
-``base_link``, ``odom``, ``map``; ``summary.json``'s ``bag_out``). The pose's covariance is
-the increments' propagated from the first scan (:func:`~fuzzypos.geometry.propagate`; the
-first pose's covariance is the first estimate's), turned into the odom frame
+With ``bag_out=`` the estimate also goes into a bag as it runs
+(:class:`~fuzzypos.jobs.sinks.BagSink`, :class:`~fuzzypos.io.OdometryBagWriter`):
+``nav_msgs/Odometry`` on ``/fuzzypos/odom`` and ``/tf`` (odom → base), in REP-105 frames
+(``bag_frames``, else the input bag's, else ``base_link``, ``odom``, ``map``;
+``summary.json``'s ``bag_out``). The pose's covariance is the increments' propagated from
+the first scan (:func:`~fuzzypos.geometry.propagate`; the first pose's covariance is the
+first estimate's), turned into the odom frame
 (:func:`~fuzzypos.geometry.covariance_to_parent`); the twist is the increment over the time
 since the previous scan (its covariance the increment's over dt²), zero with unknown
 covariance at the first scan and where dt <= 0. With loop closure the optimised poses follow
@@ -56,18 +61,23 @@ each scan and rotated into the map frame, as in ``covariance_optimised.csv``:
 :func:`~fuzzypos.graph.outputs.optimised_covariances`) with map → odom on ``/tf``.
 
 Memory stays small on long logs: only the stamps and poses (estimate, odometry, truth)
-and the points of every ``map_every``-th scan are kept, never the scans.
+and the points of every ``map_every``-th scan are kept, never the scans; with loop closure
+``trajectory.clf``'s lines wait as text for the optimised poses, so that it is written once.
+
+The log is read twice: a survey of the whole log first (:func:`~fuzzypos.io.logs.survey_log`:
+the "no return" codes its readings use, which the positioner must know from the first scan,
+and which scans the odometry covers), which also takes every scan's stamp for the stamps'
+check and the progress total, then the run itself.
 """
 
 from __future__ import annotations
 
 import contextlib
 import functools
-import math
 import os
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -75,11 +85,11 @@ import numpy as np
 
 from .._version import __version__
 from ..config import Config
+from ..errors import FuzzyposError
 from ..eval.metrics import EvaluationError, relations_errors, trajectory_errors
 from ..geometry import Pose2D
-from ..graph import LoopClosureResult, OnlineMapper, require_gtsam
-from ..graph.occupancy import MapScans, map_grid
-from ..io import CarmenWriter, LogRecord, OpenLog, Relations, open_log, write_text_file, write_tum
+from ..graph import require_gtsam
+from ..io import CarmenWriter, LogRecord, OpenLog, Relations, open_log
 from ..io.bag_info import OutputFrames
 from ..io.logs import empty_stretch, select_records, select_stamps, survey_log
 from ..io.no_returns import with_found_bands
@@ -93,18 +103,30 @@ from .folders import (
     ResultsFolderError,
     check_outputs,
     default_results_dir,
-    log_name,
 )
 from .outputs import (
     COVARIANCE_COLUMNS,
     POSE_COVARIANCE_COLUMNS,
     STEP_COVARIANCE_COLUMNS,
     Steps,
-    _CovarianceOut,
     as_interrupt,
     is_interrupt,
     one_line,
     resolve_bag_frames,
+)
+from .sinks import (
+    BagSink,
+    ClfSink,
+    ConfigSink,
+    CovarianceSink,
+    LoopClosureSink,
+    MapSink,
+    PlotSink,
+    PoseCovariances,
+    ScanResult,
+    Sink,
+    Track,
+    TumSink,
 )
 
 __all__ = [
@@ -112,8 +134,10 @@ __all__ = [
     "POSE_COVARIANCE_COLUMNS",
     "RESULT_FILES",
     "STEP_COVARIANCE_COLUMNS",
+    "PartialRunError",
     "Progress",
     "ResultsFolderError",
+    "RunJob",
     "RunSummary",
     "as_interrupt",
     "default_results_dir",
@@ -126,37 +150,162 @@ __all__ = [
 #: ``progress(done, total)`` (``total`` None when unknown)
 Progress = Callable[[int, "int | None"], None]
 
-#: where :func:`partial_results` finds what a stopped run kept
-_PARTIAL = "fuzzypos_partial_results"
-
 #: how often (in scans) :func:`run_log` reports its progress
 _PROGRESS_EVERY = 25
 
-Row = tuple[float, float, float]
+
+# -- what a run did --------------------------------------------------------------------------
+@dataclass(eq=False)
+class RunSummary:
+    """What :func:`run_log` did: ``summary.json`` typed (:meth:`to_json` gives it, key for
+    key, as :func:`run_log` describes it), with the run's arrays and where its results are.
+
+    ``stamps`` ``(n,)``, ``poses`` ``(n, 3)`` (the estimate), ``odometry`` ``(n, 3)`` or None
+    (NaN rows for scans without odometry), ``truth`` likewise; ``files``: name → path of
+    what was written; with loop closure ``online_poses`` (each scan's pose as first output
+    online) and ``frontend_poses``. The sections of ``summary.json`` that are tables of their
+    own (``input``, ``selection``, ``reasons``, ``truth_errors``, ``relations``,
+    ``loop_closure`` …) are its dicts.
+    """
+
+    results_dir: Path
+    scans: int
+    scans_degraded: int
+    odometry_jumps_rejected: int
+    seconds: float
+    positioner_seconds: float
+    stamps: np.ndarray
+    poses: np.ndarray
+    odometry: np.ndarray | None
+    truth: np.ndarray | None
+    files: dict[str, Path]
+    notes: list[str] = field(default_factory=list)
+    online_poses: np.ndarray | None = None
+    frontend_poses: np.ndarray | None = None
+    #: the kernels' compiling (or loading) before the first scan, not in the figures above
+    compile_seconds: float = 0.0
+    partial_reason: str | None = None
+    fuzzypos_version: str = __version__
+    git_hash: str | None = None
+    input: dict[str, Any] = field(default_factory=dict)
+    selection: dict[str, Any] = field(default_factory=dict)
+    reasons: dict[str, int] = field(default_factory=dict)
+    odometry_noise: dict[str, Any] = field(default_factory=dict)
+    config: dict[str, Any] = field(default_factory=dict)
+    bad_lines_skipped: int = 0
+    truncated: bool = False
+    scan_rate_hz: float | None = None
+    truth_errors: dict[str, Any] | None = None
+    relations: dict[str, Any] | None = None
+    no_return_values_found: list[dict[str, Any]] = field(default_factory=list)
+    bag_out: dict[str, Any] | None = None
+    odometry_coverage: dict[str, Any] = field(default_factory=dict)
+    loop_closure: dict[str, Any] | None = None
+    #: the files as ``summary.json`` names them (the file itself among them)
+    listed_files: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def partial(self) -> bool:
+        return self.partial_reason is not None
+
+    @property
+    def scans_per_second(self) -> float:
+        return self.scans / self.seconds if self.seconds > 0 else float("nan")
+
+    @property
+    def positioner_ms_per_scan(self) -> float:
+        return 1000.0 * self.positioner_seconds / self.scans
+
+    @property
+    def results_dir_name(self) -> str:
+        return os.fspath(self.results_dir)
+
+    def to_json(self) -> dict[str, Any]:
+        """The content of ``summary.json``, in its order."""
+        n, seconds = self.scans, self.seconds
+        out: dict[str, Any] = {
+            "fuzzypos_version": self.fuzzypos_version,
+            "git_hash": self.git_hash,
+            "input": self.input,
+            "selection": self.selection,
+            "partial": self.partial,
+            "partial_reason": self.partial_reason,
+            "scans": n,
+            "scans_degraded": self.scans_degraded,
+            "reasons": self.reasons,
+            "odometry_noise": self.odometry_noise,
+            "odometry_jumps_rejected": self.odometry_jumps_rejected,
+            "seconds": seconds,
+            "scans_per_second": n / seconds if seconds > 0 else None,
+            "positioner_seconds": self.positioner_seconds,
+            "positioner_ms_per_scan": self.positioner_ms_per_scan,
+            "compile_seconds": self.compile_seconds,
+            "config": self.config,
+            "bad_lines_skipped": self.bad_lines_skipped,
+            "truncated": self.truncated,
+            "scan_rate_hz": self.scan_rate_hz,
+            "first_stamp": float(self.stamps[0]),
+            "last_stamp": float(self.stamps[-1]),
+            "has_odometry": self.odometry is not None,
+            "has_truth": self.truth is not None,
+            "truth_errors": self.truth_errors,
+            "relations": self.relations,
+            "notes": self.notes,
+            "files": self.listed_files,
+            "no_return_values_found": self.no_return_values_found,
+            "bag_out": self.bag_out,
+            "odometry_coverage": self.odometry_coverage,
+        }
+        if self.loop_closure is not None:
+            out["loop_closure"] = self.loop_closure
+        return out
+
+    @property
+    def summary(self) -> dict[str, Any]:
+        """:meth:`to_json` (the name of earlier releases)."""
+        return self.to_json()
+
+
+class PartialRunError(FuzzyposError, ValueError):
+    """A run stopped after some scans by an error (:attr:`stopped`, also its ``__cause__``;
+    the message is its), with what was kept: :attr:`summary`, its results folder's
+    ``summary.json`` saying ``"partial": true``. A run stopped by Ctrl-C raises the
+    ``KeyboardInterrupt`` with this as its ``__cause__`` (:func:`partial_results`)."""
+
+    def __init__(self, summary: RunSummary, stopped: BaseException) -> None:
+        super().__init__(one_line(stopped))
+        self.summary = summary
+        self.stopped = stopped
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.summary, self.stopped))
+
+
+class _PartialRunOSError(PartialRunError, OSError):
+    """A :class:`PartialRunError` that a file-system error stopped (an ``OSError`` too)."""
+
+
+def _partial(summary: RunSummary, stopped: BaseException) -> BaseException:
+    """What :func:`run_log` raises for a run ``stopped`` after some scans: a
+    :class:`PartialRunError` for an error it reports (``ValueError``, ``OSError``), else (Ctrl-C,
+    a bug) ``stopped`` itself, the :class:`PartialRunError` its ``__cause__``."""
+    if isinstance(stopped, OSError):
+        return _PartialRunOSError(summary, stopped)
+    error = PartialRunError(summary, stopped)
+    if isinstance(stopped, ValueError):
+        return error
+    stopped.__cause__ = error
+    return stopped
 
 
 def partial_results(exc: BaseException) -> RunSummary | None:
     """What :func:`run_log` kept of a run that ``exc`` stopped after some scans (its results
-    folder, ``summary.json`` marked partial), or None."""
-    kept = exc.__dict__.get(_PARTIAL)
-    return kept if isinstance(kept, RunSummary) else None
-
-
-def _scans_in_stretch(
-    log: OpenLog, start: float | None, end: float | None, max_scans: int | None
-) -> int | None:
-    """The scans of the stretch, for the progress bar: the whole log's count, or with
-    ``start``/``end`` those its scans' stamps put in the stretch
-    (:meth:`~fuzzypos.io.logs.OpenLog.scan_stamps`, a quick pass); None when unknown."""
-    total: int | None = None
-    if start is None and end is None:
-        total = log.scan_count_hint()
-    else:
-        with contextlib.suppress(OSError):
-            total = len(select_stamps(log.scan_stamps(), start=start, end=end))
-    if max_scans is not None:
-        total = max_scans if total is None else min(total, max_scans)
-    return total
+    folder, ``summary.json`` marked partial): a :class:`PartialRunError`'s summary, or that of
+    the one behind a ``KeyboardInterrupt``; None for any other exception."""
+    if isinstance(exc, PartialRunError):
+        return exc.summary
+    cause = exc.__cause__
+    return cause.summary if isinstance(cause, PartialRunError) else None
 
 
 # -- the estimate as a CARMEN log --------------------------------------------------------------
@@ -195,167 +344,280 @@ def write_estimate_clf(
 
 
 # -- one run ---------------------------------------------------------------------------------
-@dataclass(eq=False)
-class RunSummary:
-    """What :func:`run_log` did.
+class RunJob:
+    """One run of a positioner over a log's records into a results folder, through its
+    outputs as sinks (:mod:`fuzzypos.jobs.sinks`): :meth:`open` them, :meth:`position` along
+    the records (each scan's result to every sink, then into the :class:`Track`), then
+    :meth:`finish` (loop closure's final optimisation, every sink closed in the order of the
+    results folder's files, the scores, ``summary.json`` last). A sink's failure after the loop
+    is a step (:class:`~fuzzypos.jobs.outputs.Steps`): the run is partial, the others still
+    close."""
 
-    ``stamps`` ``(n,)``, ``poses`` ``(n, 3)`` (the estimate), ``odometry`` ``(n, 3)`` or None
-    (NaN rows for scans without odometry), ``truth`` likewise; ``files``: name → path of
-    what was written; ``summary``: the content of ``summary.json``.
-    """
+    def __init__(
+        self,
+        log: OpenLog,
+        config: Config,
+        folder: ResultsFolder,
+        *,
+        out_tum: str | os.PathLike[str] | None = None,
+        bag_out: str | os.PathLike[str] | None = None,
+        bag_storage: str | None = None,
+        frames: OutputFrames | None = None,
+        plot: bool = True,
+        map_every: int = 10,
+        save_map: bool = False,
+    ) -> None:
+        self.log, self.config, self.folder = log, config, folder
+        self.positioner = Positioner(config)
+        self.track = Track(log.name)
+        self.covariances = PoseCovariances(log.name)
+        out, name, t = folder.path, log.name, self.track
+        lc = config.loop_closure.enabled
+        csv = CovarianceSink(out, name, required=bag_out is not None)
+        self.bag = None
+        if bag_out is not None:
+            self.bag = BagSink(bag_out, bag_storage, frames or OutputFrames(), t, name)
+        extra = (
+            None if out_tum is None else TumSink(Path(out_tum), "out_tum", t, whole_runs_only=True)
+        )
+        clf = ClfSink(out, name, t, held=lc)
+        picture = PlotSink(out, log, t, config, map_every) if plot else None
+        self.loop = LoopClosureSink(out, config, t) if lc else None
+        grid = MapSink(out, config, t) if save_map and not lc else None
+        tum = TumSink(out / "trajectory.tum", "trajectory.tum", t, whole_runs_only=False)
+        closing = (
+            tum,
+            csv,
+            self.bag,
+            extra,
+            clf,
+            ConfigSink(out, config),
+            picture,
+            self.loop,
+            grid,
+        )
+        #: the sinks in the order they close (the results folder's files' order)
+        self.sinks: list[Sink] = [s for s in closing if s is not None]
+        #: and in the order each scan reaches them
+        self.writers: list[Sink] = [
+            s for s in (csv, self.bag, self.loop, grid, clf, picture) if s is not None
+        ]
 
-    results_dir: Path
-    scans: int
-    scans_degraded: int
-    odometry_jumps_rejected: int
-    seconds: float
-    positioner_seconds: float
-    stamps: np.ndarray
-    poses: np.ndarray
-    odometry: np.ndarray | None
-    truth: np.ndarray | None
-    files: dict[str, Path]
-    summary: dict[str, Any]
-    notes: list[str] = field(default_factory=list)
-    #: with loop closure: each scan's pose as first output online, and the front end's
-    online_poses: np.ndarray | None = None
-    frontend_poses: np.ndarray | None = None
-    #: the kernels' compiling (or loading) before the first scan, not in the figures above
-    compile_seconds: float = 0.0
+    def open(self) -> None:
+        """Open every sink; on a failure, none stays open and the folder is removed."""
+        opened: list[Sink] = []
+        try:
+            for sink in self.sinks:
+                sink.open()
+                opened.append(sink)
+        except BaseException:
+            self.abort(opened)
+            self.folder.discard()
+            raise
 
-    @property
-    def scans_per_second(self) -> float:
-        return self.scans / self.seconds if self.seconds > 0 else float("nan")
+    def abort(self, sinks: Iterable[Sink] | None = None) -> None:
+        for sink in self.sinks if sinks is None else sinks:
+            sink.abort()
 
+    def run(
+        self,
+        records: Iterator[LogRecord],
+        progress: Progress | None,
+        total: int | None,
+        compile_seconds: float = 0.0,
+    ) -> Track:
+        """:meth:`open`, :meth:`position`; where no scan was positioned, the sinks aborted and
+        the folder removed (nothing kept)."""
+        self.open()
+        track = self.position(records, progress, total)
+        track.compile_seconds = compile_seconds
+        if len(track) == 0:
+            self.abort()
+            self.folder.discard()
+        return track
 
-def _pose_rows(poses: list[Row | None]) -> np.ndarray | None:
-    if not any(p is not None for p in poses):
-        return None
-    nan = (math.nan, math.nan, math.nan)
-    return np.array([p if p is not None else nan for p in poses], dtype=np.float64).reshape(-1, 3)
+    def position(
+        self, records: Iterator[LogRecord], progress: Progress | None, total: int | None
+    ) -> Track:
+        """Run the positioner over ``records``, each scan's result to every sink and then into
+        the track. An error or Ctrl-C stops the run: it is kept in ``track.stopped`` (anything
+        else aborts the sinks and is raised)."""
+        track, positioner, writers = self.track, self.positioner, self.writers
+        t_start = time.perf_counter()
+        try:
+            for k, rec in enumerate(records):
+                t0 = time.perf_counter()
+                est = positioner.update(rec.scan, rec.odometry)
+                track.positioner_seconds += time.perf_counter() - t0
+                result = ScanResult(k, rec, est, self.covariances.of(k, est))
+                for sink in writers:
+                    sink.write(result)
+                track.add(result)
+                if progress is not None and (k + 1) % _PROGRESS_EVERY == 0:
+                    progress(k + 1, total)
+        except (Exception, KeyboardInterrupt) as exc:
+            stopped = as_interrupt(exc)  # numba's SystemError around Ctrl-C: Ctrl-C
+            track.stopped = stopped
+            at = f"scan {len(track) + 1}"
+            interrupted = isinstance(stopped, KeyboardInterrupt)
+            track.partial_reason = (
+                f"interrupted at {at}" if interrupted else f"failed at {at}: {one_line(stopped)}"
+            )
+        except BaseException:
+            self.abort()
+            raise
+        track.seconds = time.perf_counter() - t_start
+        return track
 
+    def finish(
+        self,
+        *,
+        labels: dict[str, Any],
+        relations: Relations | None,
+        hash_input: bool,
+        progress: Progress | None,
+    ) -> RunSummary:
+        """After the loop: loop closure's final optimisation, the sinks closed (``summary.json``
+        last), the run summed up. Each is a step (:class:`Steps`): one that fails or is
+        interrupted makes the run partial (``track.stopped``, ``partial_reason``) and the rest
+        is still done; where loop closure did not finish, its files are not written and
+        ``trajectory.tum`` and ``trajectory.clf`` hold the front end's poses."""
+        log, track = self.log, self.track
+        notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
+        steps = Steps(track.stopped, track.partial_reason, notes)
+        n = len(track)
+        if progress is not None and not steps.partial:
+            steps.run("after the last scan", lambda: progress(n, n))
+        track.freeze()
+        self._final_optimisation(steps)
+        files = self._close_sinks(steps)
+        out = self.folder.path
+        summary = self._scored(steps, labels, relations, hash_input)
+        track.stopped, track.partial_reason = steps.stop, steps.reason
+        files["summary.json"] = out / "summary.json"
+        summary.partial_reason = track.partial_reason
+        summary.files, summary.listed_files = files, {k: str(v) for k, v in files.items()}
+        coverage = labels["odometry_coverage"]
+        note = coverage.note()
+        if note is not None and note not in notes:
+            notes.append(note)
+        if not steps.done(
+            "while writing summary.json",
+            lambda: write_json(out / "summary.json", summary.to_json()),
+        ):
+            del files["summary.json"]
+        track.stopped, track.partial_reason = steps.stop, steps.reason
+        return summary
 
-def _row(p: Pose2D | None) -> Row | None:
-    return None if p is None else (p.x, p.y, p.theta)
+    def _final_optimisation(self, steps: Steps) -> None:
+        """Loop closure's final optimisation (a step), its poses the track's final ones; the
+        front end's where it did not finish, or the run is partial."""
+        if self.loop is None or steps.partial:
+            return
+        loop = steps.run("in loop closure's final optimisation", self.loop.finish)
+        if loop is None:
+            steps.notes.append(
+                "loop closure did not finish: trajectory.tum holds the front end's poses"
+            )
+            return
+        steps.notes.append(
+            "loop closure: trajectory.tum holds the optimised poses (trajectory_frontend.tum "
+            "the front end's, trajectory_online.tum each scan's as first output online) and "
+            "so does trajectory.clf; covariance.csv and the bag's odometry are the front end's "
+            "(a bag gets the optimised poses and map -> odom too), covariance_optimised.csv the "
+            "optimised poses' covariances (the pose graph's marginals)"
+        )
+        if loop.covariances is None:
+            steps.notes.append(
+                "no covariance_optimised.csv: gtsam gave no marginals "
+                f"({loop.summary.get('marginals_error')}); the bag's optimised poses' covariance "
+                "is unknown"
+            )
+        self.track.optimised(loop)
 
+    def _close_sinks(self, steps: Steps) -> dict[str, Path]:
+        """Close every sink, each a step (but those for whole runs only, in a partial run);
+        name → path of the files written, in writing order."""
+        files: dict[str, Path] = {}
+        for sink in self.sinks:
+            if not (sink.whole_runs_only and steps.partial):
+                close = functools.partial(sink.close, steps.partial)
+                files.update(steps.run(f"while writing {sink.what}", close) or {})
+        for sink in self.sinks:
+            steps.notes.extend(sink.notes)
+        if steps.partial:
+            missing = [] if "path.png" in files else ["no path.png"]
+            extra = [s for s in self.sinks if isinstance(s, TumSink) and s.key == "out_tum"]
+            if extra and "out_tum" not in files:
+                missing.append(f"{extra[0].path} was not written")
+            steps.notes.append("a partial run" + (": " + ", and ".join(missing) if missing else ""))
+        return files
 
-@dataclass(eq=False)
-class _Track:
-    """What the run keeps of each scan (never the scan itself), and its timing."""
-
-    stamps: list[float] = field(default_factory=list)
-    poses: list[Row] = field(default_factory=list)
-    odoms: list[Row | None] = field(default_factory=list)
-    truths: list[Row | None] = field(default_factory=list)
-    map_points: list[np.ndarray | None] = field(default_factory=list)
-    degraded: int = 0
-    #: the scans per reason (:class:`~fuzzypos.pipeline.Reason`'s value)
-    reasons: dict[str, int] = field(default_factory=dict)
-    positioner_seconds: float = 0.0
-    seconds: float = 0.0
-    compile_seconds: float = 0.0
-    #: what stopped the run before the end of the stretch (an error, Ctrl-C), and why
-    stopped: BaseException | None = None
-    partial_reason: str | None = None
-    #: loop closure online (loop closure on): the pose graph of the keyframes, with their
-    #: features, and the scans kept for the map
-    mapper: OnlineMapper | None = None
-    #: ``save_map`` without loop closure: the scans the map is drawn from
-    map_scans: MapScans | None = None
-
-    def __len__(self) -> int:
-        return len(self.stamps)
-
-
-def _position_along(
-    records: Iterator[LogRecord],
-    positioner: Positioner,
-    clf: CarmenWriter,
-    outputs: _CovarianceOut,
-    plot: bool,
-    map_every: int,
-    progress: Progress | None,
-    total: int | None,
-    save_map: bool = False,
-) -> _Track:
-    """Run ``positioner`` over ``records``, streaming the estimate into ``clf`` and
-    ``outputs`` and keeping the :class:`_Track` of the scans done. An error or Ctrl-C stops
-    the run: it is kept in ``track.stopped`` (anything else aborts both and is raised).
-    ``save_map`` (without loop closure, whose mapper keeps its own): keep the map's scans."""
-    cfg = positioner.config
-    track = _Track(mapper=OnlineMapper(cfg) if cfg.loop_closure.enabled else None)
-    lc = cfg.loop_closure
-    if save_map and track.mapper is None:
-        track.map_scans = MapScans(lc.map_scan_distance, lc.map_scan_angle)
-    bands = positioner.config.scanner.no_return_bands  # the map shows what the positioner saw
-    t_start = time.perf_counter()
-    try:
-        for k, rec in enumerate(records):
-            scan, odom = rec.scan, rec.odometry
-            t0 = time.perf_counter()
-            est = positioner.update(scan, odom)
-            track.positioner_seconds += time.perf_counter() - t0
-            pose = est.pose
-            outputs.write(k, est)
-            if track.mapper is not None:
-                track.mapper.add(est, scan.angle_increment)
-            elif track.map_scans is not None:
-                points = None if est.features is None else est.features.points
-                track.map_scans.add(k, est.pose.as_array(), points)
-            clf.write(scan, odom, rec.truth, pose=pose)
-            track.stamps.append(scan.stamp)
-            track.poses.append((pose.x, pose.y, pose.theta))
-            track.odoms.append(_row(odom))
-            track.truths.append(_row(rec.truth))
-            track.degraded += bool(est.degraded)
-            why = str(est.reason)
-            track.reasons[why] = track.reasons.get(why, 0) + 1
-            if plot:
-                track.map_points.append(scan.points_robot(bands) if k % map_every == 0 else None)
-            if progress is not None and (k + 1) % _PROGRESS_EVERY == 0:
-                progress(k + 1, total)
-    except (Exception, KeyboardInterrupt) as exc:
-        stopped = as_interrupt(exc)  # numba's SystemError around Ctrl-C: Ctrl-C
-        track.stopped = stopped
-        at = f"scan {len(track) + 1}"
-        what = one_line(stopped)
-        interrupted = isinstance(stopped, KeyboardInterrupt)
-        track.partial_reason = f"interrupted at {at}" if interrupted else f"failed at {at}: {what}"
-    except BaseException:
-        clf.abort()
-        outputs.abort()
-        raise
-    track.seconds = time.perf_counter() - t_start
-    return track
-
-
-def _no_scans(log: OpenLog, start: float | None, end: float | None) -> ValueError:
-    if start is not None or end is not None:
-        stretch = empty_stretch(log, start, end)
-        if stretch is not None:  # the log has scans, but not there
-            return stretch
-    hint = " (is it a CARMEN log with FLASER or ROBOTLASER1 lines?)" if log.kind == "carmen" else ""
-    return ValueError(f"{log.name}: no scans{hint}")
-
-
-def _plot_path(
-    path: Path,
-    log: OpenLog,
-    poses: np.ndarray,
-    odometry: np.ndarray | None,
-    map_points: list[np.ndarray | None],
-    map_every: int,
-) -> None:
-    from ..plot import figures as plotting  # matplotlib only when figures are made
-
-    odo_xy = None if odometry is None else odometry[np.isfinite(odometry).all(axis=1)]
-    plotting.plot_map(
-        poses,
-        map_points,
-        odometry=odo_xy,
-        path=path,
-        title=f"{log_name(log.name)}: estimated path, odometry and map (scans 1 in {map_every})",
-    )
+    def _scored(
+        self,
+        steps: Steps,
+        labels: dict[str, Any],
+        relations: Relations | None,
+        hash_input: bool,
+    ) -> RunSummary:
+        """The run summed up: the scores against the truth and the relations (steps), and
+        what it ran on."""
+        log, t, loop = self.log, self.track, self.track.loop
+        truth_errors = steps.run(
+            "scoring against the truth",
+            lambda: _truth_errors(t.truth, t.final, t.odometry, t.degraded),
+        )
+        rel = steps.run(
+            "while scoring against the relations",
+            lambda: _relations_errors(t.stamp_array, t.final, relations, steps.notes),
+        )
+        loop_rel = {}
+        if loop is not None and relations is not None and loop.online is not None:
+            for name, poses in (("frontend", loop.frontend), ("online", loop.online)):
+                loop_rel[f"relations_{name}"] = steps.run(
+                    "while scoring against the relations",
+                    functools.partial(
+                        _relations_errors, t.stamp_array, poses, relations, steps.notes
+                    ),
+                )
+        return RunSummary(
+            results_dir=self.folder.path,
+            scans=len(t),
+            scans_degraded=t.degraded,
+            odometry_jumps_rejected=int(self.positioner.odometry_jumps),
+            seconds=t.seconds,
+            positioner_seconds=t.positioner_seconds,
+            compile_seconds=t.compile_seconds,
+            stamps=t.stamp_array,
+            poses=t.final,
+            odometry=t.odometry,
+            truth=t.truth,
+            files={},
+            notes=steps.notes,
+            online_poses=None if loop is None else loop.online,
+            frontend_poses=None if loop is None else loop.frontend,
+            partial_reason=steps.reason,
+            git_hash=git_hash(),
+            input={
+                "path": os.path.abspath(log.name),
+                "sha256": file_sha256(log.path) if hash_input else None,
+                "kind": log.kind,
+                "options": log.options,
+            },
+            selection=labels["selection"],
+            reasons=_reason_counts(t.reasons),
+            odometry_noise=self.positioner.odometry_noise.as_dict(),
+            config=labels["config"],
+            bad_lines_skipped=log.bad_lines,
+            truncated=log.truncated,
+            scan_rate_hz=log.scan_rate_hz,
+            truth_errors=truth_errors,
+            relations=rel,
+            no_return_values_found=labels["no_return_values_found"],
+            bag_out=None if self.bag is None else self.bag.summary(),
+            odometry_coverage=labels["odometry_coverage"].as_dict(),
+            loop_closure=None if loop is None else {**loop.summary, **loop_rel},
+        )
 
 
 def _truth_errors(
@@ -384,290 +646,37 @@ def _relations_errors(
     return rel
 
 
-@dataclass(eq=False)
-class _Arrays:
-    """The track as arrays: stamps, estimate, odometry and truth (NaN rows where missing)."""
-
-    stamps: np.ndarray
-    poses: np.ndarray
-    odometry: np.ndarray | None
-    truth: np.ndarray | None
-
-    @classmethod
-    def of(cls, track: _Track) -> _Arrays:
-        return cls(
-            stamps=np.array(track.stamps, dtype=np.float64),
-            poses=np.array(track.poses, dtype=np.float64).reshape(-1, 3),
-            odometry=_pose_rows(track.odoms),
-            truth=_pose_rows(track.truths),
-        )
-
-
-def _write_results(
-    out: Path,
-    log: OpenLog,
-    cfg: Config,
-    a: _Arrays,
-    track: _Track,
-    clf: CarmenWriter,
-    *,
-    outputs: _CovarianceOut,
-    out_tum: str | os.PathLike[str] | None,
-    plot: bool,
-    map_every: int,
-    steps: Steps,
-    loop: LoopClosureResult | None = None,
-) -> dict[str, Path]:
-    """Write the results folder's files but ``summary.json``; name → path of those written,
-    in writing order. Each is a step (:class:`Steps`): one that fails or is interrupted
-    makes the run partial, and the others are still written but ``path.png`` and
-    ``out_tum``, which a partial run does not get. ``loop``: loop closure's result, whose
-    poses ``a.poses`` are and ``trajectory.clf`` then carries."""
-    files: dict[str, Path] = {}
-    optimised = None if loop is None else (a.stamps, loop.poses, loop.frontend, loop.covariances)
-
-    def tum() -> dict[str, Path]:
-        what = "part of the" if steps.partial else "the"
-        comment = f"fuzzypos {__version__}: {what} estimate of {log.name} (t = the scan's stamp)"
-        write_tum(out / "trajectory.tum", a.stamps, a.poses, header_comment=comment)
-        return {"trajectory.tum": out / "trajectory.tum"}
-
-    def out_file() -> dict[str, Path]:
-        assert out_tum is not None
-        comment = f"fuzzypos {__version__} estimate of {log.name}"
-        write_tum(out_tum, a.stamps, a.poses, header_comment=comment)
-        return {"out_tum": Path(out_tum)}
-
-    def trajectory_clf() -> dict[str, Path]:
-        why = "x y theta after loop closure: the optimised poses" if loop is not None else ""
-        kept = clf.close(a.poses if loop is not None else None, why)
-        return {"trajectory.clf": out / "trajectory.clf"} if kept else {}
-
-    def config_toml() -> dict[str, Path]:
-        write_text_file(out / "config.toml", cfg.to_toml())
-        return {"config.toml": out / "config.toml"}
-
-    def path_png() -> dict[str, Path]:
-        _plot_path(out / "path.png", log, a.poses, a.odometry, track.map_points, map_every)
-        return {"path.png": out / "path.png"}
-
-    def loop_files() -> dict[str, Path]:
-        assert loop is not None
-        return loop.write(out, a.stamps, log.name, cfg.loop_closure.map_resolution)
-
-    def map_files() -> dict[str, Path]:
-        assert track.map_scans is not None
-        grid = map_grid(a.poses, track.map_scans.scans, cfg.loop_closure.map_resolution)
-        return grid.write(out)
-
-    for what, write, whole_runs_only in (
-        ("trajectory.tum", tum, False),
-        ("covariance.csv", outputs.close_csv, False),
-        ("the bag", lambda: outputs.close_bag(partial=steps.partial, optimised=optimised), False),
-        (os.fspath(out_tum or ""), out_file if out_tum is not None else None, True),
-        ("trajectory.clf", trajectory_clf, False),
-        ("config.toml", config_toml, False),
-        ("path.png", path_png if plot else None, True),
-        ("loop closure's files", loop_files if loop is not None else None, False),
-        ("the map", map_files if track.map_scans is not None else None, False),
-    ):
-        if write is not None and not (whole_runs_only and steps.partial):
-            files.update(steps.run(f"while writing {what}", write) or {})
-    steps.notes.extend([*outputs.notes, *clf.notes])
-    if steps.partial:
-        missing = [] if "path.png" in files else ["no path.png"]
-        if out_tum is not None and "out_tum" not in files:
-            missing.append(f"{out_tum} was not written")
-        steps.notes.append("a partial run" + (": " + ", and ".join(missing) if missing else ""))
-    return files
-
-
-def _summary(
-    log: OpenLog,
-    track: _Track,
-    a: _Arrays,
-    *,
-    jumps: int,
-    selection: dict[str, Any],
-    config: dict[str, Any],
-    hash_input: bool,
-    truth_errors: dict[str, Any] | None,
-    relations: dict[str, Any] | None,
-    notes: list[str],
-    files: dict[str, Path],
-    odometry_noise: dict[str, Any],
-) -> dict[str, Any]:
-    """The content of ``summary.json`` (:func:`run_log`)."""
-    n, seconds = len(track), track.seconds
-    return {
-        "fuzzypos_version": __version__,
-        "git_hash": git_hash(),
-        "input": {
-            "path": os.path.abspath(log.name),
-            "sha256": file_sha256(log.path) if hash_input else None,
-            "kind": log.kind,
-            "options": log.options,
-        },
-        "selection": selection,
-        "partial": track.partial_reason is not None,
-        "partial_reason": track.partial_reason,
-        "scans": n,
-        "scans_degraded": track.degraded,
-        "reasons": _reason_counts(track.reasons),
-        "odometry_noise": odometry_noise,
-        "odometry_jumps_rejected": jumps,
-        "seconds": seconds,
-        "scans_per_second": n / seconds if seconds > 0 else None,
-        "positioner_seconds": track.positioner_seconds,
-        "positioner_ms_per_scan": 1000.0 * track.positioner_seconds / n,
-        "compile_seconds": track.compile_seconds,
-        "config": config,
-        "bad_lines_skipped": log.bad_lines,
-        "truncated": log.truncated,
-        "scan_rate_hz": log.scan_rate_hz,
-        "first_stamp": track.stamps[0],
-        "last_stamp": track.stamps[-1],
-        "has_odometry": a.odometry is not None,
-        "has_truth": a.truth is not None,
-        "truth_errors": truth_errors,
-        "relations": relations,
-        "notes": notes,
-        "files": {k: str(v) for k, v in files.items()},
-    }
-
-
 def _reason_counts(counts: dict[str, int]) -> dict[str, int]:
     """The scans per reason, in :class:`~fuzzypos.pipeline.Reason`'s order (any other after)."""
     order = [r.value for r in Reason if r.value in counts]
     return {why: counts[why] for why in [*order, *(w for w in counts if w not in order)]}
 
 
-def _final_optimisation(track: _Track, steps: Steps) -> tuple[_Arrays, LoopClosureResult | None]:
-    """The track as arrays, with loop closure's optimised poses once its final optimisation
-    (a step) is done; the front end's where it did not finish, or the run is partial."""
-    a = _Arrays.of(track)
-    if track.mapper is None or steps.partial:
-        return a, None
-    loop = steps.run("in loop closure's final optimisation", track.mapper.finish)
-    if loop is None:
-        steps.notes.append(
-            "loop closure did not finish: trajectory.tum holds the front end's poses"
-        )
-        return a, None
-    steps.notes.append(
-        "loop closure: trajectory.tum holds the optimised poses (trajectory_frontend.tum "
-        "the front end's, trajectory_online.tum each scan's as first output online) and "
-        "so does trajectory.clf; covariance.csv and the bag's odometry are the front end's "
-        "(a bag gets the optimised poses and map -> odom too), covariance_optimised.csv the "
-        "optimised poses' covariances (the pose graph's marginals)"
-    )
-    if loop.covariances is None:
-        steps.notes.append(
-            "no covariance_optimised.csv: gtsam gave no marginals "
-            f"({loop.summary.get('marginals_error')}); the bag's optimised poses' covariance "
-            "is unknown"
-        )
-    return replace(a, poses=loop.poses), loop
+def _no_scans(log: OpenLog, start: float | None, end: float | None) -> ValueError:
+    if start is not None or end is not None:
+        stretch = empty_stretch(log, start, end)
+        if stretch is not None:  # the log has scans, but not there
+            return stretch
+    hint = " (is it a CARMEN log with FLASER or ROBOTLASER1 lines?)" if log.kind == "carmen" else ""
+    return ValueError(f"{log.name}: no scans{hint}")
 
 
-def _finish(
-    out: Path,
-    log: OpenLog,
-    cfg: Config,
-    track: _Track,
-    clf: CarmenWriter,
-    outputs: _CovarianceOut,
-    *,
-    positioner: Positioner,
-    labels: dict[str, Any],
-    out_tum: str | os.PathLike[str] | None,
-    relations: Relations | None,
-    plot: bool,
-    map_every: int,
-    hash_input: bool,
-    progress: Progress | None,
-    compile_seconds: float = 0.0,
-) -> RunSummary:
-    """After the loop: loop closure's final optimisation, the results folder
-    (``summary.json`` last), the run summed up (``compile_seconds``: the kernels' before the
-    loop). Each is a step (:class:`Steps`): one that fails or is interrupted makes the run
-    partial (``track.stopped``, ``partial_reason``) and the rest is still done; where loop
-    closure did not finish, its files are not written and ``trajectory.tum`` and
-    ``trajectory.clf`` hold the front end's poses."""
-    jumps = int(positioner.odometry_jumps)
-    track.compile_seconds = compile_seconds
-    notes = list(dict.fromkeys([*log.notes, *getattr(log.reader, "notes", [])]))
-    steps = Steps(track.stopped, track.partial_reason, notes)
-    n = len(track)
-    if progress is not None and not steps.partial:
-        steps.run("after the last scan", lambda: progress(n, n))
-    a, loop = _final_optimisation(track, steps)
-    files = _write_results(
-        out, log, cfg, a, track, clf, outputs=outputs, out_tum=out_tum, plot=plot,
-        map_every=map_every, steps=steps, loop=loop,
-    )  # fmt: skip
-    truth_errors = steps.run(
-        "scoring against the truth",
-        lambda: _truth_errors(a.truth, a.poses, a.odometry, track.degraded),
-    )
-    rel = steps.run(
-        "while scoring against the relations",
-        lambda: _relations_errors(a.stamps, a.poses, relations, notes),
-    )
-    loop_rel = {}
-    if loop is not None and relations is not None and loop.online is not None:
-        for name, poses in (("frontend", loop.frontend), ("online", loop.online)):
-            loop_rel[f"relations_{name}"] = steps.run(
-                "while scoring against the relations",
-                functools.partial(_relations_errors, a.stamps, poses, relations, notes),
-            )
-    track.stopped, track.partial_reason = steps.stop, steps.reason
-    files["summary.json"] = out / "summary.json"
-    summary = _summary(
-        log,
-        track,
-        a,
-        jumps=jumps,
-        selection=labels["selection"],
-        config=labels["config"],
-        hash_input=hash_input,
-        truth_errors=truth_errors,
-        relations=rel,
-        notes=notes,
-        files=files,
-        odometry_noise=positioner.odometry_noise.as_dict(),
-    )
-    summary["no_return_values_found"] = labels["no_return_values_found"]
-    summary["bag_out"] = outputs.bag_summary()
-    coverage = labels["odometry_coverage"]
-    summary["odometry_coverage"] = coverage.as_dict()
-    if coverage.note() is not None and coverage.note() not in notes:
-        notes.append(coverage.note())
-    if loop is not None:
-        summary["loop_closure"] = {**loop.summary, **loop_rel}
-    if not steps.done(
-        "while writing summary.json", lambda: write_json(out / "summary.json", summary)
-    ):
-        del files["summary.json"]
-    track.stopped, track.partial_reason = steps.stop, steps.reason
-    return RunSummary(
-        results_dir=out,
-        scans=len(track),
-        scans_degraded=track.degraded,
-        odometry_jumps_rejected=jumps,
-        seconds=track.seconds,
-        positioner_seconds=track.positioner_seconds,
-        compile_seconds=track.compile_seconds,
-        stamps=a.stamps,
-        poses=a.poses,
-        odometry=a.odometry,
-        truth=a.truth,
-        files=files,
-        summary=summary,
-        notes=notes,
-        online_poses=None if loop is None else loop.online,
-        frontend_poses=None if loop is None else loop.frontend,
-    )
+def _scans_in_stretch(
+    log: OpenLog, start: float | None, end: float | None, max_scans: int | None
+) -> int | None:
+    """The scans of the stretch, for the progress bar: the whole log's count, or with
+    ``start``/``end`` those its scans' stamps put in the stretch
+    (:meth:`~fuzzypos.io.logs.OpenLog.scan_stamps`, which the survey took); None when
+    unknown."""
+    total: int | None = None
+    if start is None and end is None:
+        total = log.scan_count_hint()
+    else:
+        with contextlib.suppress(OSError):
+            total = len(select_stamps(log.scan_stamps(), start=start, end=end))
+    if max_scans is not None:
+        total = max_scans if total is None else min(total, max_scans)
+    return total
 
 
 def run_log(
@@ -712,7 +721,7 @@ def run_log(
     stretch can have at most, when known: a bag's stretch by time is not). The kernels compile
     (or load) first, in ``compiling()`` if cold (:func:`~fuzzypos.pipeline.warm.compile_kernels`).
 
-    ``summary.json`` holds: ``fuzzypos_version``, ``git_hash``
+    ``summary.json`` (:meth:`RunSummary.to_json`) holds: ``fuzzypos_version``, ``git_hash``
     (:func:`~fuzzypos.io.provenance.git_hash`), ``input`` (``path``, ``sha256``
     (:func:`~fuzzypos.io.provenance.file_sha256`; None with ``hash_input=False``), ``kind``, reader
     ``options``), ``selection``, ``scans``, ``scans_degraded``, ``reasons``, ``odometry_noise``
@@ -733,12 +742,15 @@ def run_log(
     Raises ``ValueError`` (bad arguments, a log without scans in the stretch, a malformed
     log) or ``OSError`` (an output path refused before the run:
     :class:`~fuzzypos.io.OutputPathError`; a folder another run holds:
-    :class:`~fuzzypos.jobs.folders.ResultsFolderBusyError`). An error or ``KeyboardInterrupt``
-    (numba's ``SystemError`` around one too) after some scans is raised once what was done is
-    written (``"partial": true``, ``"partial_reason"``: ``"interrupted at scan N"``, ``"failed
-    at scan N: …"``, or after the loop ``"interrupted in loop closure's final optimisation"``,
-    ``"failed while writing F: No space left on device"`` …; no ``path.png`` or ``out_tum``
-    after it; their :class:`RunSummary`: :func:`partial_results`); before it, nothing kept.
+    :class:`~fuzzypos.jobs.folders.ResultsFolderBusyError`). An error after some scans is
+    raised, once what was done is written (``"partial": true``, ``"partial_reason"``:
+    ``"failed at scan N: …"``, ``"failed while writing F: No space left on device"`` …; no
+    ``path.png`` or ``out_tum`` after it), as a :class:`PartialRunError` carrying the
+    :class:`RunSummary` (an ``OSError`` too where one stopped the run); Ctrl-C (numba's
+    ``SystemError`` around one too) as the ``KeyboardInterrupt``, the
+    :class:`PartialRunError` its ``__cause__`` (``"interrupted at scan N"``, ``"interrupted
+    in loop closure's final optimisation"`` …; :func:`partial_results`). Before the first
+    scan, nothing is kept.
     """
     if not isinstance(log, OpenLog):
         log = open_log(log)
@@ -748,28 +760,23 @@ def run_log(
     records = select_records(coverage.records(log.records()), **stretch)
     log.check_stamps(**stretch)  # corrupt stamps: StampError
     total = _scans_in_stretch(log, start, end, max_scans) if progress is not None else None
-    positioner = Positioner(cfg)
     given = None if results_dir is None else Path(results_dir)
     frames = None if bag_out is None else resolve_bag_frames(log.reader, bag_frames)
     compile_seconds = _before_the_run(cfg, given, out_tum, bag_out, compiling)
     folder = ResultsFolder.make(log.name, given, overwrite)
     with folder:  # locked by this run until it ends
-        clf, outputs = _open_outputs(folder, log.name, bag_out, bag_storage, frames)
-        track = _position_along(
-            records, positioner, clf, outputs, plot, map_every, progress, total, save_map
-        )
+        job = RunJob(
+            log, cfg, folder, out_tum=out_tum, bag_out=bag_out, bag_storage=bag_storage,
+            frames=frames, plot=plot, map_every=map_every, save_map=save_map,
+        )  # fmt: skip
+        track = job.run(records, progress, total, compile_seconds)
         if len(track) == 0:
-            clf.abort()
-            outputs.abort()
-            folder.discard()
             raise track.stopped if track.stopped is not None else _no_scans(log, start, end)
         finish = functools.partial(
-            _finish, folder.path, log, cfg, track, clf, outputs, positioner=positioner,
-            labels=_labels(stretch, preset, config_file, found, coverage), out_tum=out_tum,
-            relations=relations, plot=plot, map_every=map_every, hash_input=hash_input,
-            progress=progress, compile_seconds=compile_seconds,
+            job.finish, labels=_labels(stretch, preset, config_file, found, coverage),
+            relations=relations, hash_input=hash_input, progress=progress,
         )  # fmt: skip
-        return _keep(finish, folder, track, clf, outputs)
+        return _keep(finish, job)
 
 
 def _before_the_run(
@@ -800,7 +807,7 @@ def _labels(
     found: list[dict[str, Any]],
     coverage: OdometryCoverage,
 ) -> dict[str, Any]:
-    """What :func:`_finish` puts into ``summary.json`` besides the run's own figures."""
+    """What :meth:`RunJob.finish` puts into ``summary.json`` besides the run's own figures."""
     return {
         "selection": {
             "start_s": stretch["start"],
@@ -819,52 +826,27 @@ def _survey(log: OpenLog, cfg: Config) -> tuple[Config, list[dict[str, Any]], Od
     ``scanner.no_return_bands`` (so the positioner and ``config.toml`` have them), every
     code found (``value_m``, ``readings``, ``invalid_at_range_max``, ``in_configured_band``)
     for ``summary.json``'s ``no_return_values_found``, and which scans the odometry covers
-    (``odometry_coverage``; the others are positioned without odometry)."""
+    (``odometry_coverage``; the others are positioned without odometry). It also takes the
+    scans' stamps (:meth:`~fuzzypos.io.logs.OpenLog.scan_stamps`), so that the stamps' check
+    and the progress total read the log no more."""
     found, coverage = survey_log(log, cfg.scanner)
     return with_found_bands(cfg, found), [f.as_dict() for f in found], coverage
 
 
-def _open_outputs(
-    folder: ResultsFolder,
-    source: str,
-    bag_out: str | os.PathLike[str] | None,
-    storage: str | None,
-    frames: OutputFrames | None = None,
-) -> tuple[CarmenWriter, _CovarianceOut]:
-    """The streamed outputs of a run: ``trajectory.clf``, ``covariance.csv`` and the bag (on
-    failure, none, and the folders the run created are removed)."""
-    clf: CarmenWriter | None = None
-    try:
-        clf = CarmenWriter(folder.path / "trajectory.clf", estimate_of=source)
-        return clf, _CovarianceOut(folder.path, source, bag_out, storage, frames)
-    except BaseException:
-        if clf is not None:
-            clf.abort()
-        folder.discard()
-        raise
-
-
-def _keep(
-    finish: Callable[[], RunSummary],
-    folder: ResultsFolder,
-    track: _Track,
-    clf: CarmenWriter,
-    outputs: _CovarianceOut,
-) -> RunSummary:
+def _keep(finish: Callable[[], RunSummary], job: RunJob) -> RunSummary:
     """Write the results (``finish``); raise what stopped the run, if anything did (in the
-    loop or after it), with the results kept (:func:`partial_results`)."""
+    loop or after it), with the results kept (:class:`PartialRunError`)."""
+    track = job.track
     try:
         summary = finish()
     except BaseException as exc:
-        clf.abort()
-        outputs.abort()
+        job.abort()
         if track.stopped is not None:  # what stopped the run, not what failed after it
             raise track.stopped from None
         if is_interrupt(exc):
             raise as_interrupt(exc) from None
         raise
-    folder.link_latest()
+    job.folder.link_latest()
     if track.stopped is not None:
-        track.stopped.__dict__[_PARTIAL] = summary
-        raise track.stopped
+        raise _partial(summary, track.stopped)
     return summary
