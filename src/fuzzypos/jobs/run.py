@@ -289,10 +289,11 @@ def _partial(summary: RunSummary, stopped: BaseException) -> BaseException:
     """What :func:`run_log` raises for a run ``stopped`` after some scans: a
     :class:`PartialRunError` for an error it reports (``ValueError``, ``OSError``), else (Ctrl-C,
     a bug) ``stopped`` itself, the :class:`PartialRunError` its ``__cause__``."""
-    if isinstance(stopped, OSError):
-        return _PartialRunOSError(summary, stopped)
-    error = PartialRunError(summary, stopped)
-    if isinstance(stopped, ValueError):
+    error = (_PartialRunOSError if isinstance(stopped, OSError) else PartialRunError)(
+        summary, stopped
+    )
+    if isinstance(stopped, (ValueError, OSError)):
+        error.__cause__ = stopped
         return error
     stopped.__cause__ = error
     return stopped
