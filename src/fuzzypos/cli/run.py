@@ -177,11 +177,11 @@ def run(
         f"{summary.odometry_jumps_rejected} odometry jumps rejected"
         + (f", {bad} bad lines skipped" if bad else "")
     )
-    if summary.truth_errors:
-        e = summary.truth_errors["estimate"]
+    if summary.truth_errors is not None:
+        e = summary.truth_errors.estimate
         typer.echo(
-            f"against the log's truth: final {e['final_position_error_m']:.3f} m, mean "
-            f"{e['mean_position_error_m']:.3f} m, mean heading {e['mean_heading_error_deg']:.2f}°"
+            f"against the log's truth: final {e.final_position_error_m:.3f} m, mean "
+            f"{e.mean_position_error_m:.3f} m, mean heading {e.mean_heading_error_deg:.2f}°"
         )
     for line in loop_closure_lines(summary.loop_closure, summary.relations):
         typer.echo(line)

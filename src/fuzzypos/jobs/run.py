@@ -86,7 +86,12 @@ import numpy as np
 from .._version import __version__
 from ..config import Config
 from ..errors import FuzzyposError
-from ..eval.metrics import EvaluationError, relations_errors, trajectory_errors
+from ..eval.metrics import (
+    EvaluationError,
+    TrajectoryErrors,
+    relations_errors,
+    trajectory_errors,
+)
 from ..geometry import Pose2D
 from ..graph import require_gtsam
 from ..io import CarmenWriter, LogRecord, OpenLog, Relations, open_log
@@ -139,6 +144,7 @@ __all__ = [
     "ResultsFolderError",
     "RunJob",
     "RunSummary",
+    "TruthErrors",
     "as_interrupt",
     "default_results_dir",
     "is_interrupt",
@@ -155,6 +161,21 @@ _PROGRESS_EVERY = 25
 
 
 # -- what a run did --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TruthErrors:
+    """``summary.json``'s ``truth_errors``: the estimate's errors against the log's truth
+    (``TRUEPOS``, where every scan has one), and the odometry's where it covers every scan."""
+
+    estimate: TrajectoryErrors
+    odometry: TrajectoryErrors | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"estimate": self.estimate.as_dict()}
+        if self.odometry is not None:
+            out["odometry"] = self.odometry.as_dict()
+        return out
+
+
 @dataclass(eq=False)
 class RunSummary:
     """What :func:`run_log` did: ``summary.json`` typed (:meth:`to_json` gives it, key for
@@ -195,7 +216,7 @@ class RunSummary:
     bad_lines_skipped: int = 0
     truncated: bool = False
     scan_rate_hz: float | None = None
-    truth_errors: dict[str, Any] | None = None
+    truth_errors: TruthErrors | None = None
     relations: dict[str, Any] | None = None
     no_return_values_found: list[dict[str, Any]] = field(default_factory=list)
     bag_out: dict[str, Any] | None = None
@@ -248,7 +269,7 @@ class RunSummary:
             "last_stamp": float(self.stamps[-1]),
             "has_odometry": self.odometry is not None,
             "has_truth": self.truth is not None,
-            "truth_errors": self.truth_errors,
+            "truth_errors": None if self.truth_errors is None else self.truth_errors.as_dict(),
             "relations": self.relations,
             "notes": self.notes,
             "files": self.listed_files,
@@ -623,15 +644,15 @@ class RunJob:
 
 def _truth_errors(
     truth: np.ndarray | None, poses: np.ndarray, odometry: np.ndarray | None, degraded: int
-) -> dict[str, Any] | None:
+) -> TruthErrors | None:
     """The estimate's (and the odometry's) errors against the log's truth, where every scan
     has one."""
     if truth is None or not np.isfinite(truth).all():
         return None
-    out: dict[str, Any] = {"estimate": trajectory_errors(truth, poses, degraded).as_dict()}
+    odo = None
     if odometry is not None and np.isfinite(odometry).all():
-        out["odometry"] = trajectory_errors(truth, odometry, 0).as_dict()
-    return out
+        odo = trajectory_errors(truth, odometry, 0)
+    return TruthErrors(trajectory_errors(truth, poses, degraded), odo)
 
 
 def _relations_errors(
