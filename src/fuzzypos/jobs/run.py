@@ -43,7 +43,7 @@ its :class:`RunSummary` is ``summary.json`` typed (:meth:`RunSummary.to_json`).
                     value, each that occurred); ``odometry_noise``, the odometry's noise as
                     learned by the end of the run
                     (:meth:`~fuzzypos.pipeline.OdometryNoise.as_dict`); the "no return"
-                    codes found in the log's readings (:func:`_no_returns`)
+                    codes found in the log's readings (:func:`~fuzzypos.io.logs.survey_log`)
 ================  ==========================================================================
 
 With ``bag_out=`` the estimate also goes into a bag as it runs
@@ -236,10 +236,6 @@ class RunSummary:
     @property
     def positioner_ms_per_scan(self) -> float:
         return 1000.0 * self.positioner_seconds / self.scans
-
-    @property
-    def results_dir_name(self) -> str:
-        return os.fspath(self.results_dir)
 
     def to_json(self) -> dict[str, Any]:
         """The content of ``summary.json``, in its order."""
