@@ -22,7 +22,7 @@ LAYERS = (
     ("matching",),
     ("pipeline",),
     ("io", "sim"),
-    ("eval", "graph", "plot"),
+    ("eval", "graph", "plot", "localization"),
     ("jobs",),
     ("cli",),
     ("logs", "evaluation"),  # deprecated paths: re-exports of io.logs and eval.metrics

@@ -1,5 +1,6 @@
 """The configuration of the whole pipeline: :class:`Config` (:mod:`.core`), its sections
-(:mod:`.features`, :mod:`.pipeline`, :mod:`.uncertainty`, :mod:`.scanner`, :mod:`.graph`), the
+(:mod:`.features`, :mod:`.pipeline`, :mod:`.uncertainty`, :mod:`.scanner`, :mod:`.graph`,
+:mod:`.localization`), the
 declarations and TOML handling they are built from (:mod:`.schema`) and the settings' reference
 (:mod:`.docs`)."""
 
@@ -17,6 +18,7 @@ from .core import (
     FuzzyConfig,
     GateConfig,
     LineConfig,
+    LocalizationConfig,
     LoopClosureConfig,
     MatchingConfig,
     OdometryConfig,
@@ -48,6 +50,7 @@ __all__ = [
     "GateConfig",
     "ScannerConfig",
     "LoopClosureConfig",
+    "LocalizationConfig",
     "FieldSpec",
     "same_as_last_call",
     "PRESETS",

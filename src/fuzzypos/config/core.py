@@ -32,6 +32,7 @@ from .features import (
     VirtualPointConfig,
 )
 from .graph import LoopClosureConfig
+from .localization import LocalizationConfig
 from .pipeline import FusionConfig, MatchingConfig, OdometryConfig, RefinementConfig, SearchConfig
 from .scanner import ScannerConfig
 from .schema import (
@@ -68,6 +69,7 @@ __all__ = [
     "GateConfig",
     "ScannerConfig",
     "LoopClosureConfig",
+    "LocalizationConfig",
     "FieldSpec",
     "same_as_last_call",
     "PRESETS",
@@ -96,6 +98,7 @@ class Config:
     odometry_noise: OdometryNoiseConfig = field(default_factory=OdometryNoiseConfig)
     gate: GateConfig = field(default_factory=GateConfig)
     loop_closure: LoopClosureConfig = field(default_factory=LoopClosureConfig)
+    localization: LocalizationConfig = field(default_factory=LocalizationConfig)
 
     def __post_init__(self) -> None:
         validate(self, _SECTIONS)

@@ -1,0 +1,409 @@
+"""The localizer: where in a known map the robot is, from its scans and odometry.
+
+While it does not know (SEARCHING, or LOST after tracking failed) it keeps up to
+``max_hypotheses`` distinct places: the whole map is searched for the places that explain the
+scan (:class:`~.search.GlobalSearch`), again every ``research_interval`` scans; each place is
+carried by the odometry and fitted to the map at every scan, and scores the scan's
+log-likelihood there. A new place is scored back over the scans the window holds (followed
+backward by the odometry, fitted at each), so all places are weighed over the same scans.
+It decides when the best place beats every distinct rival by ``evidence_margin`` over the
+window and fits the scans well; places that look the same (two identical rooms) never do,
+and it keeps searching. Then it tracks: the odometry's step as the prior, the scan fitted to
+the map's walls (point-to-line Gauss-Newton), the covariance from the fit's Hessian and
+residuals. A fit that fails ``lost_scans`` times in a row makes it LOST, and it searches
+again (docs/localization.md)."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._kernels.localize import FIT_OK, fit, likelihood
+from ..config import Config
+from ..geometry import Pose2D, compose, inverse, relative
+from ..io.occupancy_map import OccupancyMap
+from ..scan import LaserScan
+from .field import MapField, field_of
+from .search import GlobalSearch, thin
+from .types import InitialPoseError, LocalizationEstimate, LocalizerState
+
+__all__ = ["Localizer"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class _Place:
+    """A hypothesis: its pose now (grid frame) and its log-likelihood and fit per scan of the
+    window (oldest first)."""
+
+    pose: FloatArray
+    evidence: deque[float]
+    fits: deque[float]
+    information: FloatArray = field(default_factory=lambda: np.zeros((3, 3)))
+    residual: float = 0.0
+
+    def total(self) -> float:
+        return float(sum(self.evidence))
+
+
+@dataclass
+class _Fit:
+    """A fit of one scan: the pose, its covariance (grid frame), the fit (0..1) and the
+    scan's log-likelihood (per effective point count)."""
+
+    pose: FloatArray
+    covariance: FloatArray
+    fit: float
+    evidence: float
+    ok: bool
+
+
+class Localizer:
+    """Localisation in ``occupancy_map`` (module docstring); ``initial_pose`` (map frame,
+    with ``initial_sigma`` = (m, rad)) as :meth:`set_initial_pose`."""
+
+    def __init__(
+        self,
+        occupancy_map: OccupancyMap,
+        config: Config | None = None,
+        *,
+        initial_pose: Pose2D | Sequence[float] | None = None,
+        initial_sigma: tuple[float, float] | None = None,
+    ) -> None:
+        cfg = config if config is not None else Config()
+        self._cfg = cfg.localization
+        self._bands = tuple(cfg.scanner.no_return_bands)
+        self._field: MapField = field_of(occupancy_map, self._cfg)
+        self._search = GlobalSearch(self._field, self._cfg)
+        self._state = LocalizerState.SEARCHING
+        self._places: list[_Place] = []
+        self._history: deque[tuple[FloatArray, FloatArray]] = deque(
+            maxlen=self._cfg.evidence_window
+        )
+        self._since_search = 0
+        self._last_odom: FloatArray | None = None
+        self._pose: FloatArray | None = None
+        self._covariance: FloatArray | None = None
+        self._bad = 0
+        self._pending: tuple[FloatArray, tuple[float, float]] | None = None
+        if initial_pose is not None:
+            self.set_initial_pose(initial_pose, initial_sigma)
+
+    @property
+    def state(self) -> LocalizerState:
+        return self._state
+
+    @property
+    def field(self) -> MapField:
+        """The map as the localizer reads it."""
+        return self._field
+
+    # -- the user's word ---------------------------------------------------------------------
+    def set_initial_pose(
+        self, pose: Pose2D | Sequence[float], sigma: tuple[float, float] | None = None
+    ) -> None:
+        """Where the robot is (map frame), to within ``sigma`` = (m, rad) (default
+        initial_sigma_*): the next scan is searched for within 3σ of it and tracked from
+        there, whatever the localizer believed. Raises :class:`InitialPoseError` for a pose
+        off the map or farther than initial_free_distance from its free space."""
+        p = Pose2D.of(pose, "initial pose")
+        if sigma is None:
+            sigma = (self._cfg.initial_sigma_translation, self._cfg.initial_sigma_rotation)
+        st, sr = (float(v) for v in sigma)
+        if not (math.isfinite(st) and math.isfinite(sr) and st >= 0.0 and sr >= 0.0):
+            raise InitialPoseError(
+                f"initial pose sigma must be two finite values >= 0, got {sigma!r}"
+            )
+        grid = self._field.to_grid(p.as_array())
+        gap = self._field.distance_to_free(grid)
+        if gap > self._cfg.initial_free_distance:
+            where = "off the map" if math.isinf(gap) else f"{gap:.2f} m from the map's free space"
+            raise InitialPoseError(
+                f"initial pose ({p.x:.3f}, {p.y:.3f}, {math.degrees(p.theta):.1f}°) lies {where}"
+            )
+        self._pending = (grid, (st, sr))
+
+    # -- each scan ---------------------------------------------------------------------------
+    def update(
+        self, scan: LaserScan, odom: Pose2D | Sequence[float] | None = None
+    ) -> LocalizationEstimate:
+        """The estimate at this scan, with the odometry pose at it (None: no odometry, the
+        robot taken as standing still between scans)."""
+        step = np.zeros(3)
+        if odom is not None:
+            o = Pose2D.of(odom, "odometry").as_array()
+            if self._last_odom is not None:
+                step = relative(self._last_odom, o)
+            self._last_odom = o
+        points = self._points(scan)
+        if self._pending is not None:
+            return self._start_at(scan.stamp, points, step)
+        if self._state is LocalizerState.TRACKING:
+            return self._track(scan.stamp, points, step)
+        return self._look(scan.stamp, points, step)
+
+    def _points(self, scan: LaserScan) -> FloatArray:
+        pts = scan.points_robot(self._bands)
+        pts = pts[np.isfinite(pts).all(axis=1)]
+        return thin(
+            np.ascontiguousarray(pts, dtype=np.float64),
+            self._field.resolution,
+            self._cfg.max_points,
+        )
+
+    # -- fitting -----------------------------------------------------------------------------
+    def _prior(self, step: FloatArray) -> FloatArray:
+        """The information of the odometry's step as the fit's prior."""
+        cfg = self._cfg
+        st = cfg.odometry_translation + cfg.odometry_fraction * math.hypot(step[0], step[1])
+        sr = cfg.odometry_rotation + cfg.odometry_fraction * abs(step[2])
+        return np.diag([st**-2, st**-2, sr**-2])
+
+    def _fit(self, points: FloatArray, start: FloatArray, information: FloatArray) -> _Fit:
+        cfg = self._cfg
+        settings = np.array(
+            [cfg.fit_gate, cfg.hit_sigma / 2.0, cfg.fit_iterations], dtype=np.float64
+        )
+        pose, h, sse, wsum, used, status = fit(
+            points, start, start, information, self._field.walls, settings
+        )
+        loglik, quality = likelihood(
+            points, pose, self._field.walls, cfg.hit_sigma, cfg.outlier_probability
+        )
+        evidence = loglik * cfg.effective_points / max(points.shape[0], 1)
+        cov = self._covariance_of(h, sse, wsum, used)
+        ok = status == FIT_OK and quality >= cfg.min_fit and cov is not None
+        return _Fit(pose, cov if cov is not None else np.eye(3), quality, evidence, ok)
+
+    def _covariance_of(
+        self, h: FloatArray, sse: float, wsum: float, used: int
+    ) -> FloatArray | None:
+        """σ̂² H⁻¹ (σ̂² the weighted residual variance), the points counted as
+        covariance_points independent ones, plus the floor."""
+        cfg = self._cfg
+        if used < 6 or abs(np.linalg.det(h)) < 1e-12:
+            return None
+        var = sse / max(wsum - 3.0, 1.0)
+        scale = max(1.0, used / cfg.covariance_points)
+        cov = var * scale * np.linalg.inv(h)
+        floor = np.diag(
+            [cfg.covariance_floor_translation**2] * 2 + [cfg.covariance_floor_rotation**2]
+        )
+        out: FloatArray = 0.5 * (cov + cov.T) + floor
+        return out
+
+    # -- tracking ----------------------------------------------------------------------------
+    def _start_at(self, stamp: float, points: FloatArray, step: FloatArray) -> LocalizationEstimate:
+        """The first scan after an initial pose: searched for around it, then tracked."""
+        assert self._pending is not None
+        grid, (st, sr) = self._pending
+        self._pending = None
+        reach = (3.0 * st, 3.0 * sr)
+        found = self._search.search(points, grid, reach, limit=1)
+        start = found[0].pose if found else grid
+        result = self._fit(points, start, self._prior(np.zeros(3)) * 1e-6)
+        if not result.ok:
+            result = _Fit(
+                grid, np.diag([st**2 + 1e-6, st**2 + 1e-6, sr**2 + 1e-8]), result.fit, 0.0, False
+            )
+        self._begin_tracking(result)
+        return self._tracking_estimate(
+            stamp, None, result, "initial pose" if result.ok else "initial pose (no fit)"
+        )
+
+    def _begin_tracking(self, result: _Fit) -> None:
+        self._state = LocalizerState.TRACKING
+        self._pose = result.pose
+        self._covariance = result.covariance
+        self._places.clear()
+        self._history.clear()
+        self._bad = 0
+
+    def _track(self, stamp: float, points: FloatArray, step: FloatArray) -> LocalizationEstimate:
+        assert self._pose is not None and self._covariance is not None
+        predicted = compose(self._pose, step)
+        result = self._fit(points, predicted, self._prior(step))
+        if not result.ok:
+            reach = (
+                0.5 + 3.0 * math.hypot(step[0], step[1]) * self._cfg.odometry_fraction,
+                math.radians(10.0) + 3.0 * abs(step[2]) * self._cfg.odometry_fraction,
+            )
+            found = self._search.search(points, predicted, reach, limit=1)
+            if found:
+                retry = self._fit(points, found[0].pose, self._prior(step))
+                if retry.ok:
+                    result = retry
+        previous = self._covariance
+        if result.ok:
+            self._bad = 0
+            self._pose, self._covariance = result.pose, result.covariance
+            return self._tracking_estimate(stamp, previous, result, "matched")
+        self._bad += 1
+        if self._bad >= self._cfg.lost_scans:
+            self._state = LocalizerState.LOST
+            self._pose = self._covariance = None
+            self._places.clear()
+            self._history.clear()
+            self._since_search = 0
+            return self._searching_estimate(stamp, 0.0, "lost: the map no longer fits the scans")
+        grown = _propagate(previous, self._pose, step, self._prior(step))
+        self._pose, self._covariance = predicted, grown
+        coasting = _Fit(predicted, grown, result.fit, result.evidence, False)
+        return self._tracking_estimate(
+            stamp, previous, coasting, "odometry only: the scan does not fit"
+        )
+
+    def _tracking_estimate(
+        self, stamp: float, previous: FloatArray | None, result: _Fit, reason: str
+    ) -> LocalizationEstimate:
+        assert self._pose is not None and self._covariance is not None
+        yaw = float(self._field.origin[2])
+        cov = _rotated(self._covariance, yaw)
+        robot = _rotated(self._covariance, -float(self._pose[2]))
+        step_cov = robot + (
+            _rotated(previous, -float(self._pose[2])) if previous is not None else 0.0
+        )
+        return LocalizationEstimate(
+            stamp,
+            LocalizerState.TRACKING,
+            self._field.pose_of(self._pose),
+            cov,
+            step_cov,
+            float(np.clip(result.fit, 0.0, 1.0)),
+            reason,
+        )
+
+    # -- searching ---------------------------------------------------------------------------
+    def _look(self, stamp: float, points: FloatArray, step: FloatArray) -> LocalizationEstimate:
+        """One scan while not localised: the places followed, new ones searched for, and the
+        vote."""
+        cfg = self._cfg
+        self._history.append((points, step))
+        for place in self._places:
+            result = self._fit(points, compose(place.pose, step), self._prior(step))
+            place.pose = result.pose
+            place.information = result.covariance
+            place.evidence.append(result.evidence)
+            place.fits.append(result.fit)
+        if self._since_search % cfg.research_interval == 0:
+            self._add_places(points)
+        self._since_search += 1
+        self._prune()
+        return self._vote(stamp)
+
+    def _add_places(self, points: FloatArray) -> None:
+        cfg = self._cfg
+        for cand in self._search.search(points):
+            result = self._fit(points, cand.pose, self._prior(np.zeros(3)) * 1e-4)
+            if any(
+                _same(result.pose, p.pose, cfg.separation, cfg.separation_angle)
+                for p in self._places
+            ):
+                continue
+            self._places.append(self._backfill(result))
+
+    def _backfill(self, now: _Fit) -> _Place:
+        """A new place scored over the window's scans: followed backward by the odometry and
+        fitted at each."""
+        window = self._cfg.evidence_window
+        evidence: deque[float] = deque(maxlen=window)
+        fits: deque[float] = deque(maxlen=window)
+        evidence.append(now.evidence)
+        fits.append(now.fit)
+        history = list(self._history)
+        pose = now.pose
+        for k in range(len(history) - 1, 0, -1):
+            _, step = history[k]
+            points, _ = history[k - 1]
+            back = compose(pose, inverse(step))
+            result = self._fit(points, back, self._prior(step))
+            pose = result.pose
+            evidence.appendleft(result.evidence)
+            fits.appendleft(result.fit)
+        return _Place(now.pose, evidence, fits, now.covariance)
+
+    def _prune(self) -> None:
+        """Places that became the same are merged (the better kept); at most max_hypotheses,
+        the best by evidence; places far behind the best (3 margins) dropped."""
+        cfg = self._cfg
+        self._places.sort(key=lambda p: -p.total())
+        kept: list[_Place] = []
+        for place in self._places:
+            if any(
+                _same(place.pose, k.pose, cfg.separation / 2, cfg.separation_angle / 2)
+                for k in kept
+            ):
+                continue
+            if kept and place.total() < kept[0].total() - 3.0 * cfg.evidence_margin:
+                continue
+            kept.append(place)
+        self._places = kept[: cfg.max_hypotheses]
+
+    def _vote(self, stamp: float) -> LocalizationEstimate:
+        cfg = self._cfg
+        if not self._places:
+            return self._searching_estimate(stamp, 0.0, "no place in the map fits the scan")
+        best = self._places[0]
+        rivals = [
+            p
+            for p in self._places[1:]
+            if not _same(p.pose, best.pose, cfg.separation, cfg.separation_angle)
+        ]
+        lead = best.total() - max((r.total() for r in rivals), default=-math.inf)
+        recent = list(best.fits)[-cfg.min_scans :]
+        fits_well = bool(recent) and float(np.mean(recent)) >= cfg.min_fit
+        enough = len(self._history) >= cfg.min_scans
+        decisiveness = min(1.0, lead / cfg.evidence_margin) if math.isfinite(lead) else 1.0
+        if enough and fits_well and lead >= cfg.evidence_margin:
+            result = _Fit(best.pose, best.information, recent[-1], 0.0, True)
+            self._begin_tracking(result)
+            return self._tracking_estimate(stamp, None, result, "localised")
+        if not fits_well:
+            why = "no place in the map fits the scans well"
+        elif rivals and lead < cfg.evidence_margin:
+            why = f"ambiguous: {len(rivals) + 1} places explain the scans"
+        else:
+            why = "gathering evidence"
+        prefix = "lost: " if self._state is LocalizerState.LOST else ""
+        return self._searching_estimate(stamp, max(0.0, decisiveness) * 0.99, prefix + why)
+
+    def _searching_estimate(
+        self, stamp: float, confidence: float, reason: str
+    ) -> LocalizationEstimate:
+        return LocalizationEstimate(stamp, self._state, None, None, None, float(confidence), reason)
+
+
+def _same(a: FloatArray, b: FloatArray, distance: float, angle: float) -> bool:
+    turn = abs((a[2] - b[2] + math.pi) % (2.0 * math.pi) - math.pi)
+    return math.hypot(a[0] - b[0], a[1] - b[1]) < distance and turn < angle
+
+
+def _rotated(cov: FloatArray, angle: float) -> FloatArray:
+    """A covariance (x, y, θ) in a frame turned by ``angle``."""
+    c, s = math.cos(angle), math.sin(angle)
+    r = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    out: FloatArray = r @ cov @ r.T
+    return out
+
+
+def _propagate(
+    cov: FloatArray, pose: FloatArray, step: FloatArray, information: FloatArray
+) -> FloatArray:
+    """The covariance after an odometry step of the given information (first order)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    ja = np.array(
+        [
+            [1.0, 0.0, -s * step[0] - c * step[1]],
+            [0.0, 1.0, c * step[0] - s * step[1]],
+            [0.0, 0.0, 1.0],
+        ]
+    )
+    jb = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    out: FloatArray = ja @ cov @ ja.T + jb @ np.linalg.inv(information) @ jb.T
+    return out
