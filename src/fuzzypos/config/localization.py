@@ -152,6 +152,21 @@ class LocalizationConfig:
         "map searched again (a carried robot, a failed match)",
         ge=1,
     )
+    fit_drop: float = _field(
+        0.15,
+        "a fit 0.15 below its running level for lost_scans scans in a row is suspect: the "
+        "whole map is searched for a place that explains those scans better by "
+        "evidence_margin (a robot carried to a place alike enough to fit, e.g. another part "
+        "of the same corridor); found, the localizer is LOST and votes again",
+        gt=0.0,
+        lt=1.0,
+    )
+    fit_level_rate: float = _field(
+        0.05,
+        "the fit's running level follows each scan's fit by 5 % (about the last 20 scans)",
+        gt=0.0,
+        le=1.0,
+    )
     fit_iterations: int = _field(
         12,
         "at most 12 Gauss-Newton iterations per fit: it converges in 3-6 from the odometry",

@@ -91,6 +91,9 @@ class Localizer:
         self._pose: FloatArray | None = None
         self._covariance: FloatArray | None = None
         self._bad = 0
+        self._drop = 0
+        self._level = 0.0
+        self._cooldown = 0
         self._pending: tuple[FloatArray, tuple[float, float]] | None = None
         if initial_pose is not None:
             self.set_initial_pose(initial_pose, initial_sigma)
@@ -224,15 +227,20 @@ class Localizer:
         self._places.clear()
         self._history.clear()
         self._bad = 0
+        self._drop = 0
+        self._level = result.fit
+        self._cooldown = 0
 
     def _track(self, stamp: float, points: FloatArray, step: FloatArray) -> LocalizationEstimate:
         assert self._pose is not None and self._covariance is not None
+        cfg = self._cfg
+        self._history.append((points, step))
         predicted = compose(self._pose, step)
         result = self._fit(points, predicted, self._prior(step))
         if not result.ok:
             reach = (
-                0.5 + 3.0 * math.hypot(step[0], step[1]) * self._cfg.odometry_fraction,
-                math.radians(10.0) + 3.0 * abs(step[2]) * self._cfg.odometry_fraction,
+                0.5 + 3.0 * math.hypot(step[0], step[1]) * cfg.odometry_fraction,
+                math.radians(10.0) + 3.0 * abs(step[2]) * cfg.odometry_fraction,
             )
             found = self._search.search(points, predicted, reach, limit=1)
             if found:
@@ -240,17 +248,16 @@ class Localizer:
                 if retry.ok:
                     result = retry
         previous = self._covariance
+        self._watch(result.fit if result.ok else 0.0)
         if result.ok:
             self._bad = 0
             self._pose, self._covariance = result.pose, result.covariance
+            if self._drop >= cfg.lost_scans and self._cooldown == 0 and self._elsewhere(points):
+                return self._searching_estimate(stamp, 0.0, "lost: another place fits better")
             return self._tracking_estimate(stamp, previous, result, "matched")
         self._bad += 1
-        if self._bad >= self._cfg.lost_scans:
-            self._state = LocalizerState.LOST
-            self._pose = self._covariance = None
-            self._places.clear()
-            self._history.clear()
-            self._since_search = 0
+        if self._bad >= cfg.lost_scans:
+            self._go_lost(points, self._pose, keep=False)
             return self._searching_estimate(stamp, 0.0, "lost: the map no longer fits the scans")
         grown = _propagate(previous, self._pose, step, self._prior(step))
         self._pose, self._covariance = predicted, grown
@@ -258,6 +265,61 @@ class Localizer:
         return self._tracking_estimate(
             stamp, previous, coasting, "odometry only: the scan does not fit"
         )
+
+    def _watch(self, quality: float) -> None:
+        """The fit's level (its running mean over about 1/fit_level_rate scans) and how many
+        scans in a row fell below it by fit_drop: a sudden lasting drop is a robot carried to
+        a place alike enough to fit, or a map that no longer holds."""
+        cfg = self._cfg
+        self._cooldown = max(0, self._cooldown - 1)
+        if quality < self._level - cfg.fit_drop:
+            self._drop += 1
+        else:
+            self._drop = 0
+            self._level += cfg.fit_level_rate * (quality - self._level)
+
+    def _elsewhere(self, points: FloatArray) -> bool:
+        """Whether a place of the whole map explains the scans since the fit dropped better
+        than the tracked one by evidence_margin: then LOST, those places its hypotheses."""
+        assert self._pose is not None
+        cfg = self._cfg
+        recent = list(self._history)[-self._drop :]
+        self._history = deque(recent, maxlen=cfg.evidence_window)
+        here = self._backfill(_Fit(self._pose, np.eye(3), 0.0, 0.0, True))
+        self._history.clear()
+        # the tracked place's evidence over the same scans, fitted backward like the others
+        for cand in self._search.search(points):
+            if _same(cand.pose, self._pose, cfg.separation, cfg.separation_angle):
+                continue
+            self._history = deque(recent, maxlen=cfg.evidence_window)
+            result = self._fit(points, cand.pose, self._prior(np.zeros(3)) * 1e-4)
+            there = self._backfill(result)
+            if there.total() - here.total() >= cfg.evidence_margin:
+                self._go_lost(points, self._pose, keep=True, recent=recent)
+                return True
+        self._history = deque(recent, maxlen=cfg.evidence_window)
+        self._drop = 0
+        self._cooldown = 10 * cfg.research_interval
+        return False
+
+    def _go_lost(
+        self, points: FloatArray, pose: FloatArray, *, keep: bool, recent: list | None = None
+    ) -> None:
+        """LOST: the places of a global search (and the tracked one, where ``keep``) are the
+        hypotheses, weighed over the ``recent`` scans."""
+        cfg = self._cfg
+        self._state = LocalizerState.LOST
+        self._pose = self._covariance = None
+        self._history = deque(recent or [], maxlen=cfg.evidence_window)
+        self._places = []
+        if keep and self._history:
+            self._places.append(self._backfill(_Fit(pose, np.eye(3), 0.0, 0.0, True)))
+        if self._history:
+            self._add_places(points)
+            self._since_search = 1
+        else:
+            self._since_search = 0
+        self._prune()
 
     def _tracking_estimate(
         self, stamp: float, previous: FloatArray | None, result: _Fit, reason: str
