@@ -57,10 +57,17 @@ def map_of(world: World, seeds: list[tuple[float, float]], margin: float = 1.0) 
     return OccupancyMap(cells, RES, (float(lo[0]), float(lo[1]), 0.0))
 
 
+Poses = list[tuple[float, float, float]]
+
+
 def run(
-    loc: Localizer, world: World, poses: list[tuple[float, float, float]], scanner: ScannerModel = SCANNER,
-    odometry: list[tuple[float, float, float]] | None = None, seed: int = 0,
-) -> list[LocalizationEstimate]:  # fmt: skip
+    loc: Localizer,
+    world: World,
+    poses: Poses,
+    scanner: ScannerModel = SCANNER,
+    odometry: Poses | None = None,
+    seed: int = 0,
+) -> list[LocalizationEstimate]:
     """The localizer's estimates along ``poses`` (odometry: the true poses unless given)."""
     rng = np.random.default_rng(seed)
     odometry = poses if odometry is None else odometry

@@ -194,16 +194,25 @@ def likelihood(
 @inlined
 def _bound(offsets: IntArray, a: int, col: int, row: int, level: int, grids: SearchGrids) -> float:
     """The mean over the points (angle ``a``) of level ``level``'s score where each lands
-    with the robot at cell (row, col)."""
+    with the robot at cell (row, col): at level 0 the score there, above it a bound of the
+    scores of every robot cell of the block from (row, col)."""
     _, rows, cols = grids.score.shape
     n = offsets.shape[1]
+    size = 1 << level
     total = 0.0
     for i in range(n):
         c = col + offsets[a, i, 0]
         r = row + offsets[a, i, 1]
+        # a block that starts left of (below) the grid reaches into it: its part inside lies
+        # within the block at the grid's edge
+        if c < 0 < c + size:
+            c = 0
+        if r < 0 < r + size:
+            r = 0
         if 0 <= c < cols and 0 <= r < rows:
-            total += grids.score[level, r, c]
-    return total / n
+            total += float(grids.score[level, r, c])
+    mean: float = total / n
+    return mean
 
 
 @kernel
@@ -291,4 +300,5 @@ def branch_and_bound(
                 stack[sp, 4] = level
                 sp += 1
     out = leaves[:m]
-    return out[out[:, 3] >= threshold].copy()
+    found: FloatArray = out[out[:, 3] >= threshold].copy()
+    return found

@@ -197,22 +197,32 @@ class LocalizationConfig:
         ge=0.0,
     )
     covariance_points: float = _field(
-        25.0,
+        2.0,
         "the fit's covariance (residual variance times the inverse Hessian) counts the scan's "
-        "points as 25 independent ones: along a wall the map's cells err together",
+        "points as 2 independent ones: along a wall the map's cells and the scan's points err "
+        "together, so a scan holds about as much as its two main walls; measured against "
+        "the mapping run's poses on intel and aces, more points make it overconfident",
         gt=0.0,
     )
-    covariance_floor_translation: float = _field(
-        0.01,
-        "the covariance is at least (1 cm)² in translation: the map's cells (5 cm) locate a "
-        "wall to about a fifth of a cell",
-        unit=M,
-        ge=0.0,
+    covariance_floor_cells: float = _field(
+        0.7,
+        "the covariance is at least (0.7 map cells)² in translation (3.5 cm in 5 cm cells): "
+        "a wall's cell locates it to within a cell, and the map's passes disagree by about "
+        "that much",
+        gt=0.0,
     )
     covariance_floor_rotation: float = _field(
-        math.radians(0.3),
-        "and at least (0.3°)² in rotation, for the same reason",
+        math.radians(0.5),
+        "and at least (0.5°)² in rotation, for the same reason (a cell at 6 m)",
         unit=RAD,
+        ge=0.0,
+    )
+    covariance_fit_power: float = _field(
+        4.0,
+        "the covariance grows as fit^-4 (fit: the points' mean likelihood, 0..1): where the "
+        "map explains less of the scan (clutter, a map drawn from passes that disagree) "
+        "the pose against it is less sure than the residuals say; at a fit of 0.9 ×1.5, at "
+        "0.6 ×7.7; without it 10 % of aces' tracked scans lay beyond χ²(3)'s 99.9 % quantile",
         ge=0.0,
     )
     initial_sigma_translation: float = _field(

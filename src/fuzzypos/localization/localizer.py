@@ -29,7 +29,7 @@ from ..geometry import Pose2D, compose, inverse, relative
 from ..io.occupancy_map import OccupancyMap
 from ..scan import LaserScan
 from .field import MapField, field_of
-from .search import GlobalSearch, thin
+from .search import Candidate, GlobalSearch, thin
 from .types import InitialPoseError, LocalizationEstimate, LocalizerState
 
 __all__ = ["Localizer"]
@@ -180,25 +180,25 @@ class Localizer:
             points, pose, self._field.walls, cfg.hit_sigma, cfg.outlier_probability
         )
         evidence = loglik * cfg.effective_points / max(points.shape[0], 1)
-        cov = self._covariance_of(h, sse, wsum, used)
+        cov = self._covariance_of(h, sse, wsum, used, quality)
         ok = status == FIT_OK and quality >= cfg.min_fit and cov is not None
         return _Fit(pose, cov if cov is not None else np.eye(3), quality, evidence, ok)
 
     def _covariance_of(
-        self, h: FloatArray, sse: float, wsum: float, used: int
+        self, h: FloatArray, sse: float, wsum: float, used: int, quality: float
     ) -> FloatArray | None:
         """σ̂² H⁻¹ (σ̂² the weighted residual variance), the points counted as
-        covariance_points independent ones, plus the floor."""
+        covariance_points independent ones, plus the floor, grown by the fit's power."""
         cfg = self._cfg
         if used < 6 or abs(np.linalg.det(h)) < 1e-12:
             return None
         var = sse / max(wsum - 3.0, 1.0)
         scale = max(1.0, used / cfg.covariance_points)
         cov = var * scale * np.linalg.inv(h)
-        floor = np.diag(
-            [cfg.covariance_floor_translation**2] * 2 + [cfg.covariance_floor_rotation**2]
-        )
-        out: FloatArray = 0.5 * (cov + cov.T) + floor
+        floor_t = cfg.covariance_floor_cells * self._field.resolution
+        floor = np.diag([floor_t**2, floor_t**2, cfg.covariance_floor_rotation**2])
+        grow = max(quality, 0.05) ** -cfg.covariance_fit_power
+        out: FloatArray = (0.5 * (cov + cov.T) + floor) * grow
         return out
 
     # -- tracking ----------------------------------------------------------------------------
@@ -288,14 +288,15 @@ class Localizer:
         here = self._backfill(_Fit(self._pose, np.eye(3), 0.0, 0.0, True))
         self._history.clear()
         # the tracked place's evidence over the same scans, fitted backward like the others
-        for cand in self._search.search(points):
+        candidates = self._search.search(points)
+        for cand in candidates:
             if _same(cand.pose, self._pose, cfg.separation, cfg.separation_angle):
                 continue
             self._history = deque(recent, maxlen=cfg.evidence_window)
             result = self._fit(points, cand.pose, self._prior(np.zeros(3)) * 1e-4)
             there = self._backfill(result)
             if there.total() - here.total() >= cfg.evidence_margin:
-                self._go_lost(points, self._pose, keep=True, recent=recent)
+                self._go_lost(points, self._pose, keep=True, recent=recent, found=candidates)
                 return True
         self._history = deque(recent, maxlen=cfg.evidence_window)
         self._drop = 0
@@ -303,7 +304,13 @@ class Localizer:
         return False
 
     def _go_lost(
-        self, points: FloatArray, pose: FloatArray, *, keep: bool, recent: list | None = None
+        self,
+        points: FloatArray,
+        pose: FloatArray,
+        *,
+        keep: bool,
+        recent: list | None = None,
+        found: list[Candidate] | None = None,
     ) -> None:
         """LOST: the places of a global search (and the tracked one, where ``keep``) are the
         hypotheses, weighed over the ``recent`` scans."""
@@ -315,7 +322,7 @@ class Localizer:
         if keep and self._history:
             self._places.append(self._backfill(_Fit(pose, np.eye(3), 0.0, 0.0, True)))
         if self._history:
-            self._add_places(points)
+            self._add_places(points, found)
             self._since_search = 1
         else:
             self._since_search = 0
@@ -359,9 +366,11 @@ class Localizer:
         self._prune()
         return self._vote(stamp)
 
-    def _add_places(self, points: FloatArray) -> None:
+    def _add_places(self, points: FloatArray, found: list[Candidate] | None = None) -> None:
+        """The places a search of the whole map finds for this scan (``found``: already
+        searched), backfilled, where they are new."""
         cfg = self._cfg
-        for cand in self._search.search(points):
+        for cand in self._search.search(points) if found is None else found:
             result = self._fit(points, cand.pose, self._prior(np.zeros(3)) * 1e-4)
             if any(
                 _same(result.pose, p.pose, cfg.separation, cfg.separation_angle)
