@@ -168,13 +168,22 @@ class Localizer:
         sr = cfg.odometry_rotation + cfg.odometry_fraction * abs(step[2])
         return np.diag([st**-2, st**-2, sr**-2])
 
-    def _fit(self, points: FloatArray, start: FloatArray, information: FloatArray) -> _Fit:
+    def _fit(
+        self,
+        points: FloatArray,
+        start: FloatArray,
+        information: FloatArray,
+        prior: FloatArray | None = None,
+    ) -> _Fit:
+        """The scan fitted to the walls from ``start``, the prior's centre ``prior`` (default
+        ``start``) with ``information``."""
         cfg = self._cfg
         settings = np.array(
             [cfg.fit_gate, cfg.hit_sigma / 2.0, cfg.fit_iterations], dtype=np.float64
         )
+        centre = start if prior is None else prior
         pose, h, sse, wsum, used, status = fit(
-            points, start, start, information, self._field.walls, settings
+            points, start, centre, information, self._field.walls, settings
         )
         loglik, quality = likelihood(
             points, pose, self._field.walls, cfg.hit_sigma, cfg.outlier_probability
@@ -236,16 +245,20 @@ class Localizer:
         cfg = self._cfg
         self._history.append((points, step))
         predicted = compose(self._pose, step)
-        result = self._fit(points, predicted, self._prior(step))
-        if not result.ok:
-            reach = (
-                0.5 + 3.0 * math.hypot(step[0], step[1]) * cfg.odometry_fraction,
-                math.radians(10.0) + 3.0 * abs(step[2]) * cfg.odometry_fraction,
-            )
+        information = self._prior(step)
+        result = self._fit(points, predicted, information)
+        st, sr = information[0, 0] ** -0.5, information[2, 2] ** -0.5
+        large = st > cfg.hit_sigma or sr > 2.0 * cfg.odometry_rotation
+        if large or not result.ok:
+            # a long step (a keyframe log) or a failed fit: the scan searched for around the
+            # prediction, within 3σ of the odometry (at least 0.5 m and 10° after a failure)
+            reach = (3.0 * st, 3.0 * sr)
+            if not result.ok:
+                reach = (max(reach[0], 0.5), max(reach[1], math.radians(10.0)))
             found = self._search.search(points, predicted, reach, limit=1)
             if found:
-                retry = self._fit(points, found[0].pose, self._prior(step))
-                if retry.ok:
+                retry = self._fit(points, found[0].pose, information)
+                if retry.ok and (not result.ok or retry.evidence > result.evidence):
                     result = retry
         previous = self._covariance
         self._watch(result.fit if result.ok else 0.0)
