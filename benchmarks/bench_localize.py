@@ -14,6 +14,8 @@ For each ``NAME=R`` given: the map ``R/map.yaml``, the mapping run's poses
 - 8 starts: runs of 400 scans from 8 evenly spread starts, no initial pose: how many
   localise, after how many scans, and the share of rows from the 51st on within 0.3 m and 3°
   of the mapping run's poses.
+- keyframe logs: the log thinned to a scan per 0.5 m (1 m) or 10° of odometry
+  (``thinning.thin_indices``, relation ends kept), localised likewise: its relations.
 - the global search's cost: one search of a scan over the whole map padded to 50 m × 50 m.
 
 ``python benchmarks/bench_localize.py intel=R1 aces=R2 [--write docs/benchmarks/localize.md]``
@@ -42,6 +44,9 @@ from fuzzypos.io.occupancy_map import UNKNOWN, OccupancyMap, read_map_yaml  # no
 from fuzzypos.io.relations import read_relations  # noqa: E402
 from fuzzypos.localization import Localizer  # noqa: E402
 from fuzzypos.localization.search import GlobalSearch  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from thinning import thin_indices  # noqa: E402
 
 CHI2_3_999 = 16.266
 
@@ -161,6 +166,21 @@ def starts(
     }
 
 
+def thinned(m: OccupancyMap, records: list, rel, distance: float) -> str:
+    """The log thinned to a scan per ``distance`` m or 10° of odometry (relation ends kept,
+    ``thinning.thin_indices``), localised without an initial pose: its relations."""
+    stamps = [r.scan.stamp for r in records]
+    odometry = [None if r.odometry is None else r.odometry.as_array() for r in records]
+    keep = thin_indices(stamps, odometry, np.concatenate((rel.t1, rel.t2)), distance, 10.0)
+    run = localise(Localizer(m), [records[k] for k in keep])
+    ok = np.flatnonzero(run.tracked)
+    errs = relations_errors(np.array(run.stamps)[ok], np.array(run.poses)[ok], rel)
+    return (
+        f"{errs.all.translation_m.mean:.3f} m, {errs.all.rotation_deg.mean:.2f}° "
+        f"({len(keep)} scans, {errs.all.matched / errs.relations:.0%} covered)"
+    )
+
+
 def front_end_speed(records: list, count: int = 2000) -> float:
     """Scans per second of ``Positioner.update`` over ``count`` scans (after a first pass
     over 100, which compiles or loads its kernels)."""
@@ -210,6 +230,9 @@ def main(argv: list[str] | None = None) -> int:
         front = front_end_speed(records)
         speed = float(row["tracking speed"].split()[0])
         row["front end (Positioner.update)"] = f"{front:.0f} scans/s (ratio {speed / front:.1f})"
+        rel = read_relations(data / name / f"{name}.relations")
+        for d in (0.5, 1.0):
+            row[f"keyframes {d} m / 10°: relations (all)"] = thinned(m, records, rel, d)
         row.update(starts(m, records, ref, args.starts))
         row["global search, one scan"] = search_cost(m, records)
         table.append(row)
