@@ -46,6 +46,7 @@ from fuzzypos.localization import Localizer  # noqa: E402
 from fuzzypos.localization.search import GlobalSearch  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_honesty import commit, machine  # noqa: E402
 from thinning import thin_indices  # noqa: E402
 
 CHI2_3_999 = 16.266
@@ -247,10 +248,13 @@ def main(argv: list[str] | None = None) -> int:
         command = "python benchmarks/bench_localize.py " + " ".join(
             f"{r['log']}=RESULTS_{r['log'].upper()}" for r in table
         )
+        stamp = time.strftime("%Y-%m-%d", time.gmtime())
         args.write.write_text(
             "# Localisation in a mapping run's map\n\n"
+            f"{stamp}, commit {commit()}, {machine()}, one thread.\n\n"
             f"`{command}` (RESULTS_x: the folder of `fuzzypos run LOG --loop-closure --results`; "
-            "the log's data under `$FUZZYPOS_DATA`), one thread.\n\n" + text + "\n",
+            "the log's data under `$FUZZYPOS_DATA`). What each row measures: the script's "
+            "docstring.\n\n" + text + "\n",
             encoding="utf-8",
         )
     return 0

@@ -26,7 +26,14 @@ from fuzzypos.localization import (
     LocalizerState,
 )
 from fuzzypos.localization.field import CACHE_SUFFIX
-from fuzzypos.sim import ScannerModel, World, box_polygon, office, simulate_scan
+from fuzzypos.sim import (
+    ScannerModel,
+    World,
+    box_polygon,
+    office,
+    rectangular_room,
+    simulate_scan,
+)
 
 RES = 0.05
 SCANNER = ScannerModel(n_beams=180, range_max=10.0, range_noise_std=0.01)
@@ -184,6 +191,24 @@ def test_global_localisation_in_the_office_then_a_kidnapping() -> None:
     assert estimates[-1].localised and error(estimates[-1], later[-1])[0] < 0.05
     lost_at = states.index(LocalizerState.LOST)
     no_wrong_pose(estimates[60 + lost_at :], later[lost_at:])
+
+
+def test_scans_the_map_does_not_hold_make_it_lost() -> None:
+    """Carried out of the mapped building (the scans are of another place): LOST within
+    lost_scans scans, and no pose claimed afterwards."""
+    world = office()
+    loc = Localizer(map_of(world, [(0.0, 0.0)]), initial_pose=(-7.0, 0.0, 0.0))
+    poses = office_path(10)
+    assert all(e.localised for e in run(loc, world, poses))
+    elsewhere = rectangular_room(3.0, 2.5)
+    odometry = [tuple(compose(poses[-1], (0.1 * (k + 1), 0.0, 0.0))) for k in range(20)]
+    away = [(0.0, 0.0, 0.05 * k) for k in range(20)]
+    estimates = run(loc, elsewhere, away, ROUND, odometry)
+    states = [e.state for e in estimates]
+    assert states.index(LocalizerState.LOST) <= loc._cfg.lost_scans
+    assert not any(e.localised for e in estimates[loc._cfg.lost_scans + 1 :])
+    assert all(e.pose is None and e.covariance is None for e in estimates if not e.localised)
+    assert "lost" in estimates[-1].reason
 
 
 def test_set_initial_pose_mid_run_moves_the_estimate() -> None:
