@@ -298,14 +298,12 @@ class Localizer:
         cfg = self._cfg
         recent = list(self._history)[-self._drop :]
         self._history = deque(recent, maxlen=cfg.evidence_window)
-        here = self._backfill(_Fit(self._pose, np.eye(3), 0.0, 0.0, True))
-        self._history.clear()
         # the tracked place's evidence over the same scans, fitted backward like the others
+        here = self._backfill(self._fit(points, self._pose, self._prior(np.zeros(3)) * 1e-4))
         candidates = self._search.search(points)
         for cand in candidates:
             if _same(cand.pose, self._pose, cfg.separation, cfg.separation_angle):
                 continue
-            self._history = deque(recent, maxlen=cfg.evidence_window)
             result = self._fit(points, cand.pose, self._prior(np.zeros(3)) * 1e-4)
             there = self._backfill(result)
             if there.total() - here.total() >= cfg.evidence_margin:
@@ -333,7 +331,8 @@ class Localizer:
         self._history = deque(recent or [], maxlen=cfg.evidence_window)
         self._places = []
         if keep and self._history:
-            self._places.append(self._backfill(_Fit(pose, np.eye(3), 0.0, 0.0, True)))
+            now = self._fit(points, pose, self._prior(np.zeros(3)) * 1e-4)
+            self._places.append(self._backfill(now))
         if self._history:
             self._add_places(points, found)
             self._since_search = 1
