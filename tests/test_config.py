@@ -82,6 +82,7 @@ SECTIONS = [
     "gate",
     "scanner",
     "loop_closure",
+    "localization",
 ]
 
 
