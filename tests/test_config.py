@@ -63,6 +63,10 @@ ANGLES_DEG = {
     ("loop_closure", "heading_floor"): 4.0,
     ("loop_closure", "closure_floor_rotation"): 2.0,
     ("loop_closure", "map_scan_angle"): 10.0,
+    ("localization", "separation_angle"): 20.0,
+    ("localization", "odometry_rotation"): 3.0,
+    ("localization", "covariance_floor_rotation"): 0.5,
+    ("localization", "initial_sigma_rotation"): 15.0,
 }
 ANGLE_WORDS = ("angle", "rotation", "heading", "bearing", "yaw", "theta")
 SECTIONS = [

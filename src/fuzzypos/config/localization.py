@@ -201,8 +201,8 @@ class LocalizationConfig:
         2.0,
         "the fit's covariance (residual variance times the inverse Hessian) counts the scan's "
         "points as 2 independent ones: along a wall the map's cells and the scan's points err "
-        "together, so a scan holds about as much as its two main walls; measured against "
-        "the mapping run's poses on intel and aces, more points make it overconfident",
+        "together, so a scan holds about as much as its two main walls; against a mapping "
+        "run's poses, more points make it overconfident",
         gt=0.0,
     )
     covariance_floor_cells: float = _field(
@@ -223,7 +223,8 @@ class LocalizationConfig:
         "the covariance grows as fit^-4 (fit: the points' mean likelihood, 0..1): where the "
         "map explains less of the scan (clutter, a map drawn from passes that disagree) "
         "the pose against it is less sure than the residuals say; at a fit of 0.9 ×1.5, at "
-        "0.6 ×7.7; without it 10 % of aces' tracked scans lay beyond χ²(3)'s 99.9 % quantile",
+        "0.6 ×7.7; without it one tracked scan in ten of a large hall's log lay beyond "
+        "χ²(3)'s 99.9 % quantile",
         ge=0.0,
     )
     initial_sigma_translation: float = _field(
