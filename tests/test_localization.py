@@ -17,7 +17,7 @@ from scipy import ndimage
 import fuzzypos.localization.field
 from fuzzypos.config import Config
 from fuzzypos.errors import FuzzyposError
-from fuzzypos.geometry import Pose2D, compose, relative
+from fuzzypos.geometry import Pose2D, compose, inverse, relative
 from fuzzypos.io.occupancy_map import FREE, OCCUPIED, UNKNOWN, OccupancyMap, read_map_yaml
 from fuzzypos.localization import (
     InitialPoseError,
@@ -191,6 +191,31 @@ def test_global_localisation_in_the_office_then_a_kidnapping() -> None:
     assert estimates[-1].localised and error(estimates[-1], later[-1])[0] < 0.05
     lost_at = states.index(LocalizerState.LOST)
     no_wrong_pose(estimates[60 + lost_at :], later[lost_at:])
+
+
+def test_a_map_whose_origin_turns_gives_poses_in_its_frame() -> None:
+    """The same cells with the origin's yaw 0.4 rad and another corner: the map frame turns
+    with it, and so do the poses and covariances reported."""
+    world = office()
+    m = map_of(world, [(0.0, 0.0)])
+    turned = OccupancyMap(m.cells, m.resolution, (2.0, -1.0, 0.4))
+    move = compose(np.array(turned.origin), inverse(np.array(m.origin)))  # old frame → new
+    poses = office_path(20)
+    start = compose(move, poses[0])
+    loc = Localizer(turned, initial_pose=tuple(start), initial_sigma=(0.2, 0.1))
+    estimates = run(loc, world, poses)
+    for est, truth in zip(estimates, poses):
+        want = compose(move, truth)
+        d, turn = error(est, tuple(want))
+        assert d < 0.05 and turn < math.radians(1.0)
+    # the covariance is the unturned map's, turned by the yaw
+    plain = run(Localizer(m, initial_pose=poses[0], initial_sigma=(0.2, 0.1)), world, poses)
+    c, s = math.cos(0.4), math.sin(0.4)
+    r = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    assert plain[-1].covariance is not None and estimates[-1].covariance is not None
+    np.testing.assert_allclose(
+        estimates[-1].covariance, r @ plain[-1].covariance @ r.T, rtol=0.3, atol=1e-6
+    )
 
 
 def test_scans_the_map_does_not_hold_make_it_lost() -> None:
