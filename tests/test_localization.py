@@ -173,6 +173,29 @@ def test_an_initial_pose_is_tracked_at_once() -> None:
         assert est.covariance is not None and np.all(np.linalg.eigvalsh(est.covariance) > 0)
 
 
+def test_no_return_codes_and_invalid_readings_are_not_walls() -> None:
+    """A scanner that reads "no return" as the SICK code 81.83 m (below its 81.9 m maximum,
+    in the default no_return_bands), and NaN and inf: those beams are dropped, not taken
+    for walls 81 m away, and it localises and tracks as well."""
+    world = office()
+    scanner = ScannerModel(n_beams=181, range_max=81.9, range_noise_std=0.01)
+    loc = Localizer(map_of(world, [(0.0, 0.0)]))
+    rng = np.random.default_rng(3)
+    poses = office_path(40)
+    estimates = []
+    for k, pose in enumerate(poses):
+        scan = simulate_scan(world, Pose2D(*pose), scanner, rng, stamp=0.1 * k, index=k)
+        r = np.array(scan.ranges)
+        r[k % 3 :: 3] = 81.83
+        r[1::17], r[2::19] = np.nan, np.inf
+        coded = scan.with_ranges(r)
+        points = loc._points(coded)
+        assert np.isfinite(points).all() and np.hypot(*points.T).max() < 25.0
+        estimates.append(loc.update(coded, pose))
+    no_wrong_pose(estimates, poses)
+    assert estimates[-1].localised and error(estimates[-1], poses[-1])[0] < 0.05
+
+
 def test_global_localisation_in_the_office_then_a_kidnapping() -> None:
     world = office()
     loc = Localizer(map_of(world, [(0.0, 0.0)]))
