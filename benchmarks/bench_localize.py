@@ -45,7 +45,6 @@ from fuzzypos.io import open_log  # noqa: E402
 from fuzzypos.io.occupancy_map import UNKNOWN, OccupancyMap, read_map_yaml  # noqa: E402
 from fuzzypos.io.relations import read_relations  # noqa: E402
 from fuzzypos.localization import Localizer  # noqa: E402
-from fuzzypos.localization.search import GlobalSearch  # noqa: E402
 from fuzzypos.pipeline.warm import warm_up  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -207,21 +206,25 @@ def front_end_speed(records: list, seconds: float = 20.0) -> float:
     return n / (time.perf_counter() - t)
 
 
-def search_cost(m: OccupancyMap, records: list) -> str:
-    """One global search over the map padded (unknown) to at least 50 m × 50 m."""
+def search_cost(m: OccupancyMap, records: list, count: int = 5) -> str:
+    """Global searches over the map padded (unknown) to at least 50 m × 50 m, of ``count``
+    scans spread over the log: the median time and the places found."""
     cells = round(50.0 / m.resolution)
     rows, cols = m.shape
     big = np.full((max(rows, cells), max(cols, cells)), UNKNOWN, dtype=np.int8)
     big[:rows, :cols] = m.cells
-    padded = OccupancyMap(big, m.resolution, m.origin)
-    loc = Localizer(padded)
-    search = GlobalSearch(loc.field, loc._cfg)
-    pts = loc._points(records[500].scan)
-    search.search(pts)
-    t = time.perf_counter()
-    found = search.search(pts)
+    loc = Localizer(OccupancyMap(big, m.resolution, m.origin))
+    times, places = [], []
+    for k in np.linspace(100, len(records) - 1, count).astype(int):
+        pts = loc.points_of(records[k].scan)
+        t = time.perf_counter()
+        places.append(len(loc.search.search(pts)))
+        times.append(time.perf_counter() - t)
     w, h = loc.field.size
-    return f"{(time.perf_counter() - t) * 1000:.0f} ms ({w:.0f} m × {h:.0f} m, {len(found)} places)"
+    return (
+        f"{np.median(times) * 1000:.0f} ms median, {max(times) * 1000:.0f} ms max "
+        f"({w:.0f} m × {h:.0f} m; places found {min(places)}–{max(places)})"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -189,7 +189,7 @@ def test_no_return_codes_and_invalid_readings_are_not_walls() -> None:
         r[k % 3 :: 3] = 81.83
         r[1::17], r[2::19] = np.nan, np.inf
         coded = scan.with_ranges(r)
-        points = loc._points(coded)
+        points = loc.points_of(coded)
         assert np.isfinite(points).all() and np.hypot(*points.T).max() < 25.0
         estimates.append(loc.update(coded, pose))
     no_wrong_pose(estimates, poses)
@@ -210,7 +210,7 @@ def test_global_localisation_in_the_office_then_a_kidnapping() -> None:
     no_wrong_pose(estimates[:60], first)
     assert estimates[59].localised and error(estimates[59], first[-1])[0] < 0.05
     states = [e.state for e in estimates[60:]]
-    assert LocalizerState.LOST in states[: loc._cfg.lost_scans + 2]
+    assert LocalizerState.LOST in states[: loc.settings.lost_scans + 2]
     assert estimates[-1].localised and error(estimates[-1], later[-1])[0] < 0.05
     lost_at = states.index(LocalizerState.LOST)
     no_wrong_pose(estimates[60 + lost_at :], later[lost_at:])
@@ -253,8 +253,8 @@ def test_scans_the_map_does_not_hold_make_it_lost() -> None:
     away = [(0.0, 0.0, 0.05 * k) for k in range(20)]
     estimates = run(loc, elsewhere, away, ROUND, odometry)
     states = [e.state for e in estimates]
-    assert states.index(LocalizerState.LOST) <= loc._cfg.lost_scans
-    assert not any(e.localised for e in estimates[loc._cfg.lost_scans + 1 :])
+    assert states.index(LocalizerState.LOST) <= loc.settings.lost_scans
+    assert not any(e.localised for e in estimates[loc.settings.lost_scans + 1 :])
     assert all(e.pose is None and e.covariance is None for e in estimates if not e.localised)
     assert "lost" in estimates[-1].reason
 

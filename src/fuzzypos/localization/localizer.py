@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from .._kernels.localize import FIT_OK, fit, likelihood
 from ..config import Config
+from ..config.localization import LocalizationConfig
 from ..geometry import Pose2D, compose, inverse, relative
 from ..io.occupancy_map import OccupancyMap
 from ..scan import LaserScan
@@ -106,6 +107,21 @@ class Localizer:
     def field(self) -> MapField:
         """The map as the localizer reads it."""
         return self._field
+
+    @property
+    def settings(self) -> LocalizationConfig:
+        """Its ``[localization]`` settings."""
+        return self._cfg
+
+    @property
+    def search(self) -> GlobalSearch:
+        """Its search of the whole map."""
+        return self._search
+
+    def points_of(self, scan: LaserScan) -> FloatArray:
+        """The scan's points the localizer fits (robot frame): its usable readings (not in
+        the scanner's no-return bands), one per map cell, at most max_points."""
+        return self._points(scan)
 
     # -- the user's word ---------------------------------------------------------------------
     def set_initial_pose(
