@@ -30,7 +30,7 @@ from ..geometry import Pose2D, compose, inverse, relative
 from ..io.occupancy_map import OccupancyMap
 from ..scan import LaserScan
 from .field import MapField, field_of
-from .search import Candidate, GlobalSearch, thin
+from .search import MIN_POINTS, Candidate, GlobalSearch, thin
 from .types import InitialPoseError, LocalizationEstimate, LocalizerState
 
 __all__ = ["Localizer"]
@@ -392,7 +392,7 @@ class Localizer:
             self._add_places(points)
         self._since_search += 1
         self._prune()
-        return self._vote(stamp)
+        return self._vote(stamp, points)
 
     def _add_places(self, points: FloatArray, found: list[Candidate] | None = None) -> None:
         """The places a search of the whole map finds for this scan (``found``: already
@@ -444,10 +444,14 @@ class Localizer:
             kept.append(place)
         self._places = kept[: cfg.max_hypotheses]
 
-    def _vote(self, stamp: float) -> LocalizationEstimate:
+    def _vote(self, stamp: float, points: FloatArray) -> LocalizationEstimate:
         cfg = self._cfg
+        prefix = "lost: " if self._state is LocalizerState.LOST else ""
         if not self._places:
-            return self._searching_estimate(stamp, 0.0, "no place in the map fits the scan")
+            why = "no place in the map fits the scan"
+            if points.shape[0] < MIN_POINTS:
+                why = f"the scan has {points.shape[0]} usable points"
+            return self._searching_estimate(stamp, 0.0, prefix + why)
         best = self._places[0]
         rivals = [
             p
@@ -469,7 +473,6 @@ class Localizer:
             why = f"ambiguous: {len(rivals) + 1} places explain the scans"
         else:
             why = "gathering evidence"
-        prefix = "lost: " if self._state is LocalizerState.LOST else ""
         return self._searching_estimate(stamp, max(0.0, decisiveness) * 0.99, prefix + why)
 
     def _searching_estimate(

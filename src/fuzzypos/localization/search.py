@@ -19,6 +19,8 @@ from .field import MapField
 __all__ = ["Candidate", "GlobalSearch", "thin"]
 
 FloatArray = NDArray[np.float64]
+#: a scan with fewer points than this (within search_range) is not searched for
+MIN_POINTS = 5
 #: at most this many leaves are kept by one search (the best)
 _CAPACITY = 200_000
 
@@ -92,7 +94,7 @@ class GlobalSearch:
         cfg = self._cfg
         grids, cell = self.grids()
         pts = self.points(points)
-        if pts.shape[0] < 5:
+        if pts.shape[0] < MIN_POINTS:
             return []
         far = float(np.max(np.hypot(pts[:, 0], pts[:, 1])))
         step = min(cell / max(far, cell), math.radians(5.0))
