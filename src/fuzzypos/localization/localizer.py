@@ -265,11 +265,13 @@ class Localizer:
         result = self._fit(points, predicted, information)
         st, sr = information[0, 0] ** -0.5, information[2, 2] ** -0.5
         large = st > cfg.hit_sigma or sr > 2.0 * cfg.odometry_rotation
-        if large or not result.ok:
-            # a long step (a keyframe log) or a failed fit: the scan searched for around the
-            # prediction, within 3σ of the odometry (at least 0.5 m and 10° after a failure)
+        poor = not result.ok or result.fit < self._level - cfg.fit_drop
+        if large or poor:
+            # a long step (a keyframe log), a failed fit or one well below the fit's level (an
+            # odometry that jumped): the scan searched for around the prediction, within 3σ
+            # of the odometry (at least 0.5 m and 10° after a poor fit)
             reach = (3.0 * st, 3.0 * sr)
-            if not result.ok:
+            if poor:
                 reach = (max(reach[0], 0.5), max(reach[1], math.radians(10.0)))
             found = self._search.search(points, predicted, reach, limit=1)
             if found:
