@@ -198,9 +198,9 @@ def thinned(m: OccupancyMap, records: list, ref: dict, distance: float, angle: f
     )
 
 
-def front_end_speed(records: list, seconds: float = 20.0) -> float:
-    """Scans per second of ``Positioner.update`` from the log's start, for about ``seconds``
-    (every kernel compiled or loaded first: ``warm_up``)."""
+def front_end_speed(records: list, seconds: float = 90.0) -> float:
+    """Scans per second of ``Positioner.update`` over the log from its start (at most about
+    ``seconds``; every kernel compiled or loaded first: ``warm_up``)."""
     warm_up()
     pos = Positioner()
     t = time.perf_counter()
