@@ -385,3 +385,49 @@ def one_line_error(args: list[str], *expect: str) -> str:
     for text in expect:
         assert text in lines[0], (text, lines[0])
     return lines[0]
+
+
+# -- a simulated world's map, as map_server saves one ------------------------------------------
+def world_cells(world: sim.World, resolution: float, margin: float = 0.5) -> tuple[Any, Any]:
+    """The occupancy of ``world`` on a grid of ``resolution`` (m): ``(occupied, origin)``,
+    ``occupied`` a bool array with rows from the bottom (a cell is occupied where a wall
+    passes within half a diagonal of its centre), ``origin`` the lower-left corner (x, y)."""
+    x0, y0, x1, y1 = world.bounds
+    lo = np.array([x0 - margin, y0 - margin])
+    cols = math.ceil((x1 + margin - lo[0]) / resolution)
+    rows = math.ceil((y1 + margin - lo[1]) / resolution)
+    u = lo[0] + (np.arange(cols) + 0.5) * resolution
+    v = lo[1] + (np.arange(rows) + 0.5) * resolution
+    centres = np.stack(np.meshgrid(u, v), axis=-1)
+    occupied = world.distance(centres) <= resolution * math.sqrt(0.5)
+    return occupied, (float(lo[0]), float(lo[1]))
+
+
+def write_world_map(
+    folder: Path,
+    world: sim.World,
+    resolution: float = 0.05,
+    *,
+    negate: bool = False,
+    name: str = "map",
+    yaw: float = 0.0,
+) -> tuple[Path, Any, tuple[float, float]]:
+    """``name.pgm`` and ``name.yaml`` of ``world`` (:func:`world_cells`) as map_server saves
+    them (occupied 0, free 254; white and black swapped with ``negate``), the origin's yaw
+    ``yaw`` in the yaml (the grid's position is that of ``yaw`` 0): ``(yaml, occupied,
+    origin)``."""
+    occupied, origin = world_cells(world, resolution)
+    img = np.where(occupied, 0, 254).astype(np.uint8)[::-1]
+    if negate:
+        img = 255 - img
+    h, w = img.shape
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{name}.pgm").write_bytes(f"P5\n{w} {h}\n255\n".encode() + img.tobytes())
+    yaml_path = folder / f"{name}.yaml"
+    yaml_path.write_text(
+        f"image: {name}.pgm\nresolution: {resolution!r}\n"
+        f"origin: [{origin[0]!r}, {origin[1]!r}, {yaw!r}]\nnegate: {int(negate)}\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n",
+        encoding="utf-8",
+    )
+    return yaml_path, occupied, origin
