@@ -148,7 +148,7 @@ class OdometryBagWriter:
         path: PathLike,
         storage: str | None = None,
         *,
-        topic: str = ODOM_OUT_TOPIC,
+        topic: str | None = ODOM_OUT_TOPIC,
         frame_id: str = "odom",
         child_frame_id: str = "base_link",
         map_frame_id: str = "map",
@@ -163,6 +163,8 @@ class OdometryBagWriter:
         self.frame_id, self.child_frame_id = frame_id, child_frame_id
         self.map_frame_id, self.topic, self.pose_topic = map_frame_id, topic, pose_topic
         self.written = self.optimised_written = 0
+        #: map → odometry frame transforms written by :meth:`write_optimised`
+        self.transforms_written = 0
         self._pose: Any = None  # the optimised poses' connection, added with the first
         self._ros1 = self.storage == "ros1"
         self._store = _typestore(self._ros1)
@@ -177,7 +179,11 @@ class OdometryBagWriter:
         try:
             self._writer.open()
             self._open = True
-            self._odom = self._writer.add_connection(topic, _ODOM, typestore=self._store)
+            self._odom = (
+                None
+                if topic is None
+                else self._writer.add_connection(topic, _ODOM, typestore=self._store)
+            )
             self._tf = self._writer.add_connection(TF_TOPIC, _TF, typestore=self._store)
         except _WRITER_ERRORS as exc:
             if self._open:
@@ -280,6 +286,8 @@ class OdometryBagWriter:
         and its 3×3 covariance (None: unknown)."""
         if not self._open:
             raise ValueError(f"{self.path}: the bag writer is closed")
+        if self._odom is None:
+            raise ValueError(f"{self.path}: the bag writer has no odometry topic (topic=None)")
         t = float(stamp)
         if not math.isfinite(t) or t < 0.0:
             raise self._fail(f"the stamp must be a finite number >= 0 s, got {stamp!r}")
@@ -298,7 +306,11 @@ class OdometryBagWriter:
         self.written += 1
 
     def _optimised_messages(
-        self, when: tuple[int, int], pose: tuple[float, ...], correction: FloatArray, cov: Any
+        self,
+        when: tuple[int, int],
+        pose: tuple[float, ...],
+        correction: FloatArray | None,
+        cov: Any,
     ) -> tuple[Any, Any]:
         T, seq = self._T, self.optimised_written
         x, y, th = pose
@@ -309,6 +321,8 @@ class OdometryBagWriter:
             header=self._header(*when, self.map_frame_id, seq),
             pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=cov),
         )
+        if correction is None:
+            return stamped, None
         cx, cy, cth = (float(v) for v in correction)
         transform = T["geometry_msgs/msg/TransformStamped"](
             header=self._header(*when, self.map_frame_id, seq),
@@ -323,23 +337,25 @@ class OdometryBagWriter:
         self,
         stamp: float,
         pose: Pose2D | Sequence[float],
-        frontend_pose: Pose2D | Sequence[float],
+        frontend_pose: Pose2D | Sequence[float] | None,
         pose_cov3: ArrayLike | None = None,
     ) -> None:
         """Add one optimised pose at ``stamp``: ``pose`` ``(x, y, θ)`` in the map frame, the
         front end's pose ``frontend_pose`` of the same scan (in the odometry frame, as given
         to :meth:`write`) and the optimised pose's 3×3 covariance in the map frame (None:
         unknown). Writes the pose and the map → odometry frame transform
-        ``pose ∘ frontend_pose⁻¹`` (module docstring)."""
+        ``pose ∘ frontend_pose⁻¹`` (module docstring; none where ``frontend_pose`` is None)."""
         if not self._open:
             raise ValueError(f"{self.path}: the bag writer is closed")
         t = float(stamp)
         if not math.isfinite(t) or t < 0.0:
             raise self._fail(f"the stamp must be a finite number >= 0 s, got {stamp!r}")
         p = self._triple(pose, "the optimised pose")
-        f = self._triple(frontend_pose, "the front end's pose")
         cov = self._cov(pose_cov3, "the optimised pose's covariance", False)
-        correction = compose(np.asarray(p), inverse(np.asarray(f)))
+        correction = None
+        if frontend_pose is not None:
+            f = self._triple(frontend_pose, "the front end's pose")
+            correction = compose(np.asarray(p), inverse(np.asarray(f)))
         sec, nsec = _split_stamp(t)
         stamped, tf = self._optimised_messages((sec, nsec), p, correction, cov)
         ns = sec * 1_000_000_000 + nsec
@@ -349,7 +365,9 @@ class OdometryBagWriter:
                     self.pose_topic, _POSE, typestore=self._store
                 )
             self._writer.write(self._pose, ns, self._serialize(stamped))
-            self._writer.write(self._tf, ns, self._serialize(tf))
+            if tf is not None:
+                self._writer.write(self._tf, ns, self._serialize(tf))
+                self.transforms_written += 1
         except _WRITER_ERRORS as exc:
             raise self._fail(f"cannot write: {exc}") from exc
         self.optimised_written += 1
