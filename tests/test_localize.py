@@ -307,3 +307,24 @@ def test_the_map_may_be_given_read(world, tmp_path) -> None:
     make = double.factory()
     localize_log(log, m, results_dir=tmp_path / "r", localizer=make, max_scans=2)
     assert make.made[0].occupancy_map is m
+
+
+def test_the_bag_writer_without_odometry_topic_or_transform(tmp_path) -> None:
+    """What ``--bag-out`` relies on: a writer with no odometry topic (``topic=None``, whose
+    :meth:`write` is refused) and a pose without the scan's odometry: no map → odom."""
+    from fuzzypos.io import OdometryBagWriter
+
+    path = tmp_path / "b.bag"
+    w = OdometryBagWriter(path, topic=None, pose_topic=AMCL_POSE_TOPIC)
+    cov = double.covariance_of(1)
+    with pytest.raises(ValueError, match="no odometry topic"):
+        w.write(1.0, (0.0, 0.0, 0.0), cov)
+    w.write_optimised(1.0, (1.0, 2.0, 0.5), None, cov)
+    w.write_optimised(2.0, (1.5, 2.0, 0.0), (0.5, 0.0, 0.0), cov)
+    w.close()
+    assert (w.optimised_written, w.transforms_written) == (2, 1)
+    msgs = _read_bag(path)
+    assert sorted(msgs) == sorted([AMCL_POSE_TOPIC, "/tf"])
+    assert len(msgs[AMCL_POSE_TOPIC]) == 2 and len(msgs["/tf"]) == 1
+    (t,) = msgs["/tf"][0].transforms
+    assert t.header.stamp.sec == 2 and t.transform.translation.x == pytest.approx(1.0)
