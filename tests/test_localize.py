@@ -176,7 +176,7 @@ def test_the_initial_pose_reaches_the_localizer_and_one_off_the_map_is_refused(
     )
     assert isinstance(info.value, ValueError) and isinstance(info.value, FuzzyposError)
     assert not out.exists() and len(make.made) == 1
-    with pytest.raises(LocalizeArgumentError, match="needs an initial pose"):
+    with pytest.raises(LocalizeArgumentError, match="initial_sigma needs initial_pose"):
         localize_log(log, yaml_path, results_dir=out, localizer=make, initial_sigma=sigma)
 
 

@@ -56,7 +56,7 @@ import numpy as np
 
 from .._version import __version__
 from ..config import Config
-from ..errors import FuzzyposError
+from ..errors import Argument, ArgumentError, Words
 from ..geometry import Pose2D, wrap_angle
 from ..io import LogRecord, OdometryBagWriter, OpenLog, open_log, write_text_file, write_tum
 from ..io.logs import empty_stretch, select_records, survey_log
@@ -108,8 +108,13 @@ Progress = Callable[[int, "int | None"], None]
 Cov6 = tuple[float, float, float, float, float, float]
 
 
-class LocalizeArgumentError(FuzzyposError, ValueError):
-    """A bad argument of the localize job (an initial pose or spread that is not one)."""
+#: the job's arguments its messages name (:class:`~fuzzypos.errors.Words`)
+_POSE, _SIGMA = Argument("initial_pose"), Argument("initial_sigma")
+
+
+class LocalizeArgumentError(ArgumentError):
+    """A bad argument of the localize job (an initial pose or spread that is not one); the
+    message names it (``initial_pose``, ``initial_sigma``)."""
 
 
 class InitialPoseOutsideMapError(LocalizeArgumentError):
@@ -156,30 +161,30 @@ def _default_localizer() -> LocalizerFactory:
 
 
 # -- the arguments ---------------------------------------------------------------------------
-def _numbers(text: str, what: str, n: int, form: str) -> list[float]:
+def _numbers(text: str, what: Argument, n: int, form: str) -> list[float]:
     parts = [p.strip().rstrip("°") for p in str(text).split(",")]
     try:
         values = [float(p) for p in parts]
     except ValueError:
         values = []
     if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise LocalizeArgumentError(f"{what} {text!r}: expected {form}")
+        raise LocalizeArgumentError(Words(what, f" {text!r}: expected {form}"))
     return values
 
 
 def parse_initial_pose(text: str) -> tuple[float, float, float]:
     """``"x,y,θ"`` (metres, metres, degrees; a ``°`` may follow θ) → ``(x, y, θ)``, θ in
     radians. :class:`LocalizeArgumentError` for anything else."""
-    x, y, deg = _numbers(text, "initial pose", 3, "three numbers 'x,y,θ' (m, m, degrees)")
+    x, y, deg = _numbers(text, _POSE, 3, "three numbers 'x,y,θ' (m, m, degrees)")
     return (x, y, float(wrap_angle(math.radians(deg))))
 
 
 def parse_initial_sigma(text: str) -> tuple[float, float]:
     """``"m,θ"`` (the initial pose's standard deviations: metres, degrees) → ``(m, rad)``,
     both > 0. :class:`LocalizeArgumentError` for anything else."""
-    m, deg = _numbers(text, "initial sigma", 2, "two numbers 'm,θ' (metres, degrees) > 0")
+    m, deg = _numbers(text, _SIGMA, 2, "two numbers 'm,θ' (metres, degrees) > 0")
     if m <= 0.0 or deg <= 0.0:
-        raise LocalizeArgumentError(f"initial sigma {text!r}: both must be > 0")
+        raise LocalizeArgumentError(Words(_SIGMA, f" {text!r}: both must be > 0"))
     return (m, math.radians(deg))
 
 
@@ -196,20 +201,23 @@ def _check_initial_pose(
 ) -> tuple[float, float, float] | None:
     if pose is None:
         if sigma is not None:
-            raise LocalizeArgumentError("an initial sigma needs an initial pose")
+            raise LocalizeArgumentError(Words(_SIGMA, " needs ", _POSE))
         return None
     values = [float(v) for v in pose]
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise LocalizeArgumentError(f"the initial pose must be three finite numbers, got {pose!r}")
+        raise LocalizeArgumentError(Words(_POSE, f" must be three finite numbers, got {pose!r}"))
     x, y, theta = values
     if not m.contains(x, y):
         where = "the map" if m.source is None else f"the map {m.source}"
         raise InitialPoseOutsideMapError(
-            f"the initial pose ({x:g} m, {y:g} m, {math.degrees(theta):g}°) lies outside "
-            f"{where} ({_map_extent(m)})"
+            Words(
+                _POSE,
+                f" ({x:g} m, {y:g} m, {math.degrees(theta):g}°) lies outside {where} "
+                f"({_map_extent(m)})",
+            )
         )
     if sigma is not None and not (sigma[0] > 0.0 and sigma[1] > 0.0):
-        raise LocalizeArgumentError(f"the initial sigma must be two numbers > 0, got {sigma!r}")
+        raise LocalizeArgumentError(Words(_SIGMA, f" must be two numbers > 0, got {sigma!r}"))
     return (x, y, theta)
 
 
