@@ -107,3 +107,12 @@ def test_the_bag_frames_need_a_bag(world) -> None:
     one_line_error(
         ["localize", str(log), "--map", str(yaml_path), "--map-frame", "world"], "give --bag-out"
     )
+
+
+def test_without_a_localizer_installed_exit_2_with_one_line(world, monkeypatch) -> None:
+    log, yaml_path, _ = world
+    monkeypatch.setattr(job, "_LOCALIZER", ("fuzzypos.no_such_localizer", "Localizer"))
+    one_line_error(
+        ["localize", str(log), "--map", str(yaml_path)],
+        "fuzzypos.no_such_localizer is not installed: no localizer",
+    )

@@ -22,12 +22,13 @@ tracking get a pose:
 ``config.toml``     the configuration used
 ``summary.json``    what ran on what (versions, the log's and the map's hashes, the
                     configuration), ``localised``, when (``localised_at``: the scan, its stamp,
-                    the seconds since the first scan and the wall-clock seconds the job took to
-                    get there), every time it lost and found itself (``events``), the scans per
-                    state and per reason, how sure it was (``confidence``: per block of scans,
-                    and quantiles over all scans and over the tracked ones), speed, and the
-                    errors against the log's truth where it has one (taken to be in the map's
-                    frame: a simulated world drawn as the map)
+                    the seconds since the first scan and the wall-clock seconds from reading
+                    the first scan to then), every time it lost and found itself
+                    (``events``), the scans per state and per reason, how sure it was
+                    (``confidence``: per block of scans, and quantiles over all scans and over
+                    the tracked ones), speed, and the errors against the log's truth where it
+                    has one (taken to be in the map's frame: a simulated world drawn as the
+                    map)
 ================  ==========================================================================
 
 With ``bag_out`` the poses also go into a bag as they come, as AMCL publishes them:
@@ -43,6 +44,7 @@ A job stopped by an error or Ctrl-C after some scans keeps them (``"partial": tr
 from __future__ import annotations
 
 import contextlib
+import errno
 import importlib
 import math
 import os
@@ -56,7 +58,7 @@ import numpy as np
 
 from .._version import __version__
 from ..config import Config
-from ..errors import Argument, ArgumentError, Words
+from ..errors import Argument, ArgumentError, FuzzyposError, Words
 from ..geometry import Pose2D, wrap_angle
 from ..io import LogRecord, OdometryBagWriter, OpenLog, open_log, write_text_file, write_tum
 from ..io.logs import empty_stretch, select_records, survey_log
@@ -81,6 +83,7 @@ __all__ = [
     "COVARIANCE_COLUMNS",
     "InitialPoseOutsideMapError",
     "LocalizeArgumentError",
+    "LocalizerMissingError",
     "LocalizeSummary",
     "localize_log",
     "localize_partial",
@@ -154,9 +157,24 @@ class LocalizerLike(Protocol):
 LocalizerFactory = Callable[..., LocalizerLike]
 
 
+class LocalizerMissingError(FuzzyposError, OSError):
+    """This installation has no localizer (``fuzzypos.localization``)."""
+
+    def __str__(self) -> str:
+        return str(self.strerror)
+
+
 def _default_localizer() -> LocalizerFactory:
     module, name = _LOCALIZER
-    factory: LocalizerFactory = getattr(importlib.import_module(module), name)
+    try:
+        found = importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name is None or not module.startswith(exc.name):
+            raise
+        raise LocalizerMissingError(
+            errno.ENOENT, f"{module} is not installed: no localizer"
+        ) from None
+    factory: LocalizerFactory = getattr(found, name)
     return factory
 
 
