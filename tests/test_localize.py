@@ -328,3 +328,21 @@ def test_the_bag_writer_without_odometry_topic_or_transform(tmp_path) -> None:
     assert len(msgs[AMCL_POSE_TOPIC]) == 2 and len(msgs["/tf"]) == 1
     (t,) = msgs["/tf"][0].transforms
     assert t.header.stamp.sec == 2 and t.transform.translation.x == pytest.approx(1.0)
+
+
+def test_a_pose_the_localizer_refuses_fails_before_anything_is_written(world, tmp_path) -> None:
+    """The localizer's own refusal (``InitialPoseError``: a pose in a wall) comes before the
+    results folder."""
+    log, yaml_path, _ = world
+
+    class Refused(FuzzyposError, ValueError):
+        pass
+
+    def refusing(occupancy_map: Any, config: Any = None, **kw: Any) -> Any:
+        raise Refused(f"initial pose {kw['initial_pose']} lies in a wall")
+
+    out = tmp_path / "r"
+    with pytest.raises(Refused, match="lies in a wall"):
+        localize_log(log, yaml_path, results_dir=out, localizer=refusing,
+                     initial_pose=(0.0, 4.99, 0.0))  # fmt: skip
+    assert not out.exists()
