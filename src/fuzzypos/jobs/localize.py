@@ -508,6 +508,8 @@ class _Job:
     bag: OdometryBagWriter | None
     bag_frames: dict[str, Any] | None
     compile_seconds: float
+    #: the bag is finished (never removed after that)
+    bag_done: bool = False
 
 
 def _summary(job: _Job, track: _Track, files: dict[str, Path], notes: list[str]) -> dict[str, Any]:
@@ -585,6 +587,7 @@ def _finish(out: Path, job: _Job, track: _Track) -> LocalizeSummary:
     def bag() -> None:
         assert job.bag is not None
         job.bag.close()
+        job.bag_done = True
 
     for name, write in (
         ("trajectory.tum", tum),
@@ -755,7 +758,7 @@ def _keep(
             progress(len(track), len(track))
         summary = _finish(folder.path, job, track)
     except BaseException as exc:
-        if job.bag is not None:
+        if job.bag is not None and not job.bag_done:
             job.bag.abort()
         if track.stopped is not None:
             raise track.stopped from None
