@@ -116,3 +116,10 @@ def test_without_a_localizer_installed_exit_2_with_one_line(world, monkeypatch) 
         ["localize", str(log), "--map", str(yaml_path)],
         "fuzzypos.no_such_localizer is not installed: no localizer",
     )
+
+
+def test_a_log_that_lost_itself_says_how_often(world, tmp_path, monkeypatch) -> None:
+    log, yaml_path, truth = world
+    monkeypatch.setattr(double, "SETTINGS", {"searching": 2, "lost": range(6, 9)})
+    lines = invoke(["localize", str(log), "--map", str(yaml_path), "--results", str(tmp_path)], 0)
+    assert f"tracking {len(truth) - 5} of {len(truth)} scans, lost 1 time, " in lines[0]

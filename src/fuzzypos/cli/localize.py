@@ -112,7 +112,8 @@ def _report(summary: LocalizeSummary, log: Path, map_yaml: Path) -> None:
     typer.echo(
         f"localised at scan {at['scan']} ({at['seconds_since_first_scan']:.1f} s into the log, "
         f"after {at['wall_seconds']:.1f} s of work); tracking {states['tracking']} of "
-        f"{summary.scans} scans, lost {lost} times{median}; final state {s['final_state']}"
+        f"{summary.scans} scans, lost {lost} time{'' if lost == 1 else 's'}{median}; final state "
+        f"{s['final_state']}"
     )
     for note in summary.notes:
         typer.echo(f"note: {note}", err=True)
