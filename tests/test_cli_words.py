@@ -23,7 +23,17 @@ from fuzzypos.jobs.folders import log_name
 from helpers import make_bag, standard, write_sim_log
 
 runner = CliRunner()
-COMMANDS = ("demo", "simulate", "config", "plot-scan", "info", "run", "evaluate", "benchmark")
+COMMANDS = (
+    "demo",
+    "simulate",
+    "config",
+    "plot-scan",
+    "info",
+    "run",
+    "localize",
+    "evaluate",
+    "benchmark",
+)
 
 
 def one_line_error(args: list[str]) -> str:
