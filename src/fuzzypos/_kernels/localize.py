@@ -302,3 +302,23 @@ def branch_and_bound(
     out = leaves[:m]
     found: FloatArray = out[out[:, 3] >= threshold].copy()
     return found
+
+
+def warm() -> None:
+    """Each kernel called once on a small room, with the types the localizer hands them (so
+    that a warm-up compiles, or loads, the code the localizer then runs)."""
+    rows, cols = 12, 14
+    distance = np.full((rows, cols), 0.2)
+    nearest = np.full((rows, cols), -1, dtype=np.int64)
+    nearest[1:-1, 1:-1] = 0
+    wall = np.array([[0.05, 0.3, 0.0, 1.0]])
+    field = WallField(distance, nearest, wall, np.array([0.05, 1.0]))
+    points = np.array([[0.1 * k, 0.05 * (k % 3)] for k in range(8)], dtype=np.float64)
+    pose = np.array([0.3, 0.25, 0.1])
+    fit(points, pose, pose.copy(), np.eye(3), field, np.array([0.5, 0.05, 3.0]))
+    likelihood(points, pose, field, 0.1, 0.2)
+    score = np.zeros((2, rows, cols))
+    score[:, 2:5, 2:5] = 1.0
+    grids = SearchGrids(score, np.ones((2, rows, cols)))
+    offsets = np.zeros((2, points.shape[0], 2), dtype=np.int64)
+    branch_and_bound(offsets, grids, np.array([0, cols, 0, rows, 1], dtype=np.int64), 0.1, 0.75, 16)

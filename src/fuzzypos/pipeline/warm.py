@@ -111,6 +111,10 @@ def warm_up(config: Config | None = None) -> float:
         positioner.uncertainty.prior_information(
             np.array([0.1, 0.0, 0.02]), step, noise.covariance(step)
         )
+        # localisation in a map (fuzzypos.localization)
+        from .._kernels.localize import warm as warm_localization
+
+        warm_localization()
     return time.perf_counter() - t0
 
 
