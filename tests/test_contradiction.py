@@ -119,8 +119,9 @@ def test_heavy_tailed_odometry_raises_the_bar() -> None:
         return compose(prior.increment, np.array([0.0, 0.0, math.sqrt(d2) * sigma_theta]))
 
     pc = p.odometry_noise.covariance(prior.increment)
-    assert p._contradicts(t_prev, prior, pc, off(50.0), False)  # χ²'s bar: 16.3
+    contradicts = p.contradiction.contradicts
+    assert contradicts(t_prev, prior, pc, off(50.0), False)  # χ²'s bar: 16.3
     for _ in range(Config().odometry_noise.min_samples):
-        assert not p._contradicts(t_prev, prior, pc, off(100.0), True)  # confirmed: learned
-    assert not p._contradicts(t_prev, prior, pc, off(50.0), False)
-    assert p._contradicts(t_prev, prior, pc, off(400.0), False)
+        assert not contradicts(t_prev, prior, pc, off(100.0), True)  # confirmed: learned
+    assert not contradicts(t_prev, prior, pc, off(50.0), False)
+    assert contradicts(t_prev, prior, pc, off(400.0), False)

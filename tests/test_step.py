@@ -1,6 +1,6 @@
 """The positioner's one compiled call for a scan's features, line matching, refinement and
 assessment (``fuzzypos._kernels.step.features_and_step``, ``match_refine_assess`` inside it;
-``Positioner._features_match_refine_assess``) against its reference, the staged calls it
+``pipeline.step.Step.run``) against its reference, the staged calls it
 replaces (``Positioner(fused=False)``: the feature chain, the line
 matcher, the refiner and the uncertainty stage called one after the other): the same
 estimates to the bit, scan by scan, on simulated runs that reach every stage where the call
@@ -25,7 +25,7 @@ from fuzzypos.config import Config
 from fuzzypos.geometry import Pose2D
 from fuzzypos.jobs import DemoSettings
 from fuzzypos.pipeline import Estimate, Positioner
-from fuzzypos.pipeline import positioner as positioner_module
+from fuzzypos.pipeline import step as step_module
 from fuzzypos.pipeline.warm import warm_up
 
 #: the scenarios: a config's overrides, and the metres added to the odometry's x at some scans
@@ -125,7 +125,7 @@ class _Stages:
         _compiled()
         self.reached: collections.Counter[int] = collections.Counter()
         self.full = 0
-        step = positioner_module._step()
+        step = step_module._step()
         chained = step.features_and_step
 
         def count(stage: int, gate: float, full: bool, gate_open: bool, threshold: float) -> None:
@@ -136,9 +136,10 @@ class _Stages:
 
         def counted(*args: Any) -> Any:  # (args: the scan's, the keyframe's, the settings)
             values = chained(*args)
-            if values[7] != step.FEATURES_ONLY:
+            stepped = step.Stepped(*values)
+            if stepped.stage != step.FEATURES_ONLY:
                 refine, assess = args[3], args[4]
-                count(values[7], values[13], refine.full, assess.gate_open, assess.threshold)
+                count(stepped.stage, stepped.gate, refine.full, assess.gate_open, assess.threshold)
             return values
 
         monkeypatch.setattr(step, "features_and_step", counted)
@@ -167,7 +168,7 @@ def test_the_compiled_step_gives_the_staged_estimates_to_the_bit(
 def test_the_scenarios_reach_every_stage(monkeypatch: pytest.MonkeyPatch) -> None:
     """The scenarios above take the compiled call to each of its stages (and the gate to a
     rejection, the learned information to the fits), so the test above compares them all."""
-    step = positioner_module._step()
+    step = step_module._step()
     reached: dict[str, collections.Counter[int]] = {}
     full = 0
     for name in SCENARIOS:

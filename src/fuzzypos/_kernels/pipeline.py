@@ -107,7 +107,7 @@ def prior_information(
     feature: FloatArray,
 ) -> FloatArray:
     """The information of the features' and of the odometry's motion from the keyframe, the
-    refinement's priors where the learned noise is trusted (``Positioner._prior_information``):
+    refinement's priors where the learned noise is trusted (``Positioner._context``):
     the odometry's covariance from the keyframe, ``ja P_prev jaᵀ + jb Σ_odo jbᵀ + floor``
     (``Uncertainty.key_prior_covariance``, the Jacobians of ``t_prev ⊕ prior``), then the
     inverse of it plus the features' own ``feature`` and its own inverse, in one (2, 3, 3)

@@ -1,16 +1,17 @@
 """A scan's features, line matching, refinement and assessment in one compiled call
-(:func:`features_and_step`; ``Positioner._matched``' common path): the feature chain
+(:func:`features_and_step`; ``pipeline.step.Step.run``'s common path): the feature chain
 (``front.scan_features``) and the three kernels the staged path calls one after the other for
 most scans, ``lines.match_lines``, ``refine.weigh_and_refine_both`` and
 ``pipeline.assess_and_scan_only``, with the choices its Python makes between them. Where a
 stage leaves the common path (the lines give no motion, neither fit counts, the assessment
-needs what only Python computes), it returns the stage it reached and the positioner goes on
+needs what only Python computes), it returns the stage it reached and the step goes on
 from there with the staged calls. Its reference is that staged path itself:
 ``tests/test_step.py`` checks both to the bit.
 
 Its inputs cross as a few typed records (:class:`ScanInputs`, :class:`KeyframeInputs`,
 :class:`MatchSettings`, :class:`RefineSettings`, :class:`AssessInputs`), not as dozens of
-positional arguments."""
+positional arguments, and its values come back as one (:class:`Stepped`, named at the call,
+:func:`run`)."""
 
 from __future__ import annotations
 
@@ -99,7 +100,7 @@ class RefineSettings(NamedTuple):
 class AssessInputs(NamedTuple):
     """What the assessment reads but the fit's own values (``Uncertainty.assessment_inputs``'
     values, in its order), the prior from the keyframe and whether it is the assessment's
-    (``Positioner._is_key_prior``)."""
+    (``pipeline.step._is_key_prior``)."""
 
     t_prev: FloatArray
     prior: FloatArray
@@ -114,6 +115,63 @@ class AssessInputs(NamedTuple):
     max_condition: float
     key_prior: FloatArray
     key_prior_known: bool
+
+
+class Stepped(NamedTuple):
+    """:func:`features_and_step`' values, named (:func:`run`): the chain's (whether it is
+    ``done``, the scales, the sizes and the packed floats, integers and masks), the
+    ``stage`` reached, the line pairs, ``weigh_and_refine_both``' which, paired, close and
+    on-start, the assessment's ``gate``, whether the scan alone fixes the motion
+    (``scan_alone``) and the (10, 3, 3) array its properties read."""
+
+    done: bool
+    scale: float
+    line_scale: float
+    sizes: ChainSizes
+    floats: FloatArray
+    integers: IntArray
+    masks: BoolArray
+    stage: int
+    n_pairs: int
+    which: int
+    paired: int
+    close: int
+    on_start: bool
+    gate: float
+    scan_alone: bool
+    values: FloatArray
+
+    @property
+    def chain(self) -> tuple[float, float, ChainSizes, FloatArray, IntArray, BoolArray]:
+        """The chain's values (``fuzzypos.features.extract.features_of_chain`` reads them)."""
+        return self.scale, self.line_scale, self.sizes, self.floats, self.integers, self.masks
+
+    @property
+    def lines_motion(self) -> FloatArray:
+        """The lines' motion from the keyframe."""
+        out: FloatArray = self.values[LINES, 0]
+        return out
+
+    @property
+    def fit(self) -> FloatArray:
+        """The fit's four (3, 3) (``refine.refine``'s values; its increment the first row)."""
+        return self.values[FIT : FIT + 4]
+
+    @property
+    def assessment(self) -> FloatArray:
+        """The assessment's five (3, 3) (``pipeline.assess_and_scan_only``'s array)."""
+        return self.values[ASSESSMENT : ASSESSMENT + 5]
+
+
+def run(
+    scan: ScanInputs,
+    keyframe: KeyframeInputs,
+    match: MatchSettings,
+    refine: RefineSettings,
+    assess: AssessInputs,
+) -> Stepped:
+    """:func:`features_and_step`, its values named (the one place they are taken apart)."""
+    return Stepped(*features_and_step(scan, keyframe, match, refine, assess))
 
 
 @kernel
@@ -150,7 +208,7 @@ def match_refine_assess(
     if not found:
         return NO_LINES, n_pairs, NEITHER, 0, 0, False, 0.0, False, out
     out[LINES, 0] = est
-    # (Positioner._refine's starts: the lines' motion the start, the prior and the hold)
+    # (Refiner.starts: the lines' motion the start, the prior and the hold)
     fit_prior = est if r.prior_from_features and not r.full else key_prior
     which, paired, close, on_start, result = weigh_and_refine_both(
         k.geometry, k.shape, k.cells, k.table, points, ranges, uncertainty, r.weighing, est,

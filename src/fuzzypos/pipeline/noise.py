@@ -15,6 +15,7 @@ from ..config import OdometryConfig, OdometryNoiseConfig
 from ..geometry import relative, relative3
 from ._stale import StaleRates
 from ._window import Window
+from .prior import Prior
 
 __all__ = ["OdometryNoise"]
 
@@ -133,6 +134,35 @@ class OdometryNoise:
             return 1.0
         bound = s.max_calibration
         return float(min(max(sums[0] / sums[1], 1.0 - bound), 1.0 + bound))
+
+    @property
+    def informs_refinement(self) -> bool:
+        """Whether the learned noise gives the refinement's priors their information
+        (``in_refinement`` once it is known, or where it is :attr:`trusted`)."""
+        return (self.settings.in_refinement and self.warm) or self.trusted
+
+    def calibrated_prior(self, prior: Prior) -> Prior:
+        """The odometry ``prior``, its increment corrected by the learned calibration (the
+        prior itself where it is no odometry's or there is no calibration to apply)."""
+        if not prior.from_odometry:
+            return prior
+        increment = self.calibrated(prior.increment)
+        if increment is prior.increment:  # no calibration to apply
+            return prior
+        return Prior._of(
+            increment, prior.odometry, prior.dt, prior.odometry_rejected, prior.standing_still,
+            prior.stale,
+        )  # fmt: skip
+
+    def prior_covariance(self, prior: Prior, broad: FloatArray) -> FloatArray:
+        """The covariance of the prior: this noise's (grown by the time the odometry was
+        stale), or the ``broad`` one where the prior is the last increment (a writable copy
+        of it: the kernels that read it are compiled for writable arrays, not once more for
+        read-only ones)."""
+        if not prior.from_odometry:
+            out: FloatArray = broad.copy()
+            return out
+        return self.covariance(prior.increment, prior.stale)
 
     def calibrated(self, increment: FloatArray) -> FloatArray:
         """The odometry ``increment`` corrected by the calibration factors."""

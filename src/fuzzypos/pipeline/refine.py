@@ -179,6 +179,34 @@ class Refiner:
             for wide in (True, False)
         }  # fmt: skip
 
+    @property
+    def enabled(self) -> bool:
+        """Whether scans are refined at all (``enabled``)."""
+        return self.refinement.enabled
+
+    @property
+    def with_previous_scan(self) -> bool:
+        """Whether, where nothing else fits, the scan is refined against the local map and
+        the previous scan too (``with_previous_scan``)."""
+        return self.refinement.with_previous_scan
+
+    def starts(
+        self,
+        features_motion: FloatArray | None,
+        key_prior: FloatArray,
+        information: tuple[FloatArray, FloatArray] | None,
+    ) -> Starts:
+        """Where the refinement starts: the features' motion, else the prior from the
+        keyframe ``key_prior``; held to the features' motion (``prior_from_features``) or to
+        the prior, with the learned ``information`` where given (the features', the
+        odometry's)."""
+        start = key_prior if features_motion is None else features_motion
+        from_features = features_motion is not None and self.refinement.prior_from_features
+        if information is None:
+            return Starts._of(start, start if from_features else key_prior, key_prior, None, None)
+        # the learned odometry is the prior, the features the start
+        return Starts._of(start, key_prior, key_prior, information[1], information[1])
+
     def points(self, features: Features, angle_increment: float) -> ScanPoints | None:
         """Every valid point of the scan (the paper's filter, §3.1, drops grazing points that
         still tell where a wall is), each weighed by its certainty and by the stretch of

@@ -23,6 +23,11 @@ class Relocaliser:
         self.settings = settings
         self.refiner = refiner
 
+    def is_full(self, after_jump: bool, dt: float) -> bool:
+        """Whether the search is the full one: after an odometry jump, or after a gap in time
+        longer than ``after_gap`` (``dt`` seconds since the previous scan)."""
+        return after_jump or dt > self.settings.after_gap
+
     def relocalise(
         self,
         local_map: LocalMap,

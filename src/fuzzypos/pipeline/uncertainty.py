@@ -26,6 +26,7 @@ import importlib
 import math
 from dataclasses import dataclass, replace
 from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,6 +35,9 @@ from .._kernels import f64
 from ..config import CovarianceConfig, GateConfig
 from ..geometry import compose3, compose_jacobians, relative
 from ..matching import Refinement
+
+if TYPE_CHECKING:
+    from .noise import OdometryNoise
 
 __all__ = ["Assessment", "Uncertainty", "local"]
 
@@ -176,6 +180,16 @@ class Uncertainty:
         kf = local(self._previous, float(t_prev[2])) + self.floor
         return Assessment(self.floor.copy(), kf)
 
+    def gate_open(self, from_odometry: bool, noise: OdometryNoise) -> bool:
+        """Whether a match is compared with the odometry (``[gate]``'s ``enabled``): where
+        the prior is the odometry's (``from_odometry``) and its ``noise`` is known (learned
+        from enough matches, or not learned at all), and, with
+        ``only_where_odometry_is_better``, the odometry the more precise."""
+        gate = self.gate_settings
+        if not (gate.enabled and from_odometry and noise.warm):
+            return False
+        return noise.better_than_matching or not gate.only_where_odometry_is_better
+
     def key_prior_covariance(
         self, t_prev: FloatArray, prior: FloatArray, prior_covariance: FloatArray
     ) -> FloatArray:
@@ -282,7 +296,7 @@ class Uncertainty:
             self._point_correlation, bool(gate_open), self.threshold, wanted, increment,
             _MAX_CONDITION,
         )  # fmt: skip
-        standing = self.assessed(gate, ok, out, 0, gate_open)
+        standing = self.assessed(gate, ok, out, gate_open)
         if standing is not None:
             return standing
         # the gate rejects the match: the numpy reference gives the assessment
@@ -310,20 +324,17 @@ class Uncertainty:
         )  # fmt: skip
 
     def assessed(
-        self, gate: float, ok: bool, out: FloatArray, first: int, gate_open: bool
+        self, gate: float, ok: bool, out: FloatArray, gate_open: bool
     ) -> Assessment | None:
         """The :class:`Assessment` of ``_kernels.pipeline.assess_and_scan_only``' values (its
-        (5, 3, 3) array from element ``first`` of ``out``), as :meth:`assess` gives it, the
-        previous covariance now its; None where the gate rejects the match (then
-        :meth:`assess` gives it, with the numpy reference)."""
+        (5, 3, 3) array ``out``), as :meth:`assess` gives it, the previous covariance now
+        its; None where the gate rejects the match (then :meth:`assess` gives it)."""
         if gate_open and gate > self.threshold:
             return None
         # (views of the kernel's one array)
-        self._previous = out[first + 2]
-        scan = (out[first + 4, 0], out[first + 3]) if ok else None
-        return Assessment._of(
-            out[first], out[first + 1], None if not gate_open else float(gate), False, scan
-        )
+        self._previous = out[2]
+        scan = (out[4, 0], out[3]) if ok else None
+        return Assessment._of(out[0], out[1], None if not gate_open else float(gate), False, scan)
 
     def _assess_numpy(
         self,
