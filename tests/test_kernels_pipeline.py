@@ -147,3 +147,45 @@ def test_the_refinements_priors_from_the_learned_noise_are_the_numpy_ones(
     odometry = u.key_prior_covariance(t_prev, prior, prior_cov)
     np.testing.assert_allclose(got[1] @ odometry, np.eye(3), atol=1e-8)
     np.testing.assert_allclose(got[0] @ (odometry + u.feature_covariance()), np.eye(3), atol=1e-8)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10**6), st.booleans())
+def test_the_prior_standing_is_the_numpy_one(seed, overruled) -> None:
+    """Where the prior stands (nothing matched: ``assess`` of no match; or ``overruled`` from
+    the covariance held before the match's assessment), the compiled kernel
+    (``_kernels.uncertainty.prior_stands``) gives the numpy reference's covariances and leaves
+    its previous covariance, within 1e-12 of their size; the increment's covariance is the
+    prior's own, symmetric, with the floor."""
+    from fuzzypos.config import Config
+    from fuzzypos.pipeline import uncertainty as stage
+
+    cfg = Config()
+    rng = np.random.default_rng(seed)
+    t_prev = rng.normal(scale=[0.5, 0.5, 1.0])
+    prior = rng.normal(scale=[0.1, 0.1, 0.2])
+    prior_cov, previous, held = _spd(rng, 1e-4), _spd(rng, 1e-5), _spd(rng, 1e-5)
+
+    def run(compiled: bool) -> tuple[stage.Assessment, np.ndarray]:
+        with contextlib.nullcontext() if compiled else numpy_kernels():
+            u = stage.Uncertainty(cfg.covariance, cfg.gate)
+            u._previous = previous.copy()
+            if overruled:
+                judged = u.overruled(held, t_prev, prior, prior_cov)
+            else:
+                judged = u.assess(t_prev, prior, prior_cov, None, None, gate_open=True)
+            return judged, u.previous_covariance()
+
+    (a, prev_a), (b, prev_b) = run(True), run(False)
+    assert a.gate is None and b.gate is None and not a.rejected and not b.rejected
+    for x, y in ((a.covariance, b.covariance), (a.keyframe_covariance, b.keyframe_covariance),
+                 (prev_a, prev_b)):  # fmt: skip
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-12 * np.abs(y).max())
+    np.testing.assert_array_equal(a.covariance, a.covariance.T)
+    np.testing.assert_array_equal(a.covariance, 0.5 * (prior_cov + prior_cov.T) + _floor(cfg))
+
+
+def _floor(cfg) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The covariance floor of ``cfg``'s covariance section."""
+    f = cfg.covariance
+    return np.diag([f.floor_translation**2, f.floor_translation**2, f.floor_rotation**2])

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fuzzypos.features import Features
-from fuzzypos.geometry import compose_jacobians, relative, relative3, stack_columns
+from fuzzypos.geometry import compose3, compose_jacobians, relative, relative3, stack_columns
 from fuzzypos.matching import Refinement, surface_lengths
 from fuzzypos.matching._robust import median as _median
 from fuzzypos.matching.surface import SurfacePoints
@@ -146,9 +146,142 @@ def assess(
     with_scan_only: bool = False,
     key_prior: FloatArray | None = None,
 ) -> Assessment:
-    """``Uncertainty.assess`` in numpy (``_assess_numpy`` and :func:`scan_only`)."""
-    judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
-    return self._with_scan_only(judged, fit, t_prev) if with_scan_only else judged
+    """``Uncertainty.assess`` in numpy (:func:`assess_numpy` and :func:`scan_only`)."""
+    judged = assess_numpy(self, t_prev, prior, prior_covariance, from_key, fit, gate_open)
+    return _with_scan_only(self, judged, fit, t_prev) if with_scan_only else judged
+
+
+def _with_scan_only(
+    self: Uncertainty, judged: Assessment, fit: Refinement | None, t_prev: FloatArray
+) -> Assessment:
+    """``judged`` with :func:`scan_only` of ``fit`` where the fit stands (from the previous
+    covariance ``judged`` leaves)."""
+    if fit is None or judged.rejected:
+        return judged
+    scan = scan_only(self, fit, t_prev)
+    if scan is None:
+        return judged
+    return Assessment(
+        judged.covariance, judged.keyframe_covariance, judged.gate, judged.rejected, scan
+    )
+
+
+def _compose(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``geometry.compose`` of one pose each, in floats."""
+    return np.array(compose3(a.tolist(), b.tolist()))
+
+
+def assess_numpy(
+    self: Uncertainty,
+    t_prev: FloatArray,
+    prior: FloatArray,
+    prior_covariance: FloatArray,
+    from_key: FloatArray | None,
+    fit: Refinement | None,
+    gate_open: bool,
+) -> Assessment:
+    """``Uncertainty.assess`` in numpy (without the scan's own motion): the compiled kernels'
+    reference (``_kernels.uncertainty.assessed`` and ``prior_stands``), also where the gate
+    rejects the match or nothing was matched (``from_key`` None)."""
+    ja, jb = compose_jacobians(t_prev, prior)
+    prev = ja @ self._previous @ ja.T
+    odo = jb @ prior_covariance @ jb.T
+    if from_key is None:
+        return prior_stands(self, t_prev, prior, prior_covariance, prev, odo)
+    inc = relative(t_prev, from_key)
+    jb_inv = jb.T  # a rotation: its inverse is its transpose
+    feature = self.feature_covariance()
+    if fit is None:  # the features alone: a measurement of the pose relative to the
+        # keyframe, independent of the previous scan's error
+        kf = feature
+        scan_part = feature + prev
+        pull = np.zeros((3, 3))
+    else:
+        kf, scan_part, pull = fit_parts(self, fit, _compose(t_prev, prior), prev, odo, feature)
+    inc_cov = jb_inv @ (scan_part + pull @ odo @ pull.T) @ jb_inv.T
+    gate, rejected = None, False
+    if gate_open:
+        # the disagreement with the prior: (pull − 1) of the odometry's error plus the scan's
+        k = jb_inv @ pull @ jb - np.eye(3)
+        cov_d = jb_inv @ scan_part @ jb_inv.T + k @ prior_covariance @ k.T + self.floor
+        d = relative(prior, inc)
+        gate = float(d @ np.linalg.solve(cov_d, d))
+        rejected = gate > self.threshold
+    if rejected:
+        return prior_stands(self, t_prev, prior, prior_covariance, prev, odo, gate)
+    self._previous = 0.5 * (kf + kf.T)
+    return Assessment(
+        local(inc_cov, float(inc[2])) + self.floor,
+        local(self._previous, float(from_key[2])) + self.floor,
+        gate,
+    )
+
+
+def fit_parts(
+    self: Uncertainty,
+    fit: Refinement,
+    key_prior: FloatArray,
+    prev: FloatArray,
+    odo: FloatArray,
+    feature: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The sandwich of a fit (``fuzzypos.pipeline.uncertainty``'s docstring): the covariance
+    relative to the keyframe, the increment's share that is not the odometry's error, and how
+    much of the odometry's error the fit took over (``_kernels.uncertainty._fit_parts``'
+    reference). The prior's and the hold's terms carry the odometry's error, and a target
+    that is not the odometry's motion itself also the features' own error."""
+    m = fit.information + fit.prior_information + fit.hold_information
+    m_inv = np.linalg.inv(m + 1e-12 * np.eye(3))
+    odometric = fit.prior_information + fit.hold_information
+    other = np.zeros((3, 3))
+    key = key_prior.tolist()
+    for term, target in (
+        (fit.prior_information, fit.prior),
+        (fit.hold_information, fit.start if fit.hold_on_start else key_prior),
+    ):
+        if max(abs(t - k) for t, k in zip(target.tolist(), key)) > 1e-12:
+            other = other + term
+    points = self.settings.point_correlation * fit.gradient_covariance
+    own = points + other @ feature @ other
+    kf = m_inv @ (own + odometric @ (prev + odo) @ odometric) @ m_inv
+    rest = m - odometric  # what pulls toward the scan's own evidence
+    scan_part = m_inv @ (own + rest @ prev @ rest) @ m_inv
+    return kf, scan_part, m_inv @ odometric
+
+
+def prior_stands(
+    self: Uncertainty,
+    t_prev: FloatArray,
+    prior: FloatArray,
+    prior_covariance: FloatArray,
+    prev: FloatArray,
+    odo: FloatArray,
+    gate: float | None = None,
+) -> Assessment:
+    """The prior stands (``_kernels.uncertainty.prior_stands``' reference): its own
+    covariance for the increment; relative to the keyframe the previous scan's carried on
+    by it."""
+    pose = np.asarray(prior, dtype=float)
+    theta = float(t_prev[2] + pose[2])
+    kf = local(prev + odo, theta) + self.floor
+    self._previous = prev + odo
+    return Assessment(
+        0.5 * (prior_covariance + prior_covariance.T) + self.floor, kf, gate, gate is not None
+    )
+
+
+def overruled(
+    self: Uncertainty,
+    held: FloatArray,
+    t_prev: FloatArray,
+    prior: FloatArray,
+    prior_covariance: FloatArray,
+) -> Assessment:
+    """``Uncertainty.overruled`` in numpy (:func:`prior_stands` from ``held``)."""
+    ja, jb = compose_jacobians(t_prev, prior)
+    return prior_stands(
+        self, t_prev, prior, prior_covariance, ja @ held @ ja.T, jb @ prior_covariance @ jb.T
+    )
 
 
 def scan_only(
@@ -191,4 +324,5 @@ STAND_INS = [
     (uncertainty.__name__, "Uncertainty.prior_information", prior_information),
     (uncertainty.__name__, "Uncertainty.assess", assess),
     (uncertainty.__name__, "Uncertainty.scan_only", scan_only),
+    (uncertainty.__name__, "Uncertainty.overruled", overruled),
 ]

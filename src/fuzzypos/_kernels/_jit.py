@@ -17,7 +17,7 @@ from typing import Any, TypeVar, cast
 
 from numba import njit
 
-__all__ = ["kernel", "inlined", "sources_stamp"]
+__all__ = ["contracted", "kernel", "inlined", "sources_stamp"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 _HERE = Path(__file__).resolve().parent
@@ -54,3 +54,10 @@ def inlined(func: F) -> F:
     a call that passes arrays counts their references, which costs more than a grid query's
     scan."""
     return cast(F, _stamped(njit(cache=True, inline="always")(func)))
+
+
+def contracted(func: F) -> F:
+    """A :func:`kernel` whose ``a * b + c`` are fused multiply-adds (``fastmath={"contract"}``),
+    as numpy's matrix product computes them (each entry's sum a chain of fused multiply-adds
+    from 0.0): for arithmetic that must give numpy's values to the bit."""
+    return cast(F, _stamped(njit(cache=True, fastmath={"contract"})(func)))

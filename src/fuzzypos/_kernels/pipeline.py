@@ -8,7 +8,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._jit import kernel
-from .uncertainty import _add, _inv, _jacobians, _m, _put, _sandwich, _v, assessed, scan_only_of
+from .uncertainty import (
+    _add,
+    _inv,
+    _jacobians,
+    _m,
+    _put,
+    _sandwich,
+    _v,
+    assessed,
+    prior_stands_of,
+    scan_only_of,
+)  # fmt: skip
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -70,8 +81,9 @@ def assess_and_scan_only(
     other for a refined match, in one call. Returns the assessment's gate, whether the scan
     alone fixes the motion, and one (5, 3, 3) array (one array to box, not five): the
     assessment's three matrices (the increment's covariance, the keyframe's, the new
-    previous one), the scan's own motion's covariance, and that motion in the last one's
-    first row (zeros where not computed)."""
+    previous one; where the gate rejects the match, the prior's, ``uncertainty.prior_stands_of``),
+    the scan's own motion's covariance, and that motion in the last one's first row (zeros
+    where not computed)."""
     info, prior_info, hold_info = _m(information), _m(prior_information), _m(hold_information)
     gradient, at, key, cov_floor = _m(gradient_covariance), _v(t_prev), _v(fit_prior), _m(floor)
     inc_cov, kf, new_previous, gate = assessed(
@@ -80,6 +92,10 @@ def assess_and_scan_only(
         point_correlation, gate_open,
     )  # fmt: skip
     out = np.zeros((5, 3, 3))
+    if gate_open and gate > threshold:  # rejected: the prior stands
+        inc_cov, kf, new_previous = prior_stands_of(
+            at, _v(prior), _m(prior_covariance), _m(previous), cov_floor
+        )
     _put(out[0], inc_cov)
     _put(out[1], kf)
     _put(out[2], new_previous)

@@ -1,15 +1,18 @@
 """The uncertainty stage's 3×3 arithmetic as compiled loops: the sandwich of a fit and the
 gate (``Uncertainty.assess``), and the motion the scan alone gives (``Uncertainty.scan_only``).
-The references are ``Uncertainty._assess_numpy`` (also the path where the gate rejects a
-match) and ``scan_only_numpy`` of ``tests/oracles/pipeline.py``: a few dozen numpy calls on
-3×3 matrices, each far slower than its arithmetic.
+The references are ``assess_numpy`` (also the path where the gate rejects a match or
+nothing was matched, ``prior_stands``) and ``scan_only_numpy`` of
+``tests/oracles/pipeline.py``: a few dozen numpy calls on 3×3 matrices, each far slower than
+its arithmetic.
 
 Inside, a 3×3 is a tuple of its nine entries row by row (:data:`M3`) and a pose or a vector
 a tuple of three (:data:`V3`): values, not arrays, which cost nothing to make, where each
 compiled array is a heap allocation (about 50 ns, more than a 3×3 product's arithmetic). The
-operations are numpy's, in its order (a product's sums from 0.0, k = 0, 1, 2, as ``a @ b``'s
-loops were before): the same values to the bit as the array code they replace. The kernels
-that Python or other kernels call take and give arrays at the edge."""
+operations are numpy's, in its order (a product's sums from 0.0, k = 0, 1, 2). numpy's matrix
+product makes each sum a chain of fused multiply-adds: where the prior stands
+(:func:`prior_stands_of`) the products are those too (:func:`_mm_fused`), numpy's values to
+the bit; elsewhere plain ones (:func:`_mm`), within rounding of numpy's. The kernels that
+Python or other kernels call take and give arrays at the edge."""
 
 from __future__ import annotations
 
@@ -18,7 +21,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ._jit import inlined, kernel
+from ._jit import contracted, inlined, kernel
 
 FloatArray = NDArray[np.float64]
 #: a 3×3 as its nine entries, row by row
@@ -239,6 +242,29 @@ def _mm(a: M3, b: M3) -> M3:
     )
 
 
+@contracted
+def _mm_fused(a: M3, b: M3) -> M3:
+    """``a @ b`` of two 3×3 as numpy computes it: each entry's sum from 0.0, k = 0, 1, 2, each
+    step a fused multiply-add (numpy's product, to the bit)."""
+    return (
+        0.0 + a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
+        0.0 + a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+        0.0 + a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        0.0 + a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
+        0.0 + a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+        0.0 + a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        0.0 + a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
+        0.0 + a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+        0.0 + a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+    )
+
+
+@kernel
+def _sandwich_fused(a: M3, b: M3) -> M3:
+    """``a @ b @ a.T`` of two 3×3 by :func:`_mm_fused` (numpy's, to the bit)."""
+    return _mm_fused(_mm_fused(a, b), _t(a))
+
+
 @kernel
 def _sandwich(a: M3, b: M3) -> M3:
     """``a @ b @ a.T`` of two 3×3."""
@@ -347,6 +373,42 @@ def assessed(
         new_previous,
         gate,
     )
+
+
+@kernel
+def prior_stands_of(
+    t_prev: V3, prior: V3, prior_covariance: M3, previous: M3, floor: M3
+) -> tuple[M3, M3, M3]:
+    """The prior stands (nothing matched, or the gate rejected the match, or the match was
+    overruled): its own covariance for the increment (symmetric, the floor added); relative to
+    the keyframe the previous scan's ``previous`` carried on by it, as the right
+    perturbation's with the floor added and as the new previous additive covariance."""
+    ja, jb = _jacobians(t_prev, prior)
+    carried = _add(_sandwich_fused(ja, previous), _sandwich_fused(jb, prior_covariance))
+    theta = t_prev[2] + prior[2]
+    c, s = math.cos(theta), math.sin(theta)
+    kf = _sym(_sandwich_fused((c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0), carried))
+    return _add(_sym(prior_covariance), floor), _add(kf, floor), carried
+
+
+@kernel
+def prior_stands(
+    t_prev: FloatArray,
+    prior: FloatArray,
+    prior_covariance: FloatArray,
+    previous: FloatArray,
+    floor: FloatArray,
+) -> FloatArray:
+    """:func:`prior_stands_of` of arrays, in one (3, 3, 3) array: the increment's covariance,
+    the keyframe's and the new previous one."""
+    inc_cov, kf, carried = prior_stands_of(
+        _v(t_prev), _v(prior), _m(prior_covariance), _m(previous), _m(floor)
+    )
+    out = np.empty((3, 3, 3))
+    _put(out[0], inc_cov)
+    _put(out[1], kf)
+    _put(out[2], carried)
+    return out
 
 
 @kernel

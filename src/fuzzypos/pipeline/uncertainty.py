@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from .._kernels import f64
 from ..config import CovarianceConfig, GateConfig
-from ..geometry import compose3, compose_jacobians, relative
+from ..geometry import compose3, compose_jacobians
 from ..matching import Refinement
 
 if TYPE_CHECKING:
@@ -45,11 +45,6 @@ FloatArray = NDArray[np.float64]
 
 #: the points' information is too ill-conditioned to give the motion alone beyond this
 _MAX_CONDITION = 1e8
-_EYE = np.eye(3)
-_EYE.flags.writeable = False
-#: what keeps the fit's information invertible
-_TINY = 1e-12 * np.eye(3)
-_TINY.flags.writeable = False
 
 
 @functools.cache
@@ -239,26 +234,10 @@ class Uncertainty:
         ``with_scan_only`` also :meth:`scan_only` of the fit where it stands (the compiled path
         computes both in one kernel call). ``key_prior``: ``compose(t_prev, prior)`` where the
         caller has it to the bit (else computed where needed)."""
-        if from_key is not None:
-            return self._assess_compiled(
-                t_prev, prior, prior_covariance, from_key, fit, gate_open, with_scan_only,
-                key_prior,
-            )  # fmt: skip
-        judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
-        return self._with_scan_only(judged, fit, t_prev) if with_scan_only else judged
-
-    def _with_scan_only(
-        self, judged: Assessment, fit: Refinement | None, t_prev: FloatArray
-    ) -> Assessment:
-        """``judged`` with :meth:`scan_only` of ``fit`` where the fit stands (from the previous
-        covariance ``judged`` leaves)."""
-        if fit is None or judged.rejected:
-            return judged
-        scan = self.scan_only(fit, t_prev)
-        if scan is None:
-            return judged
-        return Assessment(
-            judged.covariance, judged.keyframe_covariance, judged.gate, judged.rejected, scan
+        if from_key is None:
+            return self._prior_stands(t_prev, prior, prior_covariance, self._previous)
+        return self._assess_compiled(
+            t_prev, prior, prior_covariance, from_key, fit, gate_open, with_scan_only, key_prior
         )
 
     def _assess_compiled(
@@ -273,7 +252,8 @@ class Uncertainty:
         key_prior: FloatArray | None,
     ) -> Assessment:
         """:meth:`assess` of a match through the compiled kernels, with :meth:`scan_only` in the
-        same call where asked (the fallback, rare, in numpy)."""
+        same call where asked; where the gate rejects the match, the prior stands (the same
+        call)."""
         if fit is None:
             zero, none = self._no_fit
             matrices, poses = (zero, zero, zero, zero), (none, none)
@@ -296,13 +276,11 @@ class Uncertainty:
             self._point_correlation, bool(gate_open), self.threshold, wanted, increment,
             _MAX_CONDITION,
         )  # fmt: skip
-        standing = self.assessed(gate, ok, out, gate_open)
-        if standing is not None:
-            return standing
-        # the gate rejects the match: the numpy reference gives the assessment
-        judged = self._assess_numpy(t_prev, prior, prior_covariance, from_key, fit, gate_open)
-        held = fit is not None and np.count_nonzero(fit.hold_information)
-        return self._with_scan_only(judged, fit, t_prev) if wanted and not held else judged
+        rejected = gate_open and gate > self.threshold
+        self._previous = out[2]  # (views of the kernel's one array)
+        scan = (out[4, 0], out[3]) if ok else None
+        gate_value = float(gate) if gate_open else None
+        return Assessment._of(out[0], out[1], gate_value, rejected, scan)
 
     def assessment_inputs(
         self,
@@ -336,83 +314,6 @@ class Uncertainty:
         scan = (out[4, 0], out[3]) if ok else None
         return Assessment._of(out[0], out[1], None if not gate_open else float(gate), False, scan)
 
-    def _assess_numpy(
-        self,
-        t_prev: FloatArray,
-        prior: FloatArray,
-        prior_covariance: FloatArray,
-        from_key: FloatArray | None,
-        fit: Refinement | None,
-        gate_open: bool,
-    ) -> Assessment:
-        """:meth:`assess` in numpy: the compiled kernel's reference, and its fallback where the
-        gate rejects the match or nothing was matched (``from_key`` None)."""
-        ja, jb = compose_jacobians(t_prev, prior)
-        prev = ja @ self._previous @ ja.T
-        odo = jb @ prior_covariance @ jb.T
-        if from_key is None:
-            return self._fallback(t_prev, prior, prior_covariance, prev, odo)
-        inc = relative(t_prev, from_key)
-        jb_inv = jb.T  # a rotation: its inverse is its transpose
-        feature = self.feature_covariance()
-        if fit is None:  # the features alone: a measurement of the pose relative to the
-            # keyframe, independent of the previous scan's error
-            kf = feature
-            scan_part = feature + prev
-            pull = np.zeros((3, 3))
-        else:
-            kf, scan_part, pull = self._fit_parts(fit, _compose(t_prev, prior), prev, odo, feature)
-        inc_cov = jb_inv @ (scan_part + pull @ odo @ pull.T) @ jb_inv.T
-        gate, rejected = None, False
-        if gate_open:
-            # the disagreement with the prior: (pull − 1) of the odometry's error plus the scan's
-            k = jb_inv @ pull @ jb - _EYE
-            cov_d = jb_inv @ scan_part @ jb_inv.T + k @ prior_covariance @ k.T + self.floor
-            d = relative(prior, inc)
-            gate = float(d @ np.linalg.solve(cov_d, d))
-            rejected = gate > self.threshold
-        if rejected:
-            return self._fallback(t_prev, prior, prior_covariance, prev, odo, gate)
-        self._previous = 0.5 * (kf + kf.T)
-        return Assessment(
-            local(inc_cov, float(inc[2])) + self.floor,
-            local(self._previous, float(from_key[2])) + self.floor,
-            gate,
-        )
-
-    def _fit_parts(
-        self,
-        fit: Refinement,
-        key_prior: FloatArray,
-        prev: FloatArray,
-        odo: FloatArray,
-        feature: FloatArray,
-    ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """The sandwich of a fit (module docstring): the covariance relative to the keyframe,
-        the increment's share that is not the odometry's error, and how much of the odometry's
-        error the fit took over. The prior's and the hold's terms pull toward the odometry's
-        motion or toward the features' (or the search's), which started from the odometry's
-        and keep its error where the scan does not see (along a corridor the lines' motion is
-        the prior's): both carry the odometry's error, and a target that is not the odometry's
-        motion itself also the features' own error."""
-        m = fit.information + fit.prior_information + fit.hold_information
-        m_inv = np.linalg.inv(m + _TINY)
-        odometric = fit.prior_information + fit.hold_information
-        other = np.zeros((3, 3))
-        key = key_prior.tolist()
-        for term, target in (
-            (fit.prior_information, fit.prior),
-            (fit.hold_information, fit.start if fit.hold_on_start else key_prior),
-        ):
-            if max(abs(t - k) for t, k in zip(target.tolist(), key)) > 1e-12:
-                other = other + term
-        points = self.settings.point_correlation * fit.gradient_covariance
-        own = points + other @ feature @ other
-        kf = m_inv @ (own + odometric @ (prev + odo) @ odometric) @ m_inv
-        rest = m - odometric  # what pulls toward the scan's own evidence
-        scan_part = m_inv @ (own + rest @ prev @ rest) @ m_inv
-        return kf, scan_part, m_inv @ odometric
-
     def scan_only(
         self, fit: Refinement, t_prev: FloatArray
     ) -> tuple[FloatArray, FloatArray] | None:
@@ -433,24 +334,16 @@ class Uncertainty:
         )  # fmt: skip
         return (inc, cov) if ok else None
 
-    def _fallback(
-        self,
-        t_prev: FloatArray,
-        prior: FloatArray,
-        prior_covariance: FloatArray,
-        prev: FloatArray,
-        odo: FloatArray,
-        gate: float | None = None,
+    def _prior_stands(
+        self, t_prev: FloatArray, prior: FloatArray, prior_covariance: FloatArray, held: FloatArray
     ) -> Assessment:
         """The prior stands: its own covariance for the increment; relative to the keyframe
-        the previous scan's carried on by it."""
-        pose = np.asarray(prior, dtype=float)
-        theta = float(t_prev[2] + pose[2])
-        kf = local(prev + odo, theta) + self.floor
-        self._previous = prev + odo
-        return Assessment(
-            0.5 * (prior_covariance + prior_covariance.T) + self.floor, kf, gate, gate is not None
+        the previous scan's (``held``) carried on by it (``_kernels.uncertainty.prior_stands``)."""
+        out = _kernels().prior_stands(
+            f64(t_prev), f64(prior), f64(prior_covariance), held, self.floor
         )
+        self._previous = out[2]
+        return Assessment._of(out[0], out[1], None, False, None)
 
     def held(self) -> FloatArray:
         """The previous scan's covariance relative to the keyframe as it stands, before the
@@ -462,11 +355,7 @@ class Uncertainty:
     ) -> Assessment:
         """The assessment of a scan whose match, assessed already, was overruled: the prior
         stands, from the previous scan's covariance ``held`` before that assessment."""
-        self._previous = held
-        ja, jb = compose_jacobians(t_prev, prior)
-        prev = ja @ held @ ja.T
-        odo = jb @ prior_covariance @ jb.T
-        return self._fallback(t_prev, prior, prior_covariance, prev, odo)
+        return self._prior_stands(t_prev, prior, prior_covariance, held)
 
     def previous_covariance(self) -> FloatArray:
         """The additive covariance, in the keyframe's frame, of the previous scan's pose
