@@ -84,8 +84,7 @@ class Positioner:
     def __init__(self, config: Config | None = None, *, fused: bool = True) -> None:
         self.config = config if config is not None else Config()
         cfg = self.config
-        noise = cfg.odometry_noise
-        self.odometry_prior = OdometryPrior(cfg.odometry, noise.stale_periods, noise.stale_quantile)
+        self.odometry_prior = OdometryPrior.of_sections(cfg.odometry, cfg.odometry_noise)
         self.odometry_noise = OdometryNoise(cfg.odometry_noise, cfg.odometry)
         self.local_map = LocalMap(cfg.matching, cfg.refinement)
         self.feature_matcher = FeatureMatcher(cfg.matching, cfg.fusion)

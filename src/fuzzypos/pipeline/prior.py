@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..config import OdometryConfig
+from ..config import OdometryConfig, OdometryNoiseConfig
 from ..geometry import Pose2D, relative3
 from ._window import Window
 
@@ -79,6 +79,12 @@ class OdometryPrior:
         self.stale_periods = stale_periods
         self.stale_quantile = stale_quantile
         self.reset()
+
+    @classmethod
+    def of_sections(cls, odometry: OdometryConfig, noise: OdometryNoiseConfig) -> OdometryPrior:
+        """The prior of the ``[odometry]`` section, its time steps stale past
+        ``[odometry_noise]``'s ``stale_periods`` usual ones (their ``stale_quantile``)."""
+        return cls(odometry, noise.stale_periods, noise.stale_quantile)
 
     def reset(self) -> None:
         self._prev_odom: Pose2D | None = None

@@ -185,6 +185,16 @@ class Refiner:
         return self.refinement.enabled
 
     @property
+    def min_points(self) -> int:
+        """The least points a scan is refined with (``min_points``)."""
+        return int(self.refinement.min_points)
+
+    @property
+    def prior_from_features(self) -> bool:
+        """Whether the fit is held to the features' motion (``prior_from_features``)."""
+        return bool(self.refinement.prior_from_features)
+
+    @property
     def with_previous_scan(self) -> bool:
         """Whether, where nothing else fits, the scan is refined against the local map and
         the previous scan too (``with_previous_scan``)."""

@@ -213,8 +213,7 @@ class Step:
         step = _step()
         (prev, prev_first, prev_n), line_gates, line_params, passes, min_pairs = keyframe
         geometry, shape, cells, table, gates, params, iterations, diag, info, full = of_surface
-        r = self.refiner.refinement
-        prior = ctx.prior
+        refiner, prior = self.refiner, ctx.prior
         gate_open = self.uncertainty.gate_open(prior.from_odometry, self.odometry_noise)
         assessment = self.uncertainty.assessment_inputs(
             ctx.t_prev, prior.increment, ctx.prior_covariance, gate_open, _learns_from(prior, True)
@@ -223,11 +222,11 @@ class Step:
             step.ScanInputs(*chain),
             step.KeyframeInputs(prev, prev_first, prev_n, geometry, shape, cells, table),
             step.MatchSettings(
-                line_gates, line_params, passes, min_pairs, packing.lines_at(), int(r.min_points)
+                line_gates, line_params, passes, min_pairs, packing.lines_at(), refiner.min_points
             ),
             step.RefineSettings(
-                self.refiner.weighing_settings(scan.angle_increment), gates, params, iterations,
-                diag, info, full, bool(r.prior_from_features), self.refiner.checks(False),
+                refiner.weighing_settings(scan.angle_increment), gates, params, iterations, diag,
+                info, full, refiner.prior_from_features, refiner.checks(False),
             ),
             step.AssessInputs(*assessment, ctx.key_prior, _is_key_prior(ctx.t_prev)),
         )  # fmt: skip
