@@ -4,6 +4,8 @@ several small calls per step. Each has its numpy reference beside its caller, an
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -51,31 +53,52 @@ def move_surfaces(
     return out_xy, out_normal
 
 
+class AssessInputs(NamedTuple):
+    """What the assessment reads but the match's and the fit's own values
+    (``Uncertainty.assessment_inputs``' values, in its order): the previous scan's pose from
+    the keyframe, the prior and its covariance, the previous covariance, the features', the
+    floor, the points' correlation, whether the gate is open, its threshold, whether the
+    scan's own motion is wanted, the condition's limit; and for the compiled step
+    (``step.match_refine_assess``) the prior from the keyframe and whether it is the
+    assessment's (``pipeline.step._is_key_prior``)."""
+
+    t_prev: FloatArray
+    prior: FloatArray
+    prior_covariance: FloatArray
+    previous: FloatArray
+    feature: FloatArray
+    floor: FloatArray
+    point_correlation: float
+    gate_open: bool
+    threshold: float
+    wanted: bool
+    max_condition: float
+    key_prior: FloatArray
+    key_prior_known: bool
+
+
+class FitValues(NamedTuple):
+    """What the assessment reads of a fit (``matching.Refinement``'s): the points'
+    information, the prior's and the hold's, the points' gradient covariance, the motion the
+    fit was held to by its prior (``prior``) and by its hold (``hold_target``), and its
+    ``increment``."""
+
+    information: FloatArray
+    prior_information: FloatArray
+    hold_information: FloatArray
+    gradient_covariance: FloatArray
+    prior: FloatArray
+    hold_target: FloatArray
+    increment: FloatArray
+
+
 @kernel
 def assess_and_scan_only(
-    t_prev: FloatArray,
-    prior: FloatArray,
-    prior_covariance: FloatArray,
-    previous: FloatArray,
-    from_key: FloatArray,
-    feature: FloatArray,
-    floor: FloatArray,
-    has_fit: bool,
-    information: FloatArray,
-    prior_information: FloatArray,
-    hold_information: FloatArray,
-    gradient_covariance: FloatArray,
-    fit_prior: FloatArray,
-    hold_target: FloatArray,
-    point_correlation: float,
-    gate_open: bool,
-    threshold: float,
-    wanted: bool,
-    increment: FloatArray,
-    max_condition: float,
+    a: AssessInputs, from_key: FloatArray, has_fit: bool, fit: FitValues
 ) -> tuple[float, bool, FloatArray]:
-    """``uncertainty.assessed`` and, where ``wanted``, the fit holds nothing (its
-    ``hold_information`` zero) and the gate (at ``threshold``) lets the match stand,
+    """``uncertainty.assessed`` of the match ``from_key`` (by the ``fit`` where ``has_fit``,
+    else the features alone) and, where ``a.wanted``, the fit holds nothing (its
+    ``hold_information`` zero) and the gate (at ``a.threshold``) lets the match stand,
     ``uncertainty.scan_only`` of the fit (its ``increment``) from the previous covariance the
     assessment leaves: the two kernels the positioner calls one after the
     other for a refined match, in one call. Returns the assessment's gate, whether the scan
@@ -84,10 +107,16 @@ def assess_and_scan_only(
     previous one; where the gate rejects the match, the prior's, ``uncertainty.prior_stands_of``),
     the scan's own motion's covariance, and that motion in the last one's first row (zeros
     where not computed)."""
+    t_prev, prior, prior_covariance, previous = a.t_prev, a.prior, a.prior_covariance, a.previous
+    floor, point_correlation, gate_open = a.floor, a.point_correlation, a.gate_open
+    threshold, wanted = a.threshold, a.wanted
+    information, prior_information = fit.information, fit.prior_information
+    hold_information, gradient_covariance = fit.hold_information, fit.gradient_covariance
+    fit_prior, hold_target, increment = fit.prior, fit.hold_target, fit.increment
     info, prior_info, hold_info = _m(information), _m(prior_information), _m(hold_information)
     gradient, at, key, cov_floor = _m(gradient_covariance), _v(t_prev), _v(fit_prior), _m(floor)
     inc_cov, kf, new_previous, gate = assessed(
-        at, _v(prior), _m(prior_covariance), _m(previous), _v(from_key), _m(feature), cov_floor,
+        at, _v(prior), _m(prior_covariance), _m(previous), _v(from_key), _m(a.feature), cov_floor,
         has_fit, info, prior_info, hold_info, gradient, key, _v(hold_target),
         point_correlation, gate_open,
     )  # fmt: skip
@@ -106,7 +135,7 @@ def assess_and_scan_only(
     if wanted and not (gate_open and gate > threshold):
         ok, inc, cov = scan_only_of(
             info, prior_info, gradient, _v(increment), key, at, new_previous, cov_floor,
-            point_correlation, max_condition,
+            point_correlation, a.max_condition,
         )  # fmt: skip
         _put(out[3], cov)
         out[4, 0, 0], out[4, 0, 1], out[4, 0, 2] = inc[0], inc[1], inc[2]

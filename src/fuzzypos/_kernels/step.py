@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from ._jit import kernel
 from .front import ChainSizes, scan_features
 from .lines import match_lines
-from .pipeline import assess_and_scan_only
+from .pipeline import AssessInputs, FitValues, assess_and_scan_only
 from .refine import FROM_START, NEITHER, weigh_and_refine_both
 
 FloatArray = NDArray[np.float64]
@@ -95,26 +95,6 @@ class RefineSettings(NamedTuple):
     full: bool
     prior_from_features: bool
     checks: FloatArray
-
-
-class AssessInputs(NamedTuple):
-    """What the assessment reads but the fit's own values (``Uncertainty.assessment_inputs``'
-    values, in its order), the prior from the keyframe and whether it is the assessment's
-    (``pipeline.step._is_key_prior``)."""
-
-    t_prev: FloatArray
-    prior: FloatArray
-    prior_covariance: FloatArray
-    previous: FloatArray
-    feature: FloatArray
-    floor: FloatArray
-    point_correlation: float
-    gate_open: bool
-    threshold: float
-    wanted: bool
-    max_condition: float
-    key_prior: FloatArray
-    key_prior_known: bool
 
 
 class Stepped(NamedTuple):
@@ -229,11 +209,8 @@ def match_refine_assess(
     increment = result[0, 0].copy()
     has_fit = which != NEITHER  # (True, typed a bool: a literal True would compile the
     # assessment once more, beside the staged calls' bool)
-    gate, ok, judged = assess_and_scan_only(
-        a.t_prev, a.prior, a.prior_covariance, a.previous, increment, a.feature, a.floor,
-        has_fit, result[1], r.information, result[2], result[3], held, target,
-        a.point_correlation, a.gate_open, a.threshold, a.wanted, increment, a.max_condition,
-    )  # fmt: skip
+    fit = FitValues(result[1], r.information, result[2], result[3], held, target, increment)
+    gate, ok, judged = assess_and_scan_only(a, increment, has_fit, fit)
     out[ASSESSMENT : ASSESSMENT + 5] = judged
     return ASSESSED, n_pairs, which, paired, close, on_start, gate, ok, out
 

@@ -254,28 +254,28 @@ class Uncertainty:
         """:meth:`assess` of a match through the compiled kernels, with :meth:`scan_only` in the
         same call where asked; where the gate rejects the match, the prior stands (the same
         call)."""
+        kernels = _pipeline_kernels()
+        zero, none = self._no_fit
         if fit is None:
-            zero, none = self._no_fit
-            matrices, poses = (zero, zero, zero, zero), (none, none)
-            increment, wanted = none, False
+            values = kernels.FitValues(zero, zero, zero, zero, none, none, none)
+            wanted = False
         else:  # (the fit's own arrays, float64 already)
-            matrices = (fit.information, fit.prior_information, fit.hold_information,
-                        fit.gradient_covariance)  # fmt: skip
             if fit.hold_on_start:
                 key_prior = fit.start
             elif key_prior is None:
                 key_prior = _compose(t_prev, prior)
-            poses = (fit.prior, key_prior)
-            increment = f64(fit.increment)
+            values = kernels.FitValues(
+                fit.information, fit.prior_information, fit.hold_information,
+                fit.gradient_covariance, fit.prior, key_prior, f64(fit.increment),
+            )  # fmt: skip
             # (scan_only's own test, the kernel's too: a held fit gives no motion of the
             # scan's own)
             wanted = with_scan_only
-        gate, ok, out = _pipeline_kernels().assess_and_scan_only(
-            f64(t_prev), f64(prior), f64(prior_covariance), self._previous, f64(from_key),
-            self._feature, self.floor, fit is not None, *matrices, *poses,
-            self._point_correlation, bool(gate_open), self.threshold, wanted, increment,
-            _MAX_CONDITION,
+        inputs = kernels.AssessInputs(
+            *self.assessment_inputs(t_prev, prior, prior_covariance, gate_open, wanted), none,
+            False,
         )  # fmt: skip
+        gate, ok, out = kernels.assess_and_scan_only(inputs, f64(from_key), fit is not None, values)
         rejected = gate_open and gate > self.threshold
         self._previous = out[2]  # (views of the kernel's one array)
         scan = (out[4, 0], out[3]) if ok else None
