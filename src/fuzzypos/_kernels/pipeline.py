@@ -55,10 +55,10 @@ def move_surfaces(
 
 class AssessInputs(NamedTuple):
     """What the assessment reads but the match's and the fit's own values
-    (``Uncertainty.assessment_inputs``' values, in its order): the previous scan's pose from
-    the keyframe, the prior and its covariance, the previous covariance, the features', the
-    floor, the points' correlation, whether the gate is open, its threshold, whether the
-    scan's own motion is wanted, the condition's limit; and for the compiled step
+    (``Uncertainty.assess_inputs``): the previous scan's pose from the keyframe, the prior
+    and its covariance, the previous covariance, the features', the floor, the points'
+    correlation, whether the gate is open, its threshold, whether the scan's own motion is
+    wanted, the condition's limit; and for the compiled step
     (``step.match_refine_assess``) the prior from the keyframe and whether it is the
     assessment's (``pipeline.step._is_key_prior``)."""
 

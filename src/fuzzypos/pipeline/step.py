@@ -215,9 +215,10 @@ class Step:
         geometry, shape, cells, table, gates, params, iterations, diag, info, full = of_surface
         refiner, prior = self.refiner, ctx.prior
         gate_open = self.uncertainty.gate_open(prior.from_odometry, self.odometry_noise)
-        assessment = self.uncertainty.assessment_inputs(
-            ctx.t_prev, prior.increment, ctx.prior_covariance, gate_open, _learns_from(prior, True)
-        )
+        assess = self.uncertainty.assess_inputs(
+            ctx.t_prev, prior.increment, ctx.prior_covariance, gate_open,
+            _learns_from(prior, True), ctx.key_prior, _is_key_prior(ctx.t_prev),
+        )  # fmt: skip
         stepped = step.run(
             step.ScanInputs(*chain),
             step.KeyframeInputs(prev, prev_first, prev_n, geometry, shape, cells, table),
@@ -228,7 +229,7 @@ class Step:
                 refiner.weighing_settings(scan.angle_increment), gates, params, iterations, diag,
                 info, full, refiner.prior_from_features, refiner.checks(False),
             ),
-            step.AssessInputs(*assessment, ctx.key_prior, _is_key_prior(ctx.t_prev)),
+            assess,
         )  # fmt: skip
         if not stepped.done:  # (a gapless 360° ring: the staged chain's)
             features = self.features(scan)

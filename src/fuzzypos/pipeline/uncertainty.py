@@ -36,7 +36,8 @@ from ..config import CovarianceConfig, GateConfig
 from ..geometry import compose3, compose_jacobians
 from ..matching import Refinement
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # (the compiled kernels' module imports numba: on first use only)
+    from .._kernels.pipeline import AssessInputs
     from .noise import OdometryNoise
 
 __all__ = ["Assessment", "Uncertainty", "local"]
@@ -59,22 +60,6 @@ def _pipeline_kernels() -> ModuleType:
     """The pipeline's own kernels (``_kernels.pipeline``: the assessment and the scan's own
     motion in one call), imported on first use and kept."""
     return importlib.import_module("fuzzypos._kernels.pipeline")
-
-
-#: :meth:`Uncertainty.assessment_inputs`
-_AssessmentInputs = tuple[
-    FloatArray,
-    FloatArray,
-    FloatArray,
-    FloatArray,
-    FloatArray,
-    FloatArray,
-    float,
-    bool,
-    float,
-    bool,
-    float,
-]
 
 
 def _read_only(a: FloatArray) -> FloatArray:
@@ -271,10 +256,7 @@ class Uncertainty:
             # (scan_only's own test, the kernel's too: a held fit gives no motion of the
             # scan's own)
             wanted = with_scan_only
-        inputs = kernels.AssessInputs(
-            *self.assessment_inputs(t_prev, prior, prior_covariance, gate_open, wanted), none,
-            False,
-        )  # fmt: skip
+        inputs = self.assess_inputs(t_prev, prior, prior_covariance, gate_open, wanted, none, False)
         gate, ok, out = kernels.assess_and_scan_only(inputs, f64(from_key), fit is not None, values)
         rejected = gate_open and gate > self.threshold
         self._previous = out[2]  # (views of the kernel's one array)
@@ -282,24 +264,29 @@ class Uncertainty:
         gate_value = float(gate) if gate_open else None
         return Assessment._of(out[0], out[1], gate_value, rejected, scan)
 
-    def assessment_inputs(
+    def assess_inputs(
         self,
         t_prev: FloatArray,
         prior: FloatArray,
         prior_covariance: FloatArray,
         gate_open: bool,
         wanted: bool,
-    ) -> _AssessmentInputs:
-        """What ``_kernels.pipeline.assess_and_scan_only`` reads for :meth:`assess` of a
-        refined match but the fit's and the match's own values: the previous scan's pose from
-        the keyframe ``t_prev``, the ``prior`` and its covariance, the previous covariance,
-        the features', the floor, the points' correlation, whether the gate is open, its
-        threshold, whether the scan's own motion is ``wanted`` and the condition's limit."""
-        return (
+        key_prior: FloatArray,
+        key_prior_known: bool,
+    ) -> AssessInputs:
+        """What ``_kernels.pipeline.assess_and_scan_only`` reads for :meth:`assess` but the
+        match's and the fit's own values, its record (``AssessInputs``): the previous scan's
+        pose from the keyframe ``t_prev``, the ``prior`` and its covariance, the previous
+        covariance, the features', the floor, the points' correlation, whether the gate is
+        open, its threshold, whether the scan's own motion is ``wanted``, the condition's
+        limit, and for the compiled step the prior from the keyframe and whether it is the
+        assessment's."""
+        inputs: AssessInputs = _pipeline_kernels().AssessInputs(
             f64(t_prev), f64(prior), f64(prior_covariance), self._previous, self._feature,
             self.floor, self._point_correlation, bool(gate_open), self.threshold, bool(wanted),
-            _MAX_CONDITION,
+            _MAX_CONDITION, key_prior, bool(key_prior_known),
         )  # fmt: skip
+        return inputs
 
     def assessed(
         self, gate: float, ok: bool, out: FloatArray, gate_open: bool
