@@ -60,20 +60,21 @@ class Positioner:
     A sequence of stages, each built from its own config section and owning its state; the
     positioner reads no section itself. Each stage's formula lives in one file:
 
-    ==================  ==========================================================
-    stage               its formula
-    ==================  ==========================================================
-    prior               ``pipeline/prior.py`` (:class:`~.prior.OdometryPrior`); its
-                        covariance and calibration ``pipeline/noise.py``
-                        (:class:`~.noise.OdometryNoise`)
-    features            ``_kernels/front.py`` (``fuzzypos.features``)
-    match               ``_kernels/lines.py`` (:class:`~.feature_match.FeatureMatcher`)
-    refine              ``_kernels/refine.py`` (:class:`~.refine.Refiner`; the search
-                        ``pipeline/search.py``, :class:`~.search.Relocaliser`)
-    assess              ``_kernels/uncertainty.py`` (:class:`~.uncertainty.Uncertainty`)
-    contradiction       ``pipeline/contradiction.py`` (:class:`~.contradiction.ContradictionCheck`)
-    commit              ``pipeline/local_map.py`` (:class:`~.local_map.LocalMap`)
-    ==================  ==========================================================
+    ================  ============================================================
+    stage             its formula (its entry point)
+    ================  ============================================================
+    prior             ``pipeline/prior.py`` (:class:`~.prior.OdometryPrior`)
+    odometry noise    ``pipeline/noise.py`` (:class:`~.noise.OdometryNoise`)
+    features          ``_kernels/front.py`` (``features.extract_features``: §3.1–3.5)
+    angular points    ``_kernels/points.py`` (§3.4, §3.6, in the same call)
+    match (lines)     ``_kernels/lines.py`` (:class:`~.feature_match.FeatureMatcher`)
+    match (points)    ``matching/points.py`` (its fallback, §3.7)
+    refine            ``_kernels/refine.py`` (:class:`~.refine.Refiner`)
+    search            ``_kernels/search.py`` (:class:`~.search.Relocaliser`)
+    assess            ``_kernels/uncertainty.py`` (:class:`~.uncertainty.Uncertainty`)
+    contradiction     ``pipeline/contradiction.py`` (``ContradictionCheck``)
+    commit            ``pipeline/local_map.py`` (:class:`~.local_map.LocalMap`)
+    ================  ============================================================
 
     Features → match → refine → assess are one stage for the positioner
     (:class:`~.step.Step`, ``pipeline/step.py``): ``fused``, in one compiled call where they
