@@ -144,7 +144,7 @@ def test_the_refinements_priors_from_the_learned_noise_are_the_numpy_ones(
     want = pipeline_oracle.prior_information(u, t_prev, prior, prior_cov)
     for x, y in zip(got, want):
         np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-9 * np.abs(y).max())
-    odometry = u.key_prior_covariance(t_prev, prior, prior_cov)
+    odometry = pipeline_oracle.key_prior_covariance(u, t_prev, prior, prior_cov)
     np.testing.assert_allclose(got[1] @ odometry, np.eye(3), atol=1e-8)
     np.testing.assert_allclose(got[0] @ (odometry + u.feature_covariance()), np.eye(3), atol=1e-8)
 

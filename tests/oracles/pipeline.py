@@ -124,11 +124,21 @@ def refine_fits(
     return refine_staged(self, surface, points, starts, max_distance, wide)
 
 
+def key_prior_covariance(
+    self: Uncertainty, t_prev: FloatArray, prior: FloatArray, prior_covariance: FloatArray
+) -> FloatArray:
+    """The additive covariance, in the keyframe's frame, of the prior from the keyframe: the
+    previous scan's pose relative to it carried on by ``prior`` (the floor added)."""
+    ja, jb = compose_jacobians(t_prev, prior)
+    out: FloatArray = ja @ self._previous @ ja.T + jb @ prior_covariance @ jb.T + self.floor
+    return out
+
+
 def prior_information(
     self: Uncertainty, t_prev: FloatArray, prior: FloatArray, prior_covariance: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """``Uncertainty.prior_information`` in numpy (the kernel's reference)."""
-    odometry = self.key_prior_covariance(t_prev, prior, prior_covariance)
+    odometry = key_prior_covariance(self, t_prev, prior, prior_covariance)
     features = odometry + self.feature_covariance()
     inv_features = np.asarray(np.linalg.inv(features), dtype=np.float64)
     inv_odometry = np.asarray(np.linalg.inv(odometry), dtype=np.float64)

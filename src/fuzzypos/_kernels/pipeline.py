@@ -154,9 +154,9 @@ def prior_information(
     """The information of the features' and of the odometry's motion from the keyframe, the
     refinement's priors where the learned noise is trusted (``Positioner._context``):
     the odometry's covariance from the keyframe, ``ja P_prev jaᵀ + jb Σ_odo jbᵀ + floor``
-    (``Uncertainty.key_prior_covariance``, the Jacobians of ``t_prev ⊕ prior``), then the
-    inverse of it plus the features' own ``feature`` and its own inverse, in one (2, 3, 3)
-    array."""
+    (``key_prior_covariance`` of ``tests/oracles/pipeline.py``, the Jacobians of
+    ``t_prev ⊕ prior``), then the inverse of it plus the features' own ``feature`` and its
+    own inverse, in one (2, 3, 3) array."""
     ja, jb = _jacobians(_v(t_prev), _v(prior))
     moved = _add(_sandwich(ja, _m(previous)), _sandwich(jb, _m(prior_covariance)))
     odometry = _add(moved, _m(floor))

@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from .._kernels import f64
 from ..config import CovarianceConfig, GateConfig
-from ..geometry import compose3, compose_jacobians
+from ..geometry import compose3
 from ..matching import Refinement
 
 if TYPE_CHECKING:  # (the compiled kernels' module imports numba: on first use only)
@@ -170,22 +170,14 @@ class Uncertainty:
             return False
         return noise.better_than_matching or not gate.only_where_odometry_is_better
 
-    def key_prior_covariance(
-        self, t_prev: FloatArray, prior: FloatArray, prior_covariance: FloatArray
-    ) -> FloatArray:
-        """The additive covariance, in the keyframe's frame, of the prior from the keyframe:
-        the previous scan's pose relative to it carried on by ``prior``."""
-        ja, jb = compose_jacobians(t_prev, prior)
-        out: FloatArray = ja @ self._previous @ ja.T + jb @ prior_covariance @ jb.T + self.floor
-        return out
-
     def prior_information(
         self, t_prev: FloatArray, prior: FloatArray, prior_covariance: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """The information of the features' motion from the keyframe (the inverse of
-        :meth:`key_prior_covariance` plus :meth:`feature_covariance`) and of the odometry's
-        (the inverse of :meth:`key_prior_covariance`): the refinement's priors from the learned
-        noise. One compiled call (``_kernels.pipeline.prior_information``)."""
+        """The information of the features' motion from the keyframe (the inverse of the
+        prior from the keyframe's additive covariance, the previous scan's pose relative to
+        it carried on by ``prior``, plus :meth:`feature_covariance`) and of the odometry's
+        (the inverse of that covariance): the refinement's priors from the learned noise. One
+        compiled call (``_kernels.pipeline.prior_information``)."""
         out = _pipeline_kernels().prior_information(
             f64(t_prev), f64(prior), self._previous, f64(prior_covariance), self.floor,
             self._feature,
