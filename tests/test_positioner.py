@@ -561,3 +561,43 @@ def test_update_takes_the_odometry_as_x_y_theta() -> None:
     for odom, error, message in bad:
         with pytest.raises(error, match=message):
             Positioner().update(scans[0], odom)  # type: ignore[arg-type]
+
+
+def _section_reads(source: str) -> list[str]:
+    """Where ``source`` reads a setting of a config section (``cfg.<section>.<name>`` or
+    ``….config.<section>.<name>``, a section a field of :class:`Config`), as
+    ``section.name``."""
+    import ast
+    import dataclasses
+
+    sections = {f.name for f in dataclasses.fields(Config)}
+
+    def is_config(node: ast.expr) -> bool:
+        if isinstance(node, ast.Name):
+            return node.id in ("cfg", "config")
+        return isinstance(node, ast.Attribute) and node.attr == "config"
+
+    return [
+        f"{node.value.attr}.{node.attr}"
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, ast.Attribute)
+        and isinstance(node.value, ast.Attribute)
+        and node.value.attr in sections
+        and is_config(node.value.value)
+    ]
+
+
+def test_the_positioner_reads_no_setting_of_its_stages_sections() -> None:
+    """The positioner hands each config section to its stage (``cfg.gate``) and reads none
+    of their settings itself (``cfg.gate.enabled``), nor does the step from the keyframe
+    (which hands the features' sections on whole); the stages read their own."""
+    import inspect
+
+    from fuzzypos.pipeline import positioner, step
+
+    assert _section_reads("Stage(cfg.gate, self.config.refinement, self.gate.enabled)") == []
+    assert _section_reads("if self.config.gate.enabled and cfg.refinement.enabled: pass") == [
+        "gate.enabled", "refinement.enabled",
+    ]  # fmt: skip
+    assert _section_reads(inspect.getsource(positioner)) == []
+    assert _section_reads(inspect.getsource(step)) == []
