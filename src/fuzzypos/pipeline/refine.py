@@ -9,6 +9,7 @@ import importlib
 import math
 from dataclasses import dataclass
 from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,6 +26,9 @@ from ..matching import (
     refinement_of,
 )
 from ..matching.surface import Weighing
+
+if TYPE_CHECKING:  # (the compiled step's module imports numba: on first use only)
+    from .._kernels.step import Stepped
 
 __all__ = ["Refiner", "ScanPoints", "Starts"]
 
@@ -314,21 +318,16 @@ class Refiner:
 
     @staticmethod
     def from_lines(
-        which_from_start: bool,
-        paired: int,
-        close: int,
-        on_start: bool,
-        result: FloatArray,
-        points: ScanPoints,
-        starts: Starts,
-        inputs: _FromLines,
+        stepped: Stepped, points: ScanPoints, starts: Starts, inputs: _FromLines
     ) -> Refinement:
-        """The :class:`Refinement` of the fit :meth:`lines_start_inputs`' call made from
-        ``starts`` (the lines' motion the start; ``result``: its (4, 3, 3) values):
+        """The :class:`Refinement` of the fit the compiled step made from ``starts`` (the
+        lines' motion the start; ``stepped``: its values, the fit's which, paired, close,
+        on-start and (4, 3, 3) values), with :meth:`lines_start_inputs`' information:
         :meth:`refine`'s, to the bit."""
         *_, info, full, _from_features, _checks = inputs
         return refinement_of(
-            which_from_start, paired, close, on_start, result, points.xy.shape[0],
+            stepped.which == _kernels().FROM_START, stepped.paired, stepped.close,
+            stepped.on_start, stepped.fit, points.xy.shape[0],
             (starts.start, starts.prior, info, full), (starts.hold, starts.hold, info, full),
         )  # fmt: skip
 

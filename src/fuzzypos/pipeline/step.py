@@ -271,10 +271,7 @@ class Step:
         if stage == step.NOT_REFINED:  # (neither fit counts: the search, as _refined goes on)
             fit, on_previous = self._searched(None, points, starts, ctx.prior)
             return self.assess(ctx, features, match, fit, on_previous)
-        fit = self.refiner.from_lines(
-            stepped.which == step.FROM_START, stepped.paired, stepped.close, stepped.on_start,
-            stepped.fit, points, starts, refinement,
-        )  # fmt: skip
+        fit = self.refiner.from_lines(stepped, points, starts, refinement)
         return self.assess(ctx, features, match, fit, False)
 
 
