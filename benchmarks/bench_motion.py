@@ -2,7 +2,7 @@
 
 60 random motions (|t| <= 0.5 m, |θ| <= 20°) in ``sim.furnished_room(0)``, both poses seeing at
 least two corners, a 180-beam 180° scanner (8 m), odometry off by up to ±7 cm per axis and ±5°
-(the trials of ``tests/test_positioner.py``). Prints the errors of odometry, the ``paper``
+(the trials of ``tests/pipeline/test_positioner.py``). Prints the errors of odometry, the ``paper``
 preset and the default, noise-free and with 1 cm range noise, as a table.
 
     python benchmarks/bench_motion.py
@@ -19,7 +19,7 @@ from fuzzypos.geometry import relative
 
 WORLD = sim.furnished_room(0)
 N_TRIALS = 60
-TRIAL_SEED = 20240601  # the seeds of tests/test_positioner.py
+TRIAL_SEED = 20240601  # the seeds of tests/pipeline/test_positioner.py
 NOISE_SEED = 7
 
 

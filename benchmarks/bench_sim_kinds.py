@@ -8,7 +8,7 @@ Local: the relative pose error (:func:`~fuzzypos.eval.metrics.relative_pose_erro
 ``WINDOWS`` scans (at 1.6 Hz, 2 scans = 1.25 s, 5 scans = 3.1 s; consecutive, non-overlapping
 pairs): the mean translation (m) and rotation (°) error of the motion between the two scans.
 Whole run: the final and the mean position error (:func:`~fuzzypos.eval.metrics.
-trajectory_errors`). ``tests/test_sim_kinds.py`` states the goal with these figures: the
+trajectory_errors`). ``tests/sim/test_sim_kinds.py`` states the goal with these figures: the
 default no worse than odometry locally, better over the whole run.
 
     python benchmarks/bench_sim_kinds.py

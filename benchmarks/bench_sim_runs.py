@@ -1,5 +1,5 @@
 """End-to-end accuracy on simulated runs with known truth: the runs of
-``tests/test_end_to_end.py`` (half a lap of the gym circle, the office corridor; seeds 0-2),
+``tests/jobs/test_end_to_end.py`` (half a lap of the gym circle, the office corridor; seeds 0-2),
 odometry against the default and the paper preset, as a table.
 
     python benchmarks/bench_sim_runs.py

@@ -36,7 +36,7 @@ def sources_stamp(folder: Path = _HERE) -> str:
 def _stamped(dispatcher: Any) -> Any:
     """``dispatcher``'s cache index keyed on :func:`sources_stamp` beside numba's own stamp of
     its module (numba's ``IndexDataCacheFile``, whose index is stale where its stamp is not
-    the one it was saved with; ``tests/test_warm.py`` checks that the installed numba has
+    the one it was saved with; ``tests/pipeline/test_warm.py`` checks that the installed numba has
     it)."""
     index = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
     if index is not None and hasattr(index, "_source_stamp"):

@@ -1,6 +1,6 @@
 """Small kernels of the per-scan pipeline's own glue (``fuzzypos.pipeline``), where numpy makes
 several small calls per step. Each has its numpy reference beside its caller, and
-``tests/test_kernels_pipeline.py`` checks the two against each other."""
+``tests/_kernels/test_kernels_pipeline.py`` checks the two against each other."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ most scans, ``lines.match_lines``, ``refine.weigh_and_refine_both`` and
 stage leaves the common path (the lines give no motion, neither fit counts, the assessment
 needs what only Python computes), it returns the stage it reached and the step goes on
 from there with the staged calls. Its reference is that staged path itself:
-``tests/test_step.py`` checks both to the bit.
+``tests/pipeline/test_step.py`` checks both to the bit.
 
 Its inputs cross as a few typed records (:class:`ScanInputs`, :class:`KeyframeInputs`,
 :class:`MatchSettings`, :class:`RefineSettings`, :class:`AssessInputs`), not as dozens of

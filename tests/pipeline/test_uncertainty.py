@@ -250,7 +250,7 @@ def learning_run(turn_at: int | None, gap_at: int | None, n: int = 60) -> list:
     scans = [sim.simulate_scan(world, p, scanner(0.005, 360, 360.0), rng, stamp=t)
              for p, t in zip(truth, stamps)]  # fmt: skip
     # (the false match forced in the staged refinement: the compiled call that fuses it with
-    # the matching and the assessment off, tests/test_step.py checks both agree)
+    # the matching and the assessment off, tests/pipeline/test_step.py checks both agree)
     pos = Positioner(GATED, fused=turn_at is None)
     if turn_at is not None:
         real = pos.refiner.refine

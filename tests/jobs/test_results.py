@@ -348,7 +348,7 @@ def test_file_sha256_of_a_file_and_of_a_directory(tmp_path):
 
 def test_git_hash_is_this_checkouts_commit():
     """Run from a git checkout (as the tests are), the provenance names its commit."""
-    top = Path(__file__).resolve().parents[1]
+    top = Path(__file__).resolve().parents[2]
     done = subprocess.run(["git", "-C", str(top), "rev-parse", "HEAD"], capture_output=True,
                           text=True)  # fmt: skip
     if done.returncode != 0:

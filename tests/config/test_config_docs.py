@@ -12,7 +12,7 @@ from fuzzypos import Config
 from fuzzypos.cli import app
 from fuzzypos.config.docs import settings_lines, settings_markdown
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "configuration.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "configuration.md"
 
 
 def test_the_committed_configuration_reference_is_the_generators_output() -> None:

@@ -27,7 +27,7 @@ from fuzzypos.jobs.tasks import ONE_THREAD_ENV, RayMissingError, ray_installed
 from helpers import write_relations, write_sim_log
 
 runner = CliRunner()
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 #: the keys of a benchmark row that do not depend on the machine's speed
 TIMED = {"scans_per_second", "positioner_ms_per_scan", "loop_closure_seconds", "results"}
 
@@ -45,7 +45,7 @@ def _odd_fails(x: int) -> int:
 
 @pytest.fixture(scope="module")
 def ray_session() -> Iterator[None]:
-    """A local Ray without token authentication: ``tests/test_batch_cluster.py``, run before
+    """A local Ray without token authentication: ``tests/jobs/test_batch_cluster.py``, run before
     in the same process, leaves Ray's driver side with authentication off, which a local Ray
     started with it on would refuse."""
     ray = pytest.importorskip("ray", reason="Ray (the ray extra) is not installed")

@@ -14,6 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from test_plot import _ends, _overlapping_texts, n_offsets
 
 from fuzzypos import Config, Positioner
 from fuzzypos.eval import trajectory_errors
@@ -28,7 +29,6 @@ from fuzzypos.jobs.demo import (
     simulate_gym_circle,
 )
 from fuzzypos.plot import figures as plotting
-from test_plot import _ends, _overlapping_texts, n_offsets
 
 
 @pytest.fixture(scope="module")

@@ -134,7 +134,7 @@ def test_save_map_needs_no_gtsam(sim_log, tmp_path) -> None:
         "finally:\n"
         "    assert not tried, f'gtsam was imported: {tried}'\n"
     )
-    src = str(Path(__file__).resolve().parents[1] / "src")
+    src = str(Path(__file__).resolve().parents[2] / "src")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}
     done = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600

@@ -1,5 +1,5 @@
 """The refinement's compiled helpers (``fuzzypos._kernels.refine``, ``_select``) against plain
-numpy: what ``tests/test_kernels.py`` leaves to them."""
+numpy: what ``tests/_kernels/test_kernels.py`` leaves to them."""
 
 from __future__ import annotations
 

@@ -34,7 +34,7 @@ EXACT = EXACT_SCANNER
 
 def _bench() -> ModuleType:
     """``benchmarks/bench_sim_kinds.py``, whose figures the end-to-end tests compare."""
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_sim_kinds.py"
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_sim_kinds.py"
     spec = importlib.util.spec_from_file_location("bench_sim_kinds", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
