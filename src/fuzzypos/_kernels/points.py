@@ -1,11 +1,11 @@
-"""The point features of one scan (``fuzzypos.features.extract._point_features``, its numpy
-reference) in one compiled call: the line pairs that meet at a real angular point, the virtual
-angular points' candidates (§3.6, eq. 10), one fuzzy grading of them and of the joined real
-corners (eq. 11–12: a three-input product rule base, eq. 4's centre average), the angular
-points (refined to their lines' intersection where configured, SPEC step 5), the break points
-and the merged points of interest (§3.7). Where the numpy chain would meet a NaN (or the
-rule base is not the product kind) it says so and the caller runs the numpy chain: NaN's
-order and comparisons are numpy's own there."""
+"""The point features of one scan (``fuzzypos.features.extract._point_features``) in one
+compiled call (its numpy reference: ``point_features`` of ``tests/oracles/features.py``): the
+line pairs that meet at a real angular point, the virtual angular points' candidates (§3.6,
+eq. 10), one fuzzy grading of them and of the joined real corners (eq. 11–12: a three-input
+product rule base, eq. 4's centre average), the angular points (refined to their lines'
+intersection where configured, SPEC step 5), the break points and the merged points of
+interest (§3.7), NaN's order and comparisons numpy's own. A rule base of another kind
+(Mamdani's) grades :func:`grading_inputs`' inputs between two calls."""
 
 from __future__ import annotations
 
@@ -20,6 +20,8 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 Int8Array = NDArray[np.int8]
+
+_LARGEST = np.finfo(np.float64).max
 
 #: ``flags`` of :func:`point_features`, in order
 FLAGS = ("refine", "pair_unrefined", "use_break_points", "use_angular_points",
@@ -61,12 +63,16 @@ def grade(
     """A three-input product rule base (``RuleBase.__call__``, eq. 4): the firing strengths
     μ₁·μ₂·μ₃ of every rule (in the rule table's order), Σ w ȳ / Σ w (0 where no rule fires),
     clamped to the centres' range. ``s1``–``s3``: each input's slopes (:func:`_membership`);
-    ``centres`` the rules' consequent centres, flattened. No NaN input."""
+    ``centres`` the rules' consequent centres, flattened. A NaN input grades NaN (numpy's
+    memberships, sums and clamping all carry it through)."""
     n = x1.shape[0]
     k1, k2, k3 = s1.shape[1], s2.shape[1], s3.shape[1]
     mu2, mu3 = np.empty(k2), np.empty(k3)
     out = np.empty(n)
     for i in range(n):
+        if math.isnan(x1[i]) or math.isnan(x2[i]) or math.isnan(x3[i]):
+            out[i] = math.nan
+            continue
         for b in range(k2):
             mu2[b] = _membership(x2[i], s2, b)
         for c in range(k3):
@@ -86,10 +92,24 @@ def grade(
 
 
 @kernel
+def _after(u: float, k: int, v: float, m: int) -> bool:
+    """Whether the key (u, k) sorts after (v, m) in numpy's order (NaN after every number,
+    NaNs equal to each other)."""
+    if math.isnan(u) or math.isnan(v):
+        if not math.isnan(v):
+            return True
+        if not math.isnan(u):
+            return False
+        return k > m
+    return u > v or (u == v and k > m)
+
+
+@kernel
 def _merge(xy: FloatArray, u: FloatArray, kind: Int8Array, radius: float) -> IntArray:
-    """``fuzzypos.features.extract.merge_duplicates``' kept indices, in order: the points sorted by
-    uncertainty, then kind (virtual first; ``np.lexsort``'s stable order), each dropped that
-    lies within ``radius`` of one before it in that order (no NaN)."""
+    """The kept indices of the oracle's ``merge_duplicates``, in order: the points sorted by
+    uncertainty, then kind (virtual first; ``np.lexsort``'s stable order, a NaN uncertainty
+    after every number), each dropped that lies within ``radius`` of one before it in that
+    order (a NaN coordinate is near nothing)."""
     n = xy.shape[0]
     keep = np.empty(n, dtype=np.int64)
     if n < 2 or not radius > 0.0:
@@ -101,7 +121,7 @@ def _merge(xy: FloatArray, u: FloatArray, kind: Int8Array, radius: float) -> Int
         j = i
         while j > 0:
             p = order[j - 1]
-            if u[p] > u[i] or (u[p] == u[i] and -kind[p] > -kind[i]):
+            if _after(u[p], -kind[p], u[i], -kind[i]):
                 order[j] = p
                 j -= 1
             else:
@@ -132,8 +152,9 @@ def _excluded_pairs(
     nl: int, segment: IntArray, seg_before: IntArray, seg_after: IntArray
 ) -> tuple[bool, BoolArray]:
     """Whether it is done (False: numpy would raise) and the (nl, nl) mask of the line pairs
-    that meet at a real angular point (``_corner_line_pairs``: each corner's segments before
-    and after it, by the lines' segment ids, numpy's negative indexing too)."""
+    that meet at a real angular point (the oracle's ``_corner_line_pairs``: each corner's
+    segments before and after it, by the lines' segment ids, numpy's negative indexing
+    too)."""
     excluded = np.zeros((nl, nl), dtype=np.bool_)
     if nl < 2 or seg_before.shape[0] == 0:
         return True, excluded
@@ -142,11 +163,13 @@ def _excluded_pairs(
         top = max(top, segment[k])
     for k in range(seg_before.shape[0]):
         top = max(top, seg_before[k], seg_after[k])
+    if top < 0:
+        return False, excluded  # (numpy's negative dimensions or IndexError)
     pos = np.full(top + 1, -1, dtype=np.int64)
     for k in range(nl):
-        if segment[k] < 0:
-            return False, excluded
-        pos[segment[k]] = k
+        if segment[k] < -pos.shape[0]:
+            return False, excluded  # (numpy's IndexError)
+        pos[segment[k] if segment[k] >= 0 else pos.shape[0] + segment[k]] = k
     for k in range(seg_before.shape[0]):
         if min(seg_before[k], seg_after[k]) < -pos.shape[0]:
             return False, excluded  # (numpy's IndexError)
@@ -157,7 +180,7 @@ def _excluded_pairs(
 
 
 @kernel
-def _candidates(
+def candidates(
     normal: FloatArray,
     distance: FloatArray,
     centre: FloatArray,
@@ -165,10 +188,10 @@ def _candidates(
     min_sine: float,
     max_distance: float,
 ) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
-    """The virtual angular points' candidates (``virtual_candidates``, in ``np.nonzero``'s
-    order): the intersection of every two lines i < j at least the minimum angle apart and
-    not excluded (SPEC's normal form, ``intersect_lines``), kept where d_v (eq. 10) is at most
-    ``max_distance``; their points, lines and d_v."""
+    """The virtual angular points' candidates (``features.extract.virtual_candidates``, in
+    ``np.nonzero``'s order): the intersection of every two lines i < j at least the minimum
+    angle apart and not ``excluded`` (SPEC's normal form, eq. 15–16 fixed), kept where d_v
+    (eq. 10) is at most ``max_distance``; their points, lines and d_v."""
     nl = normal.shape[0]
     xy = np.empty((nl * nl, 2))
     ci, cj, cdv = np.empty(nl * nl, np.int64), np.empty(nl * nl, np.int64), np.empty(nl * nl)
@@ -192,6 +215,16 @@ def _candidates(
 
 
 @kernel
+def _finite(x: float) -> float:
+    """``np.nan_to_num(x)``: 0 for NaN, the largest double of its sign for an infinity."""
+    if math.isnan(x):
+        return 0.0
+    if math.isinf(x):
+        return _LARGEST if x > 0.0 else -_LARGEST
+    return x
+
+
+@kernel
 def _angular(
     corner_index: IntArray,
     corner_xy: FloatArray,
@@ -204,8 +237,8 @@ def _angular(
     refine: bool,
     pair_unrefined: bool,
 ) -> tuple[bool, FloatArray, FloatArray, BoolArray]:
-    """Whether it is done (False: numpy would raise, or meet a non-finite intersection) and
-    the angular points: sampled, or refined to their lines' intersection (graded
+    """Whether it is done (False: numpy would raise) and the angular points: sampled, or
+    refined to their lines' intersection (graded
     ``corner_grades``, the joined ones in order) where that lies within three beam spacings
     and 5 cm of the sample (SPEC step 5); which of them are paired."""
     na = corner_index.shape[0]
@@ -226,9 +259,8 @@ def _angular(
                 return False, xy, u, pairable  # (numpy's shape mismatch)
             spacing = abs(angle_increment) * kept_ranges[corner_index[k]]
             cx, cy = corner_xy[k, 0], corner_xy[k, 1]
-            if not (math.isfinite(cx) and math.isfinite(cy)):
-                return False, xy, u, pairable  # (np.nan_to_num's values: numpy's own)
-            near = math.hypot(cx - xy[k, 0], cy - xy[k, 1]) <= 3.0 * spacing + 0.05
+            gx, gy = _finite(cx) - xy[k, 0], _finite(cy) - xy[k, 1]
+            near = math.hypot(gx, gy) <= 3.0 * spacing + 0.05
             if near:
                 xy[k, 0], xy[k, 1], u[k] = cx, cy, corner_grades[m]
             m += 1
@@ -270,6 +302,40 @@ def _interest(
 
 
 @kernel
+def grading_inputs(
+    normal: FloatArray,
+    distance: FloatArray,
+    centre: FloatArray,
+    line_u: FloatArray,
+    segment: IntArray,
+    seg_before: IntArray,
+    seg_after: IntArray,
+    corner_a: IntArray,
+    corner_b: IntArray,
+    corner_dv: FloatArray,
+    params: FloatArray,
+) -> tuple[bool, FloatArray, IntArray, IntArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The virtual angular points' candidates (:func:`candidates`, without the line pairs
+    that meet at a real angular point) and the three inputs of the one grading of the joined
+    real corners and the candidates (eq. 11–12: the two lines' uncertainties and d_v over the
+    lines' distance scale), the corners first. Returns whether it is done (False: numpy
+    would raise), the candidates' points, lines and d_v, and the inputs."""
+    g = np.zeros(0)
+    ok, excluded = _excluded_pairs(normal.shape[0], segment, seg_before, seg_after)
+    if not ok:
+        return False, np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, np.int64), g, g, g, g
+    c_xy, c_i, c_j, c_dv = candidates(normal, distance, centre, excluded, params[0], params[1])
+    nj, nc = corner_a.shape[0], c_i.shape[0]
+    line_scale = params[2]
+    g1, g2, g3 = np.empty(nj + nc), np.empty(nj + nc), np.empty(nj + nc)
+    for k in range(nj):
+        g1[k], g2[k], g3[k] = line_u[corner_a[k]], line_u[corner_b[k]], corner_dv[k] / line_scale
+    for k in range(nc):
+        g1[nj + k], g2[nj + k], g3[nj + k] = line_u[c_i[k]], line_u[c_j[k]], c_dv[k] / line_scale
+    return True, c_xy, c_i, c_j, c_dv, g1, g2, g3
+
+
+@kernel
 def point_features(
     normal: FloatArray,
     distance: FloatArray,
@@ -294,35 +360,35 @@ def point_features(
     centres: FloatArray,
     centre_lo: float,
     centre_hi: float,
+    grades: FloatArray,
     params: FloatArray,
     flags: BoolArray,
 ) -> tuple[bool, FloatArray, FloatArray, IntArray, Int8Array]:
     """``_point_features`` of one scan's corner context (``params`` as :data:`PARAMS`, the
     virtual points' ``max_distance`` already times the lines' distance scale; ``flags`` as
-    :data:`FLAGS`; ``s1``–``centre_hi`` the virtual points' rule base, :func:`grade`).
-    Returns whether it is done (False: a NaN on the way or what numpy would raise at, the
-    numpy chain's) and, packed: ``xy`` (rows: the angular points, the virtual ones, the break
-    points, the points of interest), their uncertainties in the same order, the integers (the
-    counts of the four, then the virtual points' line pairs, row by row) and the points of
-    interest's kinds."""
+    :data:`FLAGS`; ``s1``–``centre_hi`` the virtual points' rule base, :func:`grade`, or, where
+    ``s1`` is empty, ``grades`` its grades of :func:`grading_inputs`' inputs, a rule base of
+    another kind evaluated by the caller). Returns whether it is done (False: what numpy would
+    raise at, an inconsistent context) and, packed: ``xy`` (rows: the angular points, the
+    virtual ones, the break points, the points of interest), their uncertainties in the same
+    order, the integers (the counts of the four, then the virtual points' line pairs, row by
+    row) and the points of interest's kinds."""
     fail = (False, np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int8))
-    line_scale, max_uncertainty = params[2], params[3]
-    ok, excluded = _excluded_pairs(normal.shape[0], segment, seg_before, seg_after)
+    ok, c_xy, c_i, c_j, _c_dv, g1, g2, g3 = grading_inputs(
+        normal, distance, centre, line_u, segment, seg_before, seg_after, corner_a, corner_b,
+        corner_dv, params,
+    )  # fmt: skip
     if not ok:
         return fail
-    c_xy, c_i, c_j, c_dv = _candidates(normal, distance, centre, excluded, params[0], params[1])
     # one grading of the joined real corners and the candidates (eq. 11–12)
     nj, nc = corner_a.shape[0], c_i.shape[0]
-    g1, g2, g3 = np.empty(nj + nc), np.empty(nj + nc), np.empty(nj + nc)
-    for k in range(nj):
-        g1[k], g2[k], g3[k] = line_u[corner_a[k]], line_u[corner_b[k]], corner_dv[k] / line_scale
-    for k in range(nc):
-        g1[nj + k], g2[nj + k], g3[nj + k] = line_u[c_i[k]], line_u[c_j[k]], c_dv[k] / line_scale
-    for k in range(nj + nc):
-        if math.isnan(g1[k]) or math.isnan(g2[k]) or math.isnan(g3[k]):
+    if s1.shape[0] == 0:
+        if grades.shape[0] != nj + nc:
             return fail
-    graded = grade(g1, g2, g3, s1, s2, s3, centres, centre_lo, centre_hi)
-    certain = graded[nj:] <= max_uncertainty
+        graded = grades
+    else:
+        graded = grade(g1, g2, g3, s1, s2, s3, centres, centre_lo, centre_hi)
+    certain = graded[nj:] <= params[3]
     v_xy, v_u = c_xy[certain], graded[nj:][certain]
     ok, ang_xy, ang_u, pairable = _angular(
         corner_index, corner_xy, joined, graded[:nj], kept_points, kept_u, kept_ranges,
@@ -332,9 +398,6 @@ def point_features(
         return fail
     b_xy, b_u = kept_points[break_mask], kept_u[break_mask]
     poi_xy, poi_u, poi_kind = _interest(ang_xy, ang_u, pairable, v_xy, v_u, b_xy, b_u, flags)
-    for k in range(poi_u.shape[0]):
-        if math.isnan(poi_u[k]) or math.isnan(poi_xy[k, 0]) or math.isnan(poi_xy[k, 1]):
-            return fail
     keep = _merge(poi_xy, poi_u, poi_kind, params[5])
     na, nv, nb, nk = ang_xy.shape[0], v_xy.shape[0], b_xy.shape[0], keep.shape[0]
     xy, u = np.empty((na + nv + nb + nk, 2)), np.empty(na + nv + nb + nk)

@@ -23,6 +23,7 @@ from .types import (
     BREAK_POINT,
     KIND_NAMES,
     VIRTUAL_ANGULAR_POINT,
+    FeatureError,
     FeaturePoints,
     Lines,
 )
@@ -32,6 +33,7 @@ __all__ = [
     "ANGULAR_POINT",
     "VIRTUAL_ANGULAR_POINT",
     "KIND_NAMES",
+    "FeatureError",
     "FeaturePoints",
     "Lines",
     "Features",

@@ -23,7 +23,7 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import packing
+from .._kernels import f64, packing
 from .._kernels.packing import Unpacks
 from ..config import Config, FuzzyConfig, same_as_last_call
 from ..fuzzy import RuleBases
@@ -33,7 +33,6 @@ from .chain import MIN_LINE_NOISE as _MIN_LINE_NOISE
 from .chain import ChainOutputs, chain_inputs
 from .chain import line_params as _line_params
 from .segmentation import (
-    _strict_upper,
     angular_points,
     break_points,
     clusters,
@@ -250,18 +249,6 @@ def _empty_lines() -> Lines:
     return Lines(z2, z, z2, z2, z2, zi, z, z, z, zi, zi)
 
 
-def intersect_lines(
-    n1: FloatArray, d1: FloatArray, n2: FloatArray, d2: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Intersections of lines ``n·p = d`` (SPEC's fix of eq. 15–16: normal form, homogeneous
-    cross product, so vertical lines work). Returns ``(points, |sin angle|)``."""
-    det = n1[:, 0] * n2[:, 1] - n1[:, 1] * n2[:, 0]
-    safe = np.where(np.abs(det) > 1e-12, det, 1.0)
-    x = (d1 * n2[:, 1] - d2 * n1[:, 1]) / safe
-    y = (n1[:, 0] * d2 - n2[:, 0] * d1) / safe
-    return stack_columns(x, y), np.abs(det)
-
-
 def join_at_corners(
     lines: Lines,
     corner_segment_before: IntArray,
@@ -295,14 +282,6 @@ def join_at_corners(
     return replace(lines, start=start, end=end, centre=centre), xy, ok, ia, ib, dv
 
 
-def _mean_distance_to_centres(pts: FloatArray, c1: FloatArray, c2: FloatArray) -> FloatArray:
-    """Eq. 10: d_v, the mean distance from each point to the centres of its two lines."""
-    return 0.5 * (
-        np.hypot(pts[:, 0] - c1[:, 0], pts[:, 1] - c1[:, 1])
-        + np.hypot(pts[:, 0] - c2[:, 0], pts[:, 1] - c2[:, 1])
-    )
-
-
 def virtual_candidates(
     lines: Lines, cfg: Config, exclude_pairs: IntArray | None = None, scale: float = 1.0
 ) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
@@ -314,21 +293,18 @@ def virtual_candidates(
     none = np.zeros(0, dtype=np.int64)
     if nl < 2:
         return np.zeros((0, 2)), none, none, np.zeros(0)
-    n = lines.normal
-    # |sin| of the angle between every two lines = |n_i × n_j|; keep i < j far enough apart
-    sin_ang = np.abs(n[:, 0:1] * n[:, 1] - n[:, 1:2] * n[:, 0])
-    ok = sin_ang >= math.sin(cfg.virtual_points.min_intersection_angle)
-    ok &= _strict_upper(nl)
+    excluded = np.zeros((nl, nl), dtype=np.bool_)
     if exclude_pairs is not None and exclude_pairs.size:
-        ok[exclude_pairs[:, 0], exclude_pairs[:, 1]] = False
-        ok[exclude_pairs[:, 1], exclude_pairs[:, 0]] = False
-    i, j = np.nonzero(ok)
-    if i.size == 0:
-        return np.zeros((0, 2)), none, none, np.zeros(0)
-    pts, _ = intersect_lines(n[i], lines.distance[i], n[j], lines.distance[j])
-    dv = _mean_distance_to_centres(pts, lines.centre[i], lines.centre[j])
-    near = dv <= cfg.virtual_points.max_distance * scale
-    return pts[near], i[near], j[near], dv[near]
+        excluded[exclude_pairs[:, 0], exclude_pairs[:, 1]] = True
+        excluded[exclude_pairs[:, 1], exclude_pairs[:, 0]] = True
+    from .._kernels.points import candidates
+
+    pts, i, j, dv = candidates(
+        f64(lines.normal), f64(lines.distance), f64(lines.centre), excluded,
+        math.sin(cfg.virtual_points.min_intersection_angle),
+        float(cfg.virtual_points.max_distance * scale),
+    )  # fmt: skip
+    return pts, i, j, dv
 
 
 def _keep_certain(
@@ -535,110 +511,7 @@ def _graded_for_lines(
 def _point_features(c: _CornerContext) -> _PointFeatures:
     """Angular points, virtual angular points (with their line pairs), break points and the
     merged points of interest of one scan (§3.2, §3.4, §3.6): in one compiled call
-    (:func:`.points.point_features_compiled`), or where that declines in numpy
-    (:func:`_point_features_numpy`, its reference and fallback)."""
-    from .points import point_features_compiled
+    (:func:`.points.point_features`)."""
+    from .points import point_features
 
-    done = point_features_compiled(c)
-    if done is not None:
-        return done
-    return _point_features_numpy(c)
-
-
-def _point_features_numpy(c: _CornerContext) -> _PointFeatures:
-    """:func:`_point_features` in numpy (the compiled kernel's reference)."""
-    cfg, lines = c.cfg, c.lines
-    # 7. virtual angular points (§3.6), without the ones that are real angular points; one
-    # fuzzy evaluation (eq. 10–12) grades them and the joined real corners together
-    exclude = _corner_line_pairs(lines, c.seg_before, c.seg_after)
-    v_pts, v_i, v_j, v_dv = virtual_candidates(lines, cfg, exclude, c.line_distance_scale)
-    n_corners = c.corner_a.shape[0]
-    graded = c.bases.virtual_points(
-        lines.uncertainty[np.concatenate([c.corner_a, v_i])],
-        lines.uncertainty[np.concatenate([c.corner_b, v_j])],
-        np.concatenate([c.corner_dv, v_dv]) / c.line_distance_scale,  # d_v's sets stretched
-    )
-    virtual, virtual_lines, _dv = _keep_certain(v_pts, v_i, v_j, v_dv, graded[n_corners:], cfg)
-
-    # angular points: sampled (the paper) or refined to their lines' intersection (SPEC step 5)
-    idx = c.corner_index
-    ang_xy = c.kept_points.take(idx, axis=0)
-    ang_u = c.kept_uncertainty[idx]
-    pairable = np.ones(idx.size, bool)
-    if cfg.angular_points.refine and idx.size:
-        corner_unc = np.full(c.joined.shape[0], np.nan)
-        corner_unc[c.joined] = graded[:n_corners]
-        spacing = abs(c.angle_increment) * c.kept_ranges[idx]
-        gap = np.nan_to_num(c.corner_xy) - ang_xy
-        near = c.joined & (np.hypot(gap[:, 0], gap[:, 1]) <= 3.0 * spacing + 0.05)
-        ang_xy = np.where(near[:, None], c.corner_xy, ang_xy)
-        ang_u = np.where(near, corner_unc, ang_u)
-        if not cfg.angular_points.pair_unrefined:
-            pairable = near
-    angular = FeaturePoints(ang_xy, ang_u, np.full(idx.size, ANGULAR_POINT, dtype=np.int8))
-
-    # break points as features: not at field-of-view edges, only in kept clusters
-    bp = c.break_mask
-    breaks = FeaturePoints(
-        c.kept_points.compress(bp, axis=0),
-        c.kept_uncertainty[bp],
-        np.full(int(bp.sum()), BREAK_POINT, dtype=np.int8),
-    )
-    m = cfg.matching
-    parts = []
-    if m.use_break_points:
-        parts.append(breaks)
-    if m.use_angular_points:
-        parts.append(angular.select(pairable))
-    if m.use_virtual_points:
-        parts.append(virtual)
-    poi = merge_duplicates(
-        FeaturePoints(
-            np.concatenate([p.xy for p in parts]) if parts else np.zeros((0, 2)),
-            np.concatenate([p.uncertainty for p in parts]) if parts else np.zeros(0),
-            np.concatenate([p.kind for p in parts]) if parts else np.zeros(0, dtype=np.int8),
-        ),
-        cfg.virtual_points.merge_distance,
-    )
-    return angular, virtual, virtual_lines, breaks, poi
-
-
-def merge_duplicates(points: FeaturePoints, radius: float) -> FeaturePoints:
-    """Keep one feature of each group closer than ``radius``: the least uncertain.
-
-    One wall seen as two lines (split by an occlusion) gives the same corner twice; the
-    pairing rule "exactly one candidate within T" (§3.7) would then reject the true pair.
-    """
-    n = len(points)
-    if n < 2 or radius <= 0:
-        return points
-    order = np.lexsort(
-        (-points.kind, points.uncertainty)
-    )  # most certain first; ties: virtual, angular, break
-    xy = points.xy[order]
-    d2 = np.sum((xy[:, None, :] - xy[None, :, :]) ** 2, axis=2)
-    close = np.triu(d2 < radius * radius, 1)
-    # a point is dropped when a more certain point it is close to is kept; one sweep over the
-    # (small) upper triangle in order approximates this by dropping anything close to an
-    # earlier point, which is exact when duplicates form tight groups
-    dropped = close.any(axis=0)
-    keep = np.sort(order[~dropped])
-    return FeaturePoints(points.xy[keep], points.uncertainty[keep], points.kind[keep])
-
-
-def _lines_around_corners(
-    lines: Lines, seg_before: IntArray, seg_after: IntArray
-) -> tuple[IntArray, IntArray]:
-    """For each angular point, the index of the line before and after it (−1: no line)."""
-    pos = np.full(int(max(lines.segment.max(), seg_before.max(), seg_after.max()) + 1), -1)
-    pos[lines.segment] = np.arange(len(lines))
-    return pos[seg_before], pos[seg_after]
-
-
-def _corner_line_pairs(lines: Lines, seg_before: IntArray, seg_after: IntArray) -> IntArray:
-    """Line index pairs (k, 2) of lines that meet at a real angular point."""
-    if len(lines) < 2 or seg_before.size == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    a, b = _lines_around_corners(lines, seg_before, seg_after)
-    ok = (a >= 0) & (b >= 0)
-    return stack_columns(a[ok], b[ok]).astype(np.int64)
+    return point_features(c)

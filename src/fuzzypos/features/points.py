@@ -1,6 +1,8 @@
 """The point features of one scan in one compiled call (``fuzzypos._kernels.points``):
-what ``fuzzypos.features.extract._point_features`` runs, its numpy chain
-(``_point_features_numpy``) the reference and the fallback where the kernel declines."""
+what ``fuzzypos.features.extract._point_features`` runs (its numpy reference is
+``point_features`` of ``tests/oracles/features.py``). A virtual points' rule base the kernel
+does not grade (Mamdani's) is evaluated by :class:`~fuzzypos.fuzzy.RuleBase` itself between
+two calls."""
 
 from __future__ import annotations
 
@@ -16,12 +18,21 @@ from .types import (
     ANGULAR_POINT,
     BREAK_POINT,
     VIRTUAL_ANGULAR_POINT,
+    FeatureError,
     FeaturePoints,
     _CornerContext,
     _PointFeatures,
 )
 
-__all__ = ["grading_tables", "point_features_compiled"]
+_INCONSISTENT = (
+    "the point features' corner context is inconsistent: its lines, segments and corners "
+    "disagree in size or index"
+)
+
+__all__ = ["grading_tables", "point_features"]
+
+_NO_TABLE = np.zeros((0, 0))
+_NO_GRADES = np.zeros(0)
 
 FloatArray = NDArray[np.float64]
 
@@ -39,13 +50,13 @@ def grading_tables(
     return s1, s2, s3, np.ascontiguousarray(rule_base._centres, dtype=np.float64)
 
 
-def point_features_compiled(c: _CornerContext) -> _PointFeatures | None:
-    """``features._point_features_numpy`` as one compiled call (``_kernels.points``); None where
-    the kernel declines (a NaN on the way, or a rule base it does not evaluate)."""
+def point_features(c: _CornerContext) -> _PointFeatures:
+    """``features._point_features`` in one compiled call (``_kernels.points``; two, with the
+    rule base's own grading between them, for a rule base :func:`grading_tables` has no
+    tables of). Raises :class:`~fuzzypos.features.types.FeatureError` where the context's
+    arrays disagree (sizes, indices)."""
     cfg, lines, rule_base = c.cfg, c.lines, c.bases.virtual_points
     tables = grading_tables(rule_base)
-    if tables is None:
-        return None
     vp, ap, m = cfg.virtual_points, cfg.angular_points, cfg.matching
     params = np.array([
         math.sin(vp.min_intersection_angle), vp.max_distance * c.line_distance_scale,
@@ -55,23 +66,35 @@ def point_features_compiled(c: _CornerContext) -> _PointFeatures | None:
         [ap.refine, ap.pair_unrefined, m.use_break_points, m.use_angular_points,
          m.use_virtual_points], dtype=np.bool_,
     )  # fmt: skip
-    from .._kernels.points import point_features
+    from .._kernels import points as kernel
 
     i64 = np.int64
-    done, xy, u, ints, kinds = point_features(
+    line_args = (
         f64(lines.normal), f64(lines.distance), f64(lines.centre), f64(lines.uncertainty),
         np.ascontiguousarray(lines.segment, dtype=i64),
         np.ascontiguousarray(c.seg_before, dtype=i64),
         np.ascontiguousarray(c.seg_after, dtype=i64),
-        np.ascontiguousarray(c.corner_index, dtype=i64), f64(c.corner_xy),
-        np.ascontiguousarray(c.joined, dtype=np.bool_),
+    )  # fmt: skip
+    corners = (
         np.ascontiguousarray(c.corner_a, dtype=i64), np.ascontiguousarray(c.corner_b, dtype=i64),
-        f64(c.corner_dv), f64(c.kept_points), f64(c.kept_uncertainty), f64(c.kept_ranges),
+        f64(c.corner_dv),
+    )  # fmt: skip
+    grades = _NO_GRADES
+    if tables is None:  # the rule base grades the kernel's inputs
+        ok, *_candidates, g1, g2, g3 = kernel.grading_inputs(*line_args, *corners, params)
+        if not ok:
+            raise FeatureError(_INCONSISTENT)
+        grades = f64(rule_base(g1, g2, g3))
+        tables = (_NO_TABLE, _NO_TABLE, _NO_TABLE, _NO_GRADES)
+    done, xy, u, ints, kinds = kernel.point_features(
+        *line_args, np.ascontiguousarray(c.corner_index, dtype=i64), f64(c.corner_xy),
+        np.ascontiguousarray(c.joined, dtype=np.bool_), *corners, f64(c.kept_points),
+        f64(c.kept_uncertainty), f64(c.kept_ranges),
         np.ascontiguousarray(c.break_mask, dtype=np.bool_), *tables,
-        float(rule_base._centre_lo), float(rule_base._centre_hi), params, flags,
+        float(rule_base._centre_lo), float(rule_base._centre_hi), grades, params, flags,
     )  # fmt: skip
     if not done:
-        return None
+        raise FeatureError(_INCONSISTENT)
     na, nv, nb, nk = (int(v) for v in ints[:4])
     o = (0, na, na + nv, na + nv + nb, na + nv + nb + nk)
 

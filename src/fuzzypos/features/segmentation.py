@@ -47,14 +47,6 @@ __all__ = [
 ]
 
 
-@lru_cache(maxsize=128)
-def _strict_upper(n: int) -> BoolArray:
-    """The (n, n) mask of i < j (cached)."""
-    m = np.triu(np.ones((n, n), dtype=bool), 1)
-    m.flags.writeable = False
-    return m
-
-
 def _steps(points: FloatArray, closed: bool) -> FloatArray:
     """Distance from each point to the next one (the last: to the first if ``closed``, else inf)."""
     from .._kernels import segmentation as kernel

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from .._kernels.packing import Unpacks
 from ..config import Config
+from ..errors import FuzzyposError
 from ..fuzzy import RuleBases
 from ..geometry import stack_columns
 
@@ -24,6 +25,7 @@ __all__ = [
     "ANGULAR_POINT",
     "VIRTUAL_ANGULAR_POINT",
     "KIND_NAMES",
+    "FeatureError",
     "FeaturePoints",
     "Lines",
 ]
@@ -32,6 +34,11 @@ BREAK_POINT = 0
 ANGULAR_POINT = 1
 VIRTUAL_ANGULAR_POINT = 2
 KIND_NAMES = ("break point", "angular point", "virtual angular point")
+
+
+class FeatureError(FuzzyposError, ValueError):
+    """Features computed from arrays that disagree (a corner context built by hand whose
+    sizes or indices do not fit together)."""
 
 
 # ---------------------------------------------------------------------------------------------
