@@ -519,7 +519,9 @@ def test_intersect_two_oblique_lines() -> None:
 def test_intersect_parallel_lines_is_flagged() -> None:
     n = np.vstack([_unit(0.3), _unit(0.3), _unit(1.2)])
     m = np.vstack([_unit(0.3), _unit(0.3 + math.pi), _unit(1.2 + 1e-14)])
-    pts, s = features_oracle.intersect_lines(n, np.array([1.0, 1.0, 2.0]), m, np.array([2.0, 1.0, 2.0]))
+    pts, s = features_oracle.intersect_lines(
+        n, np.array([1.0, 1.0, 2.0]), m, np.array([2.0, 1.0, 2.0])
+    )
     np.testing.assert_allclose(s, 0.0, atol=1e-12)
     assert np.all(np.isfinite(pts))
 
