@@ -930,9 +930,10 @@ def test_the_features_of_a_scan_are_the_same_either_way(pose, seed, beams) -> No
 def test_the_compiled_front_of_the_chain_is_the_staged_one(
     pose, seed, beams, clockwise, offset, bands
 ) -> None:
-    """The fused front of feature extraction (usable points to segment ids, two compiled
-    calls) against the staged chain in numpy, on scans read clockwise, with the scanner off
-    the robot's centre and with "no return" bands that take some of the readings."""
+    """The compiled front of feature extraction (usable points to segment ids, two compiled
+    calls) against the staged chain in numpy (the oracle's ``segment_scan``), on scans read
+    clockwise, with the scanner off the robot's centre and with "no return" bands that take
+    some of the readings."""
     scan = scan_at(pose, seed, beams)
     ranges = np.asarray(scan.ranges)
     if clockwise:  # the same beams, listed from the other end
@@ -949,11 +950,8 @@ def test_the_compiled_front_of_the_chain_is_the_staged_one(
         band = ((max(mid - 0.2, 0.0), mid + 0.2),)
         cfg = CFG.with_overrides({"scanner": {"no_return_bands": band}})
     bases = features_module.rule_bases(cfg.fuzzy)
-    closed = bool(scan.is_full_circle)
-    fused = seg.segment_scan_compiled(scan, closed, bases, cfg)
-    with numpy_kernels():
-        staged = seg.segment_scan_staged(scan, closed, bases, cfg)
-    assert fused is not None  # noisy scans of the office have gaps: no gapless ring
+    fused = seg.segment_scan(scan, bases, cfg)
+    staged = features_oracle.segment_scan(scan, bases, cfg)
     th = cfg.filtering.detection_angle_threshold
     assume(np.abs(staged[4] - th).min(initial=1.0) > MARGIN)
     for k, (x, y) in enumerate(zip(fused, staged)):
@@ -1021,7 +1019,7 @@ def test_the_whole_compiled_chain_is_its_calls_one_by_one(
 
 def test_the_whole_compiled_chain_without_lines() -> None:
     """A scan of a few scattered readings (an angular point, no line) is the calls' one by
-    one too; a gapless ring the one compiled call leaves to the staged chain."""
+    one too; a gapless ring is the one compiled call's as well."""
     scan = scan_at((0.0, 0.0, 0.0), 1, 180)
     ranges = np.full(np.asarray(scan.ranges).shape, np.inf)
     ranges[::40] = 2.0
@@ -1034,7 +1032,9 @@ def test_the_whole_compiled_chain_without_lines() -> None:
     room = sim.World.from_polygons([sim.worlds.box_polygon(0.0, 0.0, 6.0, 6.0)])
     ring = sim.simulate_scan(room, Pose2D(0.3, -0.2, 0.4), scanner(360, noise=0.002),
                              rng=np.random.default_rng(1))  # fmt: skip
-    assert features_module._extract_compiled(ring, rule_bases(CFG.fuzzy), CFG) is None
+    fused, one_by_one = compiled_and_staged(ring, CFG)
+    _same_features(fused, one_by_one)
+    assert fused.is_angular_point[0] and not fused.is_break_point.any()  # the seam, no gap
 
 
 GYM = sim.gym()
@@ -1050,7 +1050,7 @@ GYM = sim.gym()
 )
 def test_the_compiled_line_stage_is_the_staged_one(x, y, theta, seed, grading) -> None:
     """The lines' grading scale, the re-graded points and the line fits in one compiled call
-    against the staged functions in numpy, in a gym seen out to 30 m (so the lines' scale
+    against the oracle's staged functions in numpy, in a gym seen out to 30 m (so the lines' scale
     differs from the points'), for each way of grading the distances."""
     model = sim.ScannerModel(n_beams=360, field_of_view_deg=360.0, angle_min_deg=-180.0,
                              range_max=30.0, range_noise_std=0.01)  # fmt: skip
@@ -1059,17 +1059,15 @@ def test_the_compiled_line_stage_is_the_staged_one(x, y, theta, seed, grading) -
              "fixed": {"distance_scale": "fixed"}}[grading]  # fmt: skip
     cfg = CFG.with_overrides({"fuzzy": fuzzy}) if fuzzy else CFG
     bases = features_module.rule_bases(cfg.fuzzy)
-    with numpy_kernels():
-        front = seg.segment_scan(scan, bases, cfg)
+    front = features_oracle.segment_scan(scan, bases, cfg)
     _, ranges, points, scale, beta, u, _, kept_index = front[:8]
     segment, cluster = front[13], front[10]
     kp, kr, ku, kb = points[kept_index], ranges[kept_index], u[kept_index], beta[kept_index]
-    fused = features_module._lines_compiled(kp, kr, kb, ku, segment, cluster, scale, bases, cfg)
-    with numpy_kernels():
-        lu, line_scale = features_module._graded_for_lines(kr, kb, ku, segment, scale, bases, cfg)
-        staged = features_module.fit_lines(kp, lu, segment, cluster, bases, cfg)
-    assert fused is not None
-    lines, fused_scale = fused
+    lines, fused_scale = features_module._graded_lines(
+        kp, kr, kb, ku, segment, cluster, scale, bases, cfg
+    )
+    lu, line_scale = features_oracle.graded_for_lines(kr, kb, ku, segment, scale, bases, cfg)
+    staged = features_oracle.fit_lines(kp, lu, segment, cluster, bases, cfg)
     assert fused_scale == pytest.approx(line_scale, rel=TOL)
     assume(np.abs(lu - 0.5).min(initial=1.0) > MARGIN)  # (no grading sits on a tie)
     for name in ("normal", "distance", "start", "end", "sigma", "delta", "uncertainty",
@@ -1081,18 +1079,33 @@ def test_the_compiled_line_stage_is_the_staged_one(x, y, theta, seed, grading) -
         np.testing.assert_array_equal(getattr(lines, name), getattr(staged, name), err_msg=name)
 
 
-def test_a_gapless_ring_leaves_its_seam_to_the_staged_chain() -> None:
-    """A 360° scan inside a closed square room has no gap: the fused front declines, and
-    extract_features puts the seam on the sharpest corner as the staged chain does."""
+def test_a_gapless_ring_has_its_seam_on_its_sharpest_corner() -> None:
+    """A 360° scan inside a closed square room has no gap: the compiled front puts the seam
+    on the sharpest corner as the numpy chain does, for a rule base it interpolates and for
+    a Mamdani one (graded by the rule base itself between the compiled stages)."""
     room = sim.World.from_polygons([sim.worlds.box_polygon(0.0, 0.0, 6.0, 6.0)])
     scan = sim.simulate_scan(room, Pose2D(0.3, -0.2, 0.4), scanner(360, noise=0.002),
                              rng=np.random.default_rng(1))  # fmt: skip
-    bases = features_module.rule_bases(CFG.fuzzy)
-    assert seg.segment_scan_compiled(scan, True, bases, CFG) is None
-    f, g = both(lambda: extract_features(scan, CFG))
-    np.testing.assert_array_equal(f.is_angular_point, g.is_angular_point)
-    assert f.is_angular_point[0]  # the seam on a corner
-    assert f.lines.normal.shape[0] == g.lines.normal.shape[0] >= 4
+    for cfg in (CFG, CFG.with_overrides({"fuzzy": {"inference": "mamdani"}})):
+        bases = features_module.rule_bases(cfg.fuzzy)
+        front = seg.segment_scan(scan, bases, cfg)
+        assert front.ring_corner and front.is_angular_point[0]
+        reference = features_oracle.segment_scan(scan, bases, cfg)
+        for k, (x, y) in enumerate(zip(front, reference, strict=True)):
+            if isinstance(y, np.ndarray) and y.dtype == np.float64:
+                np.testing.assert_allclose(x, y, rtol=0, atol=TOL, err_msg=str(k))
+            elif isinstance(y, np.ndarray):
+                np.testing.assert_array_equal(x, y, err_msg=str(k))
+            else:
+                assert x == pytest.approx(y, abs=TOL), k
+        f, g = both(lambda cfg=cfg: extract_features(scan, cfg))
+        np.testing.assert_array_equal(f.is_angular_point, g.is_angular_point)
+        np.testing.assert_array_equal(f.segment, g.segment)
+        assert f.is_angular_point[0]  # the seam on a corner
+        assert f.lines.normal.shape[0] == g.lines.normal.shape[0] >= 4
+        np.testing.assert_allclose(f.uncertainty, g.uncertainty, rtol=0, atol=TOL)
+        np.testing.assert_allclose(f.lines.uncertainty, g.lines.uncertainty, rtol=0, atol=TOL)
+        np.testing.assert_allclose(f.lines.distance, g.lines.distance, rtol=0, atol=TOL)
 
 
 def test_a_simulated_run_is_the_same_either_way() -> None:

@@ -25,6 +25,7 @@ from fuzzypos.features import segmentation as seg
 from fuzzypos.geometry import Pose2D
 from fuzzypos.scan import LaserScan
 from helpers import both, compiled_and_staged
+from oracles import features as features_oracle
 
 CFG = Config()
 TOL = 1e-9
@@ -121,7 +122,7 @@ def test_an_interlaced_scanners_two_geometries_are_each_computed_once() -> None:
 @given(pose=poses, seed=st.integers(0, 1000), offset=st.booleans(), clockwise=st.booleans())
 def test_the_usable_points_are_the_numpy_ones(pose, seed, offset, clockwise) -> None:
     """``usable_points`` (from the beams' directions and the sensor's pose as three numbers)
-    against ``segmentation._valid_points`` in numpy."""
+    against the oracle's ``_valid_points`` in numpy."""
     scan = scan_at(pose, seed)
     if clockwise:
         ranges = np.asarray(scan.ranges)
@@ -139,7 +140,7 @@ def test_the_usable_points_are_the_numpy_ones(pose, seed, offset, clockwise) -> 
         scan.ranges, packing.scanner(scan)[0], scan.valid, lo, hi,
         scan.angle_increment, sp.x, sp.y, sp.theta,
     )  # fmt: skip
-    reference = seg._valid_points(scan, CFG.scanner.no_return_bands)
+    reference = features_oracle._valid_points(scan, CFG.scanner.no_return_bands)
     np.testing.assert_array_equal(got[0], reference[0])
     for x, y in zip(got[1:], reference[1:]):
         np.testing.assert_allclose(x, y, rtol=0, atol=TOL)

@@ -11,7 +11,9 @@ from numpy.typing import NDArray
 
 from fuzzypos.config import Config
 from fuzzypos.features import chain, extract, segmentation
-from fuzzypos.features.extract import _MIN_LINE_NOISE, _empty_lines
+from fuzzypos.features.chain import MIN_LINE_NOISE as _MIN_LINE_NOISE
+from fuzzypos.features.extract import _empty_lines
+from fuzzypos.features.segmentation import ScanSegments
 from fuzzypos.features.types import (
     ANGULAR_POINT,
     BREAK_POINT,
@@ -22,7 +24,8 @@ from fuzzypos.features.types import (
     _PointFeatures,
 )
 from fuzzypos.fuzzy import RuleBases
-from fuzzypos.geometry import stack_columns
+from fuzzypos.geometry import stack_columns, transform_points
+from fuzzypos.scan import LaserScan, usable
 from oracles import _declines
 
 FloatArray = NDArray[np.float64]
@@ -501,6 +504,139 @@ def _corner_line_pairs(lines: Lines, seg_before: IntArray, seg_after: IntArray) 
     return stack_columns(a[ok], b[ok]).astype(np.int64)
 
 
+def segment_scan(scan: LaserScan, bases: RuleBases, cfg: Config) -> ScanSegments:
+    """:func:`fuzzypos.features.segmentation.segment_scan` stage by stage in numpy: the
+    usable points, their β, uncertainty, filtering, break points, clusters, angular points,
+    segment ids (the reference of the compiled front, ``_kernels.front.scan_front``)."""
+    closed = bool(scan.is_full_circle)
+    beam_index, ranges, p_sensor, points = _valid_points(scan, cfg.scanner.no_return_bands)
+    inc = scan.angle_increment
+    t2_valid = segmentation.gap_thresholds(ranges, inc, cfg)
+
+    # 1. gaps among the valid points, then β (eq. 3), then 2. uncertainty (eq. 4)
+    _, gap_after = break_points(p_sensor, t2_valid, cfg.segmentation.gap_difference, closed)
+    beta = detection_angles(p_sensor, gap_after, closed)
+    u, scale = _graded_points(ranges, beta, bases, cfg)
+
+    # 3. filtering (§3.1)
+    kept = segmentation.filter_points(beta, cfg.filtering.detection_angle_threshold)
+    kept_index = kept.nonzero()[0]
+    kp = points.take(kept_index, axis=0)
+
+    # 4. break points (eq. 13) and clusters (§3.3) on the filtered points
+    t2 = t2_valid[kept_index]
+    is_break, split = break_points(kp, t2, cfg.segmentation.gap_difference, closed)
+    ring_corner = False
+    if closed and kept_index.size:
+        # a 360° scan wraps around (the paper's "indices additive modulo m"): start the
+        # sequence after a gap, or, with no gap at all, at the sharpest corner of the ring
+        if split.any():
+            first = int(split.nonzero()[0][0]) + 1
+        else:
+            first, ring_corner = _sharpest_ring_corner(kp, cfg)
+        order = np.roll(np.arange(kept_index.size), -first)
+        kept_index, kp = kept_index[order], kp[order]
+        is_break, split = is_break[order], split[order].copy()
+        split[-1] = True
+    fov_edge = np.zeros(kept_index.shape[0], bool)
+    if kept_index.size and not closed:
+        fov_edge[0] = True
+        fov_edge[-1] = True
+    cluster = clusters(split, cfg.segmentation.min_cluster_points)
+
+    # 5. angular points (eq. 14)
+    spacing = steps(kp, False)
+    is_corner, _interior = angular_points(kp, cluster, spacing, cfg)
+    if ring_corner and cluster.size and cluster[0] >= 0:
+        is_corner[0] = True  # the seam of a gapless ring sits on its sharpest corner
+
+    raw_seg, segment = segment_ids(cluster, is_corner, cfg.lines.corner_exclusion, ring_corner)
+    return ScanSegments(
+        beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
+        cluster, is_corner, raw_seg, segment, ring_corner,
+    )  # fmt: skip
+
+
+def _sharpest_ring_corner(points: FloatArray, cfg: Config) -> tuple[int, bool]:
+    """For a gapless 360° ring of points: the index of its sharpest angular point (eq. 14 with
+    neighbours k steps away, modulo the ring) and whether it is sharp enough to be one."""
+    n = points.shape[0]
+    k = cfg.angular_points.neighbour_step
+    if n < 2 * k + 1:
+        return 0, False
+    idx = np.arange(n)
+    a = points[(idx - k) % n] - points
+    b = points[(idx + k) % n] - points
+    angle = np.abs(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.sum(a * b, axis=1)))
+    best = int(np.argmin(angle))
+    return best, bool(angle[best] <= cfg.angular_points.interior_angle_threshold)
+
+
+def _graded_points(
+    ranges: FloatArray, beta: FloatArray, bases: RuleBases, cfg: Config
+) -> tuple[FloatArray, float]:
+    """Eq. 4 for every valid point, on distance sets stretched to the scan's own distances
+    (:func:`distance_scale`); returns the uncertainties and the scale."""
+    scale = segmentation.distance_scale(ranges, cfg.fuzzy)
+    return segmentation.point_uncertainty(ranges, beta, bases, scale), scale
+
+
+def _valid_points(
+    scan: LaserScan, no_return_bands: tuple[tuple[float, float], ...] = ()
+) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+    """The scan's valid readings outside ``no_return_bands`` (:func:`~fuzzypos.scan.usable`)
+    counter-clockwise: their beam indices, ranges, points in the sensor and robot frames."""
+    beam_index = usable(scan, no_return_bands).nonzero()[0]
+    if scan.angle_increment < 0:
+        # process counter-clockwise, so eq. 3's i+1 is the same neighbour
+        beam_index = beam_index[::-1]
+    ranges = np.asarray(scan.ranges)[beam_index]
+    angles = scan.angles[beam_index]
+    p_sensor = stack_columns(ranges * np.cos(angles), ranges * np.sin(angles))
+    sp = scan.sensor_pose
+    if sp.x == 0.0 and sp.y == 0.0 and sp.theta == 0.0:
+        points = p_sensor
+    else:
+        points = transform_points(sp.as_array(), p_sensor)
+    return beam_index, ranges, p_sensor, points
+
+
+def graded_for_lines(
+    ranges: FloatArray,
+    beta: FloatArray,
+    u: FloatArray,
+    segment: IntArray,
+    scale: float,
+    bases: RuleBases,
+    cfg: Config,
+) -> tuple[FloatArray, float]:
+    """The kept points' uncertainties the lines' δ (eq. 6) is taken from, and the scale the
+    lines, d_v and the virtual points' distance limit are graded on: the scale of the lines'
+    own surface (:func:`~fuzzypos.features.segmentation.line_distance_scale`), the points
+    re-graded on it where it differs from the points' ``scale`` (else ``u`` itself)."""
+    line_scale = segmentation.line_distance_scale(ranges[segment >= 0], scale, cfg.fuzzy)
+    if line_scale == scale:
+        return u, scale
+    return segmentation.point_uncertainty(ranges, beta, bases, line_scale), line_scale
+
+
+def graded_lines(
+    points: FloatArray,
+    ranges: FloatArray,
+    beta: FloatArray,
+    u: FloatArray,
+    segment: IntArray,
+    cluster: IntArray,
+    scale: float,
+    bases: RuleBases,
+    cfg: Config,
+) -> tuple[Lines, float]:
+    """``fuzzypos.features.extract._graded_lines`` in numpy: :func:`graded_for_lines`, then
+    :func:`fit_lines` (the compiled ``_kernels.front.fit_lines``' reference)."""
+    lu, line_scale = graded_for_lines(ranges, beta, u, segment, scale, bases, cfg)
+    return fit_lines(points, lu, segment, cluster, bases, cfg), line_scale
+
+
 #: (module, attribute, its reference) for :func:`oracles.references`; a fused call's
 #: reference declines (``_declines``), so the staged chain runs
 STAND_INS = [
@@ -510,11 +646,11 @@ STAND_INS = [
     (segmentation.__name__, "clusters", clusters),
     (segmentation.__name__, "angular_points", angular_points),
     (segmentation.__name__, "segment_ids", segment_ids),
-    (segmentation.__name__, "segment_scan_compiled", _declines),
+    (segmentation.__name__, "segment_scan", segment_scan),
     (extract.__name__, "fit_lines", fit_lines),
     (extract.__name__, "join_at_corners", join_at_corners),
     (extract.__name__, "_extract_compiled", _declines),
-    (extract.__name__, "_lines_compiled", _declines),
+    (extract.__name__, "_graded_lines", graded_lines),
     (extract.__name__, "_point_features", point_features),
     (extract.__name__, "virtual_candidates", virtual_candidates),
     (chain.__name__, "chain_inputs", _declines),

@@ -244,6 +244,25 @@ def interior_angles(
 
 
 @kernel
+def sharpest_ring_corner(points: FloatArray, k: int, threshold: float) -> tuple[int, bool]:
+    """For a gapless 360° ring of points: the index of its sharpest angular point (eq. 14 with
+    neighbours ``k`` steps away, modulo the ring; the first of equals) and whether it is
+    sharp enough (within ``threshold``) to be one."""
+    n = points.shape[0]
+    if n < 2 * k + 1:
+        return 0, False
+    best, best_angle = 0, math.inf
+    for i in range(n):
+        p, q = (i - k) % n, (i + k) % n
+        ax, ay = points[p, 0] - points[i, 0], points[p, 1] - points[i, 1]
+        bx, by = points[q, 0] - points[i, 0], points[q, 1] - points[i, 1]
+        angle = abs(math.atan2(ax * by - ay * bx, ax * bx + ay * by))
+        if angle < best_angle or (math.isnan(angle) and not math.isnan(best_angle)):
+            best, best_angle = i, angle
+    return best, bool(best_angle <= threshold)
+
+
+@kernel
 def scan_front(
     p_sensor: FloatArray,
     points: FloatArray,
@@ -257,15 +276,17 @@ def scan_front(
     lo: float,
     hi: float,
 ) -> tuple[
-    bool, float, FloatArray, FloatArray, BoolArray, IntArray, BoolArray, BoolArray,
-    IntArray, BoolArray, IntArray, IntArray,
+    float, FloatArray, FloatArray, BoolArray, IntArray, BoolArray, BoolArray, IntArray,
+    BoolArray, IntArray, IntArray, bool,
 ]:  # fmt: skip
     """Steps 1–5 of ``extract_features`` and the segment ids of step 6 (``params`` as
-    :data:`PARAMS`; ``scan_scale`` 1: the distance scale of the scan's ranges, 0: fixed).
-    Returns whether it is done (False for a gapless 360° ring, whose seam the staged chain
-    places at its sharpest corner), the distance scale, β, the uncertainty, the kept mask,
+    :data:`PARAMS`; ``scan_scale`` 1: the distance scale of the scan's ranges, 0: fixed;
+    ``g1``–``hi`` the point rule base's interpolation, :func:`~.fuzzy.bilinear`, or, where
+    ``g1`` is empty, a rule base of another kind, whose grades the caller computes: then the
+    uncertainty is zeros). Returns the distance scale, β, the uncertainty, the kept mask,
     the kept indices (in the order of the sequence), the break points, the field of view's
-    edges, the clusters, the angular points and the raw and line segment ids."""
+    edges, the clusters, the angular points, the raw and line segment ids and whether the
+    scan is a gapless ring whose seam sits on its sharpest corner."""
     gap_distance, per_metre, gap_difference = params[0], params[1], params[2]
     n = ranges.shape[0]
     scale = 1.0
@@ -282,7 +303,9 @@ def scan_front(
     for i in range(n):
         beta[i] = 0.0 if isolated[i] else math.atan2(cross[i], dot[i])
     # (the ranges themselves at a scale of 1: r / 1 is r, and no array to allocate)
-    u = bilinear(ranges if scale == 1.0 else ranges / scale, beta, g1, g2, table, lo, hi)
+    u = np.zeros(n)
+    if g1.shape[0]:
+        u = bilinear(ranges if scale == 1.0 else ranges / scale, beta, g1, g2, table, lo, hi)
     # 3. filtering (§3.1)
     kept = beta > params[3]
     kept_index = np.nonzero(kept)[0]
@@ -292,16 +315,17 @@ def scan_front(
     kp_steps = steps(kp, closed)  # (also the arms' spacing below, where the scan is open)
     is_break, split = break_points_of_steps(kp_steps, t2, gap_difference, closed)
     m = kept_index.shape[0]
+    ring_corner = False
     if closed and m:
+        # a 360° scan wraps around (the paper's "indices additive modulo m"): start the
+        # sequence after a gap, or, with no gap at all, at the sharpest corner of the ring
         first = -1
         for j in range(m):
             if split[j]:
                 first = j + 1
                 break
-        if first < 0:  # a gapless ring: its seam at the sharpest corner (the staged chain)
-            empty = np.zeros(0, dtype=np.int64)
-            nob = np.zeros(0, dtype=np.bool_)
-            return False, scale, beta, u, kept, kept_index, nob, nob, empty, nob, empty, empty
+        if first < 0:
+            first, ring_corner = sharpest_ring_corner(kp, int(params[6]), params[7])
         order = np.empty(m, dtype=np.int64)
         for j in range(m):
             order[j] = (j + first) % m
@@ -320,11 +344,13 @@ def scan_front(
     arms_cross, arms_dot, inside = corner_arms(kp, cluster, arm_spacing, params[5], int(params[6]))
     angle = interior_angles(arms_cross, arms_dot, inside, params[7])
     is_corner = sharpest_of_runs(angle, cluster, params[7])
+    if ring_corner and m and cluster[0] >= 0:
+        is_corner[0] = True  # the seam of a gapless ring sits on its sharpest corner
     # 6. the segments lines are fitted to (§3.5)
-    raw_seg, segment = segments(cluster, is_corner, int(params[8]), False)
+    raw_seg, segment = segments(cluster, is_corner, int(params[8]), ring_corner)
     return (
-        True, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner,
-        raw_seg, segment,
+        scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw_seg,
+        segment, ring_corner,
     )  # fmt: skip
 
 
@@ -396,7 +422,9 @@ def fit_lines(
     ``finish_lines``) and their uncertainty (eq. 9). ``params``: (min_points, min_length,
     min_noise, structure scale on, reference, quantile). Returns the scale, the
     uncertainties, the kept segment ids, ``finish_lines``'s table, each line's first point
-    and its uncertainty."""
+    and its uncertainty (zeros where ``line_tables``' grids are empty: a rule base of another
+    kind, which the caller evaluates; the point rule base's must then not be needed, the
+    lines graded on ``point_scale``)."""
     line_scale = point_scale
     if params[3] != 0.0:
         count = 0
@@ -423,8 +451,8 @@ def fit_lines(
         points, segment, sums, first, last, normal, int(params[0]), params[1], params[2]
     )
     f_line = np.zeros(ids.shape[0])
-    if ids.shape[0]:
-        g1, g2, table, lo, hi = line_tables
+    g1, g2, table, lo, hi = line_tables
+    if ids.shape[0] and g1.shape[0]:  # (no grids: the caller's rule base grades them)
         f_line = bilinear(out[:, 8].copy(), out[:, 7].copy(), g1, g2, table, lo, hi)
     return line_scale, lu, ids, out, firsts, f_line
 
@@ -589,9 +617,9 @@ def scan_features(
     (``features._lines_of_table``), the lines on either side of each angular point and
     ``_kernels.segmentation.join_at_corners`` (§3.5 b)), with nothing but glue between them
     (what ``extract_features`` did in numpy between the four calls). Returns whether it is
-    done (False: a gapless 360° ring, the staged chain's), the points' and the lines' distance
-    scales, the :data:`ChainSizes` and the arrays packed end to end in three (few arrays
-    to hand back to Python): the floats, the integers and the masks, in
+    done (always: a gapless 360° ring too, its seam at its sharpest corner), the points' and
+    the lines' distance scales, the :data:`ChainSizes` and the arrays packed end to end in
+    three (few arrays to hand back to Python): the floats, the integers and the masks, in
     the order ``features._unpacked`` takes them apart (the front's arrays, as
     ``segmentation.ScanSegments`` without the raw segments; the kept points, uncertainty and
     ranges; the arrays of ``features.Lines``, joined at the corners; the corners' context,
@@ -603,13 +631,10 @@ def scan_features(
         sensor_theta,
     )  # fmt: skip
     g1, g2, table, lo, hi = point_tables
-    done, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg = (
+    scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg, _ = (
         scan_front(p_sensor, points, rng, angle_increment, closed, front_params, g1, g2, table,
                    lo, hi)
     )  # fmt: skip
-    if not done:
-        none = (0, 0, 0, 0, 0)
-        return False, scale, scale, none, np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.bool_)
     n, m = rng.shape[0], kept_index.shape[0]
     kp, ku = np.empty((m, 2)), np.empty(m)
     kr, kb = np.empty(m), np.empty(m)

@@ -9,8 +9,9 @@ of lines intersect into virtual angular points (eq. 10–12, §3.6).
 
 Geometry that depends on the beam (ranges, detection angles) is computed in the sensor frame;
 every point, line and feature is returned in the robot frame (SPEC: the scan's points are
-moved into the robot frame by ``sensor_pose`` first). No Python loop runs over beams or points:
-per-cluster and per-segment statistics use ``np.bincount`` over labels.
+moved into the robot frame by ``sensor_pose`` first). Every stage is a compiled kernel
+(``fuzzypos._kernels``); their numpy references are the tests' oracles
+(``tests/oracles/features.py``).
 """
 
 from __future__ import annotations
@@ -26,10 +27,9 @@ from numpy.typing import NDArray
 from .._kernels import f64, packing
 from .._kernels.packing import Unpacks
 from ..config import Config, FuzzyConfig, same_as_last_call
-from ..fuzzy import RuleBases
+from ..fuzzy import RuleBase, RuleBases
 from ..geometry import stack_columns
 from ..scan import LaserScan
-from .chain import MIN_LINE_NOISE as _MIN_LINE_NOISE
 from .chain import ChainOutputs, chain_inputs
 from .chain import line_params as _line_params
 from .segmentation import (
@@ -39,7 +39,6 @@ from .segmentation import (
     detection_angles,
     distance_scale,
     filter_points,
-    line_distance_scale,
     point_uncertainty,
     segment_scan,
 )
@@ -197,26 +196,90 @@ def fit_lines(
     The normal is the eigenvector of the scatter matrix's smallest eigenvalue (the orthogonal
     fit, valid for vertical and horizontal walls alike); endpoints are the projections of the
     segment's extreme points (joined at angular points later, see :func:`join_at_corners`).
-    The sums and fits in one compiled loop (``_kernels.segmentation``).
+    Graded on the points' ``uncertainty`` as given (:func:`_graded_lines` takes the lines'
+    own distance scale), in one compiled call (``_kernels.front.fit_lines``).
     """
-    from .._kernels.segmentation import finish_lines, segment_sums
+    n = np.asarray(points).shape[0]
+    return _lines_fitted(points, np.zeros(n), np.zeros(n), uncertainty, segment, cluster,
+                         1.0, bases, cfg, structure=False)[0]  # fmt: skip
 
-    p = np.ascontiguousarray(points, dtype=np.float64)
+
+def _graded_lines(
+    points: FloatArray,
+    ranges: FloatArray,
+    beta: FloatArray,
+    u: FloatArray,
+    segment: IntArray,
+    cluster: IntArray,
+    scale: float,
+    bases: RuleBases,
+    cfg: Config,
+) -> tuple[Lines, float]:
+    """Step 6 on the kept points: the scale the lines are graded on (the scale of the lines'
+    own surface, :func:`~fuzzypos.features.segmentation.line_distance_scale`, the points
+    re-graded on it where it differs from the points' ``scale``) and the lines fitted on it."""
+    return _lines_fitted(points, ranges, beta, u, segment, cluster, scale, bases, cfg, True)
+
+
+def _lines_fitted(
+    points: FloatArray,
+    ranges: FloatArray,
+    beta: FloatArray,
+    u: FloatArray,
+    segment: IntArray,
+    cluster: IntArray,
+    scale: float,
+    bases: RuleBases,
+    cfg: Config,
+    structure: bool,
+) -> tuple[Lines, float]:
+    """:func:`_graded_lines` (``structure``: on the lines' own distance scale where the config
+    says so) in one compiled call (``_kernels.front.fit_lines``). A rule base off the
+    interpolation's path (Mamdani's, sets that are no partition of unity) grades itself
+    around it: the points' rule base before it, on the lines' scale
+    (``_kernels.front.line_distance_scale``), the lines' after it."""
+    from .._kernels import front as kernel
+
+    pb, lb = bases.points, bases.lines
+    params = _line_params(cfg.lines, cfg.fuzzy)
+    if not structure:
+        params = _no_structure(params)
+    p, r, b, lu = f64(points), f64(ranges), f64(beta), f64(u)
     seg = np.ascontiguousarray(segment, dtype=np.int64)
-    sums, first, last = segment_sums(p, np.ascontiguousarray(uncertainty, dtype=np.float64), seg)
-    if sums.shape[0] == 0:
-        return _empty_lines()
-    # the principal direction φ of each scatter (numpy's trigonometry, as the reference's)
-    phi = 0.5 * np.arctan2(2.0 * sums[:, 5], sums[:, 3] - sums[:, 4])
-    normal = stack_columns(-np.sin(phi), np.cos(phi))
-    ids, table, firsts = finish_lines(
-        p, seg, sums, first, last, normal, int(cfg.lines.min_points),
-        float(cfg.lines.min_length), _MIN_LINE_NOISE,
-    )  # fmt: skip
+    if pb._grids is None:  # the lines' scale here, the points graded on it by the rule base
+        line_scale = scale
+        if params[3] != 0.0:
+            line_scale = kernel.line_distance_scale(r[seg >= 0], scale, params[4], params[5])
+        if line_scale != scale and r.shape[0]:
+            lu = f64(point_uncertainty(r, b, bases, line_scale))
+        params, scale = _no_structure(params), line_scale
+    line_scale, _lu, ids, table, firsts, f_line = kernel.fit_lines(
+        p, r, b, lu, seg, float(scale), params, _tables(pb), _tables(lb)
+    )
     if ids.size == 0:
-        return _empty_lines()
-    f_line = bases.lines(table[:, 8].copy(), table[:, 7].copy())  # eq. 9 / Table 2: (δ, σ)
-    return _lines_of_table(table, ids, firsts, f_line, cluster)
+        return _empty_lines(), line_scale
+    if lb._grids is None:
+        f_line = lb(table[:, 8].copy(), table[:, 7].copy())  # eq. 9 / Table 2: (δ, σ)
+    return _lines_of_table(table, ids, firsts, f_line, cluster), line_scale
+
+
+_NO_GRID = np.zeros(0)
+
+
+def _no_structure(params: FloatArray) -> FloatArray:
+    """``_kernels.front.fit_lines``' params graded on the scale given (no structure scale)."""
+    out = params.copy()
+    out[3] = 0.0
+    return out
+
+
+def _tables(
+    rule_base: RuleBase,
+) -> tuple[FloatArray, FloatArray, FloatArray, float, float]:
+    """A two-input rule base's interpolation (``_kernels.fuzzy.bilinear``'s grids, table and
+    clamp), its grids empty where it is off that path (then it grades itself)."""
+    g1, g2 = rule_base._grids if rule_base._grids is not None else (_NO_GRID, _NO_GRID)
+    return g1, g2, rule_base._table, rule_base._centre_lo, rule_base._centre_hi
 
 
 def _lines_of_table(
@@ -343,7 +406,10 @@ def virtual_angular_points(
 # the whole chain
 # ---------------------------------------------------------------------------------------------
 def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
-    """Run every stage of §3.1–3.6 on one scan and keep each intermediate result."""
+    """Run every stage of §3.1–3.6 on one scan and keep each intermediate result: in one
+    compiled call, or, where a rule base is off the interpolation's path (Mamdani's, sets
+    that are no partition of unity), the same compiled stages one by one with the rule
+    bases' own grading between them."""
     cfg = config if config is not None else Config()
     bases = rule_bases(cfg.fuzzy)
     fused = _extract_compiled(scan, bases, cfg)
@@ -427,85 +493,13 @@ def features_of_chain(scan: LaserScan, config: Config, outputs: ChainOutputs) ->
 def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Features | None:
     """:func:`extract_features` in one compiled call (``_kernels.front.scan_features``: the
     front, the lines and their joins at the angular points, which the staged chain computes
-    in four calls with numpy between them); None for a gapless 360° ring or rule bases off
-    the interpolation's path (then the staged chain runs)."""
+    in four calls with the rule bases' grading between them); None for rule bases off the
+    interpolation's path (then the staged chain runs)."""
     inputs = chain_inputs(scan, cfg, bases)
     if inputs is None:
         return None
-    done, *outputs = packing.front().scan_features(*inputs)
-    if not done:
-        return None
+    _done, *outputs = packing.front().scan_features(*inputs)  # (always done)
     return features_of_chain(scan, cfg, cast(ChainOutputs, tuple(outputs)))
-
-
-def _graded_lines(
-    points: FloatArray,
-    ranges: FloatArray,
-    beta: FloatArray,
-    u: FloatArray,
-    segment: IntArray,
-    cluster: IntArray,
-    scale: float,
-    bases: RuleBases,
-    cfg: Config,
-) -> tuple[Lines, float]:
-    """Step 6 on the kept points: the scale the lines are graded on and the lines fitted on
-    it, in one compiled call (:func:`_lines_compiled`), or where that declines (a rule base off
-    the interpolation's path) by :func:`_graded_for_lines` and :func:`fit_lines`."""
-    fitted = _lines_compiled(points, ranges, beta, u, segment, cluster, scale, bases, cfg)
-    if fitted is not None:
-        return fitted
-    lu, line_scale = _graded_for_lines(ranges, beta, u, segment, scale, bases, cfg)
-    return fit_lines(points, lu, segment, cluster, bases, cfg), line_scale
-
-
-def _lines_compiled(
-    points: FloatArray,
-    ranges: FloatArray,
-    beta: FloatArray,
-    u: FloatArray,
-    segment: IntArray,
-    cluster: IntArray,
-    scale: float,
-    bases: RuleBases,
-    cfg: Config,
-) -> tuple[Lines, float] | None:
-    """:func:`_graded_for_lines` and :func:`fit_lines` in one compiled call
-    (``_kernels.front.fit_lines``): the lines and the scale they are graded on; None where a
-    rule base is off the interpolation's path (then the staged functions run)."""
-    from .._kernels.front import fit_lines as kernel
-
-    pb, lb = bases.points, bases.lines
-    if pb._grids is None or lb._grids is None:
-        return None
-    line_scale, _lu, ids, table, firsts, f_line = kernel(
-        np.ascontiguousarray(points), ranges, beta, u, segment, float(scale),
-        _line_params(cfg.lines, cfg.fuzzy),
-        (*pb._grids, pb._table, pb._centre_lo, pb._centre_hi),
-        (*lb._grids, lb._table, lb._centre_lo, lb._centre_hi),
-    )  # fmt: skip
-    if ids.size == 0:
-        return _empty_lines(), line_scale
-    return _lines_of_table(table, ids, firsts, f_line, cluster), line_scale
-
-
-def _graded_for_lines(
-    ranges: FloatArray,
-    beta: FloatArray,
-    u: FloatArray,
-    segment: IntArray,
-    scale: float,
-    bases: RuleBases,
-    cfg: Config,
-) -> tuple[FloatArray, float]:
-    """The kept points' uncertainties the lines' δ (eq. 6) is taken from, and the scale the
-    lines, d_v and the virtual points' distance limit are graded on: the scale of the lines'
-    own surface (:func:`~fuzzypos.features.segmentation.line_distance_scale`), the points
-    re-graded on it where it differs from the points' ``scale`` (else ``u`` itself)."""
-    line_scale = line_distance_scale(ranges[segment >= 0], scale, cfg.fuzzy)
-    if line_scale == scale:
-        return u, scale
-    return point_uncertainty(ranges, beta, bases, line_scale), line_scale
 
 
 def _point_features(c: _CornerContext) -> _PointFeatures:

@@ -24,8 +24,7 @@ from ..config import (
     same_as_last_call,
 )
 from ..fuzzy import RuleBases
-from ..geometry import stack_columns, transform_points
-from ..scan import LaserScan, _band_bounds_cached, usable
+from ..scan import LaserScan, _band_bounds_cached
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -211,33 +210,41 @@ def segment_ids(
     )
 
 
-def _sharpest_ring_corner(points: FloatArray, cfg: Config) -> tuple[int, bool]:
-    """For a gapless 360° ring of points: the index of its sharpest angular point (eq. 14 with
-    neighbours k steps away, modulo the ring) and whether it is sharp enough to be one."""
-    n = points.shape[0]
-    k = cfg.angular_points.neighbour_step
-    if n < 2 * k + 1:
-        return 0, False
-    idx = np.arange(n)
-    a = points[(idx - k) % n] - points
-    b = points[(idx + k) % n] - points
-    angle = np.abs(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.sum(a * b, axis=1)))
-    best = int(np.argmin(angle))
-    return best, bool(angle[best] <= cfg.angular_points.interior_angle_threshold)
-
-
 # ---------------------------------------------------------------------------------------------
 # the front of feature extraction: §3.1–3.4 and the segments of §3.5 on one scan
 # ---------------------------------------------------------------------------------------------
 def segment_scan(scan: LaserScan, bases: RuleBases, cfg: Config) -> ScanSegments:
     """Steps 1–5 of :func:`fuzzypos.features.extract_features` and the segments lines are
-    fitted to (:class:`ScanSegments`). Compiled in two calls (a
-    gapless 360° ring takes the staged chain)."""
-    closed = bool(scan.is_full_circle)
-    front = segment_scan_compiled(scan, closed, bases, cfg)
-    if front is not None:
-        return front
-    return segment_scan_staged(scan, closed, bases, cfg)
+    fitted to (:class:`ScanSegments`), in two compiled calls (``_kernels.front``: the usable
+    points, then the rest; a gapless 360° ring's seam on its sharpest corner). A point rule
+    base off the interpolation's path (Mamdani's, sets that are no partition of unity)
+    grades the points itself after them (:func:`point_uncertainty`)."""
+    from .._kernels import front as kernel
+
+    base = bases.points
+    lo, hi = _band_bounds_of(cfg.scanner)
+    sp = scan.sensor_pose
+    beam_index, ranges, p_sensor, points = kernel.valid_points(
+        np.asarray(scan.ranges), scan.angles, scan.valid, lo, hi, float(scan.angle_increment),
+        np.array([sp.x, sp.y, sp.theta]),
+    )  # fmt: skip
+    g1, g2 = base._grids if base._grids is not None else (_NO_GRID, _NO_GRID)
+    scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg, ring = (
+        kernel.scan_front(
+            p_sensor, points, ranges, float(scan.angle_increment), bool(scan.is_full_circle),
+            _front_params(cfg.segmentation, cfg.angular_points, cfg.fuzzy, cfg.filtering,
+                          cfg.lines), g1, g2, base._table, base._centre_lo, base._centre_hi,
+        )
+    )  # fmt: skip
+    if base._grids is None:
+        u = point_uncertainty(ranges, beta, bases, scale)
+    return ScanSegments(
+        beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
+        cluster, is_corner, raw, seg, ring,
+    )  # fmt: skip
+
+
+_NO_GRID = np.zeros(0)
 
 
 class ScanSegments(NamedTuple):
@@ -264,92 +271,6 @@ class ScanSegments(NamedTuple):
     raw_segment: IntArray
     segment: IntArray
     ring_corner: bool
-
-
-def segment_scan_staged(
-    scan: LaserScan, closed: bool, bases: RuleBases, cfg: Config
-) -> ScanSegments:
-    """Steps 1–5 of :func:`extract_features` and the segments of step 6, stage by stage:
-    the usable points, their β, uncertainty, filtering, break points, clusters, angular
-    points, segment ids (the reference of :func:`segment_scan_compiled`)."""
-    beam_index, ranges, p_sensor, points = _valid_points(scan, cfg.scanner.no_return_bands)
-    inc = scan.angle_increment
-    t2_valid = gap_thresholds(ranges, inc, cfg)
-
-    # 1. gaps among the valid points, then β (eq. 3), then 2. uncertainty (eq. 4)
-    _, gap_after = break_points(p_sensor, t2_valid, cfg.segmentation.gap_difference, closed)
-    beta = detection_angles(p_sensor, gap_after, closed)
-    u, scale = _graded_points(ranges, beta, bases, cfg)
-
-    # 3. filtering (§3.1)
-    kept = filter_points(beta, cfg.filtering.detection_angle_threshold)
-    kept_index = kept.nonzero()[0]
-    kp = points.take(kept_index, axis=0)
-
-    # 4. break points (eq. 13) and clusters (§3.3) on the filtered points
-    t2 = t2_valid[kept_index]
-    is_break, split = break_points(kp, t2, cfg.segmentation.gap_difference, closed)
-    ring_corner = False
-    if closed and kept_index.size:
-        # a 360° scan wraps around (the paper's "indices additive modulo m"): start the
-        # sequence after a gap, or, with no gap at all, at the sharpest corner of the ring
-        if split.any():
-            first = int(split.nonzero()[0][0]) + 1
-        else:
-            first, ring_corner = _sharpest_ring_corner(kp, cfg)
-        order = np.roll(np.arange(kept_index.size), -first)
-        kept_index, kp = kept_index[order], kp[order]
-        is_break, split = is_break[order], split[order].copy()
-        split[-1] = True
-    fov_edge = np.zeros(kept_index.shape[0], bool)
-    if kept_index.size and not closed:
-        fov_edge[0] = True
-        fov_edge[-1] = True
-    cluster = clusters(split, cfg.segmentation.min_cluster_points)
-
-    # 5. angular points (eq. 14)
-    steps = _steps(kp, False)
-    is_corner, _interior = angular_points(kp, cluster, steps, cfg)
-    if ring_corner and cluster.size and cluster[0] >= 0:
-        is_corner[0] = True  # the seam of a gapless ring sits on its sharpest corner
-
-    raw_seg, segment = segment_ids(cluster, is_corner, cfg.lines.corner_exclusion, ring_corner)
-    return ScanSegments(
-        beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
-        cluster, is_corner, raw_seg, segment, ring_corner,
-    )  # fmt: skip
-
-
-def segment_scan_compiled(
-    scan: LaserScan, closed: bool, bases: RuleBases, cfg: Config
-) -> ScanSegments | None:
-    """:func:`segment_scan_staged` in two compiled calls (``_kernels.front``); None for a gapless
-    360° ring (its seam is the staged chain's) or rule bases off the interpolation's path."""
-    from .._kernels import front as kernel
-
-    base = bases.points
-    if base._grids is None:
-        return None
-    lo, hi = _band_bounds_of(cfg.scanner)
-    sp = scan.sensor_pose
-    beam_index, ranges, _p_sensor, points = kernel.valid_points(
-        np.asarray(scan.ranges), scan.angles, scan.valid, lo, hi, float(scan.angle_increment),
-        np.array([sp.x, sp.y, sp.theta]),
-    )  # fmt: skip
-    done, scale, beta, u, kept, kept_index, is_break, fov_edge, cluster, is_corner, raw, seg = (
-        kernel.scan_front(
-            _p_sensor, points, ranges, float(scan.angle_increment), closed,
-            _front_params(cfg.segmentation, cfg.angular_points, cfg.fuzzy, cfg.filtering,
-                          cfg.lines), base._grids[0], base._grids[1], base._table,
-            base._centre_lo, base._centre_hi,
-        )
-    )  # fmt: skip
-    if not done:
-        return None
-    return ScanSegments(
-        beam_index, ranges, points, scale, beta, u, kept, kept_index, is_break, fov_edge,
-        cluster, is_corner, raw, seg, False,
-    )  # fmt: skip
 
 
 @same_as_last_call
@@ -385,32 +306,3 @@ def _front_params(
         "scan_scale": 0.0 if fz.distance_scale == "fixed" else 1.0,
     }
     return np.array([float(values[name]) for name in PARAMS])
-
-
-def _graded_points(
-    ranges: FloatArray, beta: FloatArray, bases: RuleBases, cfg: Config
-) -> tuple[FloatArray, float]:
-    """Eq. 4 for every valid point, on distance sets stretched to the scan's own distances
-    (:func:`distance_scale`); returns the uncertainties and the scale."""
-    scale = distance_scale(ranges, cfg.fuzzy)
-    return point_uncertainty(ranges, beta, bases, scale), scale
-
-
-def _valid_points(
-    scan: LaserScan, no_return_bands: tuple[tuple[float, float], ...] = ()
-) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
-    """The scan's valid readings outside ``no_return_bands`` (:func:`~fuzzypos.scan.usable`)
-    counter-clockwise: their beam indices, ranges, points in the sensor and robot frames."""
-    beam_index = usable(scan, no_return_bands).nonzero()[0]
-    if scan.angle_increment < 0:
-        # process counter-clockwise, so eq. 3's i+1 is the same neighbour
-        beam_index = beam_index[::-1]
-    ranges = np.asarray(scan.ranges)[beam_index]
-    angles = scan.angles[beam_index]
-    p_sensor = stack_columns(ranges * np.cos(angles), ranges * np.sin(angles))
-    sp = scan.sensor_pose
-    if sp.x == 0.0 and sp.y == 0.0 and sp.theta == 0.0:
-        points = p_sensor
-    else:
-        points = transform_points(sp.as_array(), p_sensor)
-    return beam_index, ranges, p_sensor, points
