@@ -266,3 +266,22 @@ def test_the_matchers_line_arrays_are_the_lines_own() -> None:
         for got, want in zip(views[1:], expected[1:], strict=True):
             assert want is not None
             assert got.tobytes() == np.ascontiguousarray(want, dtype=np.float64).tobytes()
+
+
+def test_the_matcher_needs_the_lines_variances() -> None:
+    """Lines without variances (made by hand) are a typed error for the matcher, lines of
+    none on either side give no motion."""
+    import pytest
+
+    from fuzzypos.config import Config
+    from fuzzypos.features import FeatureError
+    from fuzzypos.pipeline.feature_match import FeatureMatcher
+
+    cfg = Config()
+    matcher = FeatureMatcher(cfg.matching, cfg.fusion)
+    bare = replace(ROOM, angle_variance=None, distance_variance=None)
+    with pytest.raises(FeatureError, match="variances"):
+        matcher.match_lines(bare, ROOM, None, np.zeros(3))
+    none = make_lines([], [])
+    assert matcher.match_lines(none, bare, None, np.zeros(3)) == (None, 0)
+    assert matcher.match_lines(ROOM, ROOM, None, np.zeros(3))[0] is not None

@@ -8,12 +8,13 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from fuzzypos.features import Features
+from fuzzypos.features import Features, Lines
 from fuzzypos.geometry import compose3, compose_jacobians, relative, relative3, stack_columns
 from fuzzypos.matching import Refinement, surface_lengths
 from fuzzypos.matching._robust import median as _median
 from fuzzypos.matching.surface import SurfacePoints
 from fuzzypos.pipeline import feature_match, local_map, refine, uncertainty
+from fuzzypos.pipeline.feature_match import FeatureMatcher
 from fuzzypos.pipeline.refine import Refiner, ScanPoints, Starts
 from fuzzypos.pipeline.uncertainty import _MAX_CONDITION, Assessment, Uncertainty, local
 
@@ -48,9 +49,44 @@ def map_of(
 
 
 def _no_variances(_lines: object) -> bool:
-    """``feature_match._has_variances``' stand-in: no lines go to the compiled line matching
-    (``FeatureMatcher.match_lines`` takes its staged passes)."""
+    """``feature_match._has_variances``' stand-in: no lines go to the compiled steps' line
+    matching (``FeatureMatcher.match_lines`` takes :func:`match_lines`' numpy passes)."""
     return False
+
+
+def match_lines(
+    self: FeatureMatcher, prev: Lines, curr: Lines, start: FloatArray | None, prior: FloatArray
+) -> tuple[FloatArray | None, int]:
+    """``FeatureMatcher.match_lines``' passes in numpy (the compiled kernel
+    ``_kernels.lines.match_lines``' reference): pair the lines, the increment from the pairs,
+    and again from it where it moved enough to change the pairs."""
+    from oracles.matching import increment_from_lines, pair_lines
+
+    m = self.matching
+    if start is None:
+        pose, gates = prior, (m.line_angle_gate_prior, m.line_distance_gate_prior)
+    else:
+        pose, gates = start, (m.line_angle_gate, m.line_distance_gate)
+    est, n_pairs = None, 0
+    for _ in range(m.line_passes):
+        pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
+        if len(pairs) < m.line_min_pairs:
+            break
+        new = increment_from_lines(
+            prev, curr, pairs, pose, prior, m.line_prior_sigma, m.line_trim_angle,
+            m.line_inlier_distance, m.line_consensus_angle,
+        )  # fmt: skip
+        if new is None:
+            break
+        moved = np.abs(new - pose)
+        est = pose = new
+        n_pairs = len(pairs)
+        # pair again with the refined motion, unless it moved too little to change pairs
+        f = m.line_repair_fraction
+        if moved[0] + moved[1] < f * m.line_distance_gate and moved[2] < f * m.line_angle_gate:
+            break
+        gates = (m.line_angle_gate, m.line_distance_gate)
+    return est, n_pairs
 
 
 def weights(self: Refiner, features: Features, angle_increment: float) -> FloatArray:
@@ -329,6 +365,7 @@ def scan_only_numpy(
 STAND_INS = [
     (local_map.__name__, "LocalMap._map_of", map_of),
     (feature_match.__name__, "_has_variances", _no_variances),
+    (feature_match.__name__, "FeatureMatcher.match_lines", match_lines),
     (refine.__name__, "Refiner.points", points),
     (refine.__name__, "Refiner.refine", refine_fits),
     (uncertainty.__name__, "Uncertainty.prior_information", prior_information),

@@ -37,8 +37,8 @@ KIND_NAMES = ("break point", "angular point", "virtual angular point")
 
 
 class FeatureError(FuzzyposError, ValueError):
-    """Features computed from arrays that disagree (a corner context built by hand whose
-    sizes or indices do not fit together)."""
+    """Features handed to a stage that cannot use them: a corner context built by hand whose
+    sizes or indices do not fit together, lines without the variances line matching needs."""
 
 
 # ---------------------------------------------------------------------------------------------

@@ -14,8 +14,8 @@ from numpy.typing import NDArray
 
 from .._kernels import f64, packing
 from ..config import FusionConfig, MatchingConfig
-from ..features import FeaturePoints, Features, Lines
-from ..matching import estimate_increment, increment_from_lines, pair_features, pair_lines
+from ..features import FeatureError, FeaturePoints, Features, Lines
+from ..matching import estimate_increment, pair_features
 from ..matching._robust import MAD_TO_SIGMA, OUTLIER_SIGMAS
 from .estimate import Reason
 
@@ -173,61 +173,22 @@ class FeatureMatcher:
     ) -> tuple[FloatArray | None, int]:
         """Line-to-line matching from the point features' motion ``start`` (or the prior,
         with the wider gates), and once more from its own result where that moved enough to
-        change the pairs (at most ``line_passes`` passes). Returns the increment (None where
-        the lines give none) and the number of line pairs."""
-        m = self.matching
-        if start is None:
-            pose, gates = prior, (m.line_angle_gate_prior, m.line_distance_gate_prior)
-        else:
-            pose, gates = start, (m.line_angle_gate, m.line_distance_gate)
-        if _has_variances(prev) and _has_variances(curr):
-            return self._match_lines_compiled(prev, curr, pose, start is None, prior)
-        est, n_pairs = None, 0
-        for _ in range(m.line_passes):
-            pairs = pair_lines(prev, curr, pose, gates[0], gates[1], m.line_overlap_margin)
-            if len(pairs) < m.line_min_pairs:
-                break
-            new = increment_from_lines(
-                prev,
-                curr,
-                pairs,
-                pose,
-                prior,
-                m.line_prior_sigma,
-                m.line_trim_angle,
-                m.line_inlier_distance,
-                m.line_consensus_angle,
-            )
-            if new is None:
-                break
-            moved = np.abs(new - pose)
-            est = pose = new
-            n_pairs = len(pairs)
-            # pair again with the refined motion, unless it moved too little to change pairs
-            f = m.line_repair_fraction
-            if moved[0] + moved[1] < f * m.line_distance_gate and moved[2] < f * m.line_angle_gate:
-                break
-            gates = (m.line_angle_gate, m.line_distance_gate)
-        return est, n_pairs
-
-    def _match_lines_compiled(
-        self,
-        prev: Lines,
-        curr: Lines,
-        pose: FloatArray,
-        from_prior: bool,
-        prior: FloatArray,
-    ) -> tuple[FloatArray | None, int]:
-        """:meth:`match_lines`' passes as one compiled loop (``_kernels.lines.match_lines``),
-        with the prior's gates (``from_prior``) or the start's."""
+        change the pairs (at most ``line_passes`` passes), in one compiled loop
+        (``_kernels.lines.match_lines``; its numpy reference is ``match_lines`` of
+        ``tests/oracles/pipeline.py``). Returns the increment (None where the lines give
+        none) and the number of line pairs."""
         m = self.matching
         if len(prev) == 0 or len(curr) == 0:
             return None, 0
-        settings = self._line_settings[from_prior]
+        if not (_has_variances(prev) and _has_variances(curr)):
+            raise FeatureError(
+                "line matching needs the lines' variances (lines from extract_features)"
+            )
         # (f64, not a copy: the kernel copies the start and writes to neither)
         found, est, n_pairs = _kernels().match_lines(
-            *self._arrays_of(prev), *self._arrays_of(curr), f64(pose), f64(prior), settings,
-            self._line_params, int(m.line_passes), int(m.line_min_pairs),
+            *self._arrays_of(prev), *self._arrays_of(curr), f64(prior if start is None else start),
+            f64(prior), self._line_settings[start is None], self._line_params,
+            int(m.line_passes), int(m.line_min_pairs),
         )  # fmt: skip
         return (est if found else None), int(n_pairs)
 
