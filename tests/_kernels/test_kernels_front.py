@@ -202,14 +202,14 @@ def _fuzzy() -> Any:
 )
 def test_the_lines_distance_scale_is_the_numpy_one(ranges, point_scale, quantile) -> None:
     """``line_distance_scale`` (sorting only where the quantile may pass the reference's
-    stretch) against ``segmentation.line_distance_scale``: the point scale itself where no
+    stretch) against the oracle's ``line_distance_scale``: the point scale itself where no
     line point is beyond the stretch or the quantile is short of it."""
     fz = dataclasses.replace(CFG.fuzzy, distance_scale_quantile=quantile)
     r = np.array(ranges, dtype=np.float64)
     got = _front().line_distance_scale(
         r, point_scale, fz.distance_scale_reference, fz.distance_scale_quantile
     )
-    expected = seg.line_distance_scale(r, point_scale, fz)
+    expected = features_oracle.line_distance_scale(r, point_scale, fz)
     assert got == pytest.approx(expected, rel=1e-12)
     if r.size == 0 or r.max() <= fz.distance_scale_reference * point_scale:
         assert got == point_scale

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from fuzzypos.config import Config
+from fuzzypos.config import Config, FuzzyConfig
 from fuzzypos.features import chain, extract, segmentation
 from fuzzypos.features.chain import MIN_LINE_NOISE as _MIN_LINE_NOISE
 from fuzzypos.features.extract import _empty_lines
@@ -577,7 +577,7 @@ def _graded_points(
 ) -> tuple[FloatArray, float]:
     """Eq. 4 for every valid point, on distance sets stretched to the scan's own distances
     (:func:`distance_scale`); returns the uncertainties and the scale."""
-    scale = segmentation.distance_scale(ranges, cfg.fuzzy)
+    scale = distance_scale(ranges, cfg.fuzzy)
     return segmentation.point_uncertainty(ranges, beta, bases, scale), scale
 
 
@@ -614,7 +614,7 @@ def graded_for_lines(
     lines, d_v and the virtual points' distance limit are graded on: the scale of the lines'
     own surface (:func:`~fuzzypos.features.segmentation.line_distance_scale`), the points
     re-graded on it where it differs from the points' ``scale`` (else ``u`` itself)."""
-    line_scale = segmentation.line_distance_scale(ranges[segment >= 0], scale, cfg.fuzzy)
+    line_scale = line_distance_scale(ranges[segment >= 0], scale, cfg.fuzzy)
     if line_scale == scale:
         return u, scale
     return segmentation.point_uncertainty(ranges, beta, bases, line_scale), line_scale
@@ -635,6 +635,40 @@ def graded_lines(
     :func:`fit_lines` (the compiled ``_kernels.front.fit_lines``' reference)."""
     lu, line_scale = graded_for_lines(ranges, beta, u, segment, scale, bases, cfg)
     return fit_lines(points, lu, segment, cluster, bases, cfg), line_scale
+
+
+def distance_scale(ranges: FloatArray, cfg: FuzzyConfig) -> float:
+    """``fuzzypos.features.segmentation.distance_scale`` in numpy (the kernel's reference)."""
+    n = ranges.shape[0]
+    if cfg.distance_scale == "fixed" or n == 0:
+        return 1.0
+    reference, quantile = cfg.distance_scale_reference, cfg.distance_scale_quantile
+    # the quantile interpolates between two order statistics, at most the one past
+    # ⌈q·(n − 1)⌉ (a safe bound on numpy's index): where that one is within the reference, so
+    # is the quantile and the scale is 1 (one comparison instead of np.quantile's sort)
+    k = min(math.ceil(quantile * (n - 1)) + 1, n - 1)
+    if np.count_nonzero(ranges <= reference) >= k + 1:
+        return 1.0
+    q = float(np.quantile(ranges, quantile))
+    return max(1.0, q / reference)
+
+
+def line_distance_scale(line_ranges: FloatArray, point_scale: float, cfg: FuzzyConfig) -> float:
+    """``fuzzypos.features.segmentation.line_distance_scale`` in numpy (the kernel's reference)."""
+    if (
+        cfg.distance_scale == "fixed"
+        or cfg.line_distance_scale == "points"
+        or line_ranges.shape[0] == 0
+    ):
+        return point_scale
+    reference = cfg.distance_scale_reference
+    r = np.sort(line_ranges)
+    if r[-1] <= reference * point_scale:
+        return point_scale
+    # the weighted quantile: the range where the cumulative weight (midpoint rule) reaches q
+    w = np.cumsum(r) - 0.5 * r
+    q = float(np.interp(cfg.distance_scale_quantile * float(r.sum()), w, r))
+    return max(point_scale, q / reference)
 
 
 #: (module, attribute, its reference) for :func:`oracles.references`; a fused call's

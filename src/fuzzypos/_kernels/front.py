@@ -2,11 +2,11 @@
 scan's usable points, gap thresholds, detection angles (eq. 3), point uncertainty (eq. 4 by
 the rule base's bilinear interpolation), filtering (§3.1), break points (eq. 13), clusters
 (§3.3), angular points (eq. 14) and segment ids, each through the stage kernels of
-``_kernels.segmentation`` and ``_kernels.fuzzy``. Its reference is the staged chain of
-``fuzzypos.features.extract_features`` (``_front_staged``), each stage a Python function
-over numpy arrays or its own kernel; here the stages follow each other without returning to
-Python in between (a dozen calls fewer per scan). The angles are libm's ``atan2``, which may
-differ from numpy's ``arctan2`` in the last bit: the two agree except at exact ties."""
+``_kernels.segmentation`` and ``_kernels.fuzzy``; a gapless 360° ring's seam at its sharpest
+corner. Its reference is the staged chain in numpy (``segment_scan`` of
+``tests/oracles/features.py``); here the stages follow each other without returning to
+Python in between. The angles are libm's ``atan2``, which may differ from numpy's
+``arctan2`` (SIMD) in the last bit: the two agree except at exact ties."""
 
 from __future__ import annotations
 
@@ -75,7 +75,7 @@ def valid_points(
     angle_increment: float,
     sensor_pose: FloatArray,
 ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
-    """``features._valid_points``: the beams that are valid and in no "no return" band
+    """The oracle's ``_valid_points``: the beams that are valid and in no "no return" band
     (``scan.usable``), counter-clockwise; their indices, ranges, points in the sensor and in
     the robot frame (moved by ``sensor_pose``)."""
     return usable_points(

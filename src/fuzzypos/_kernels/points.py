@@ -21,7 +21,7 @@ IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 Int8Array = NDArray[np.int8]
 
-_LARGEST = np.finfo(np.float64).max
+_LARGEST = float(np.finfo(np.float64).max)
 
 #: ``flags`` of :func:`point_features`, in order
 FLAGS = ("refine", "pair_unrefined", "use_break_points", "use_angular_points",

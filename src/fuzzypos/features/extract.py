@@ -268,7 +268,7 @@ _NO_GRID = np.zeros(0)
 
 def _no_structure(params: FloatArray) -> FloatArray:
     """``_kernels.front.fit_lines``' params graded on the scale given (no structure scale)."""
-    out = params.copy()
+    out: FloatArray = params.copy()
     out[3] = 0.0
     return out
 

@@ -5,7 +5,6 @@ extract_features` runs them in turn)."""
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -98,19 +97,14 @@ def distance_scale(ranges: FloatArray, cfg: FuzzyConfig) -> float:
     """The factor the distance sets (ρ, d_v) and the virtual points' distance limit are
     stretched by for a scan with these valid ranges: 1 with ``distance_scale = "fixed"``, else
     max(1, the ``distance_scale_quantile`` of the ranges / ``distance_scale_reference``).
-    A scan with structure near the robot (a room, a corridor) keeps a scale of 1."""
-    n = ranges.shape[0]
-    if cfg.distance_scale == "fixed" or n == 0:
+    A scan with structure near the robot (a room, a corridor) keeps a scale of 1. Compiled
+    (``_kernels.front.distance_scale``)."""
+    if cfg.distance_scale == "fixed":
         return 1.0
+    from .._kernels import front as kernel
+
     reference, quantile = cfg.distance_scale_reference, cfg.distance_scale_quantile
-    # the quantile interpolates between two order statistics, at most the one past
-    # ⌈q·(n − 1)⌉ (a safe bound on numpy's index): where that one is within the reference, so
-    # is the quantile and the scale is 1 (one comparison instead of np.quantile's sort)
-    k = min(math.ceil(quantile * (n - 1)) + 1, n - 1)
-    if np.count_nonzero(ranges <= reference) >= k + 1:
-        return 1.0
-    q = float(np.quantile(ranges, quantile))
-    return max(1.0, q / reference)
+    return float(kernel.distance_scale(f64(ranges), reference, quantile))
 
 
 def line_distance_scale(line_ranges: FloatArray, point_scale: float, cfg: FuzzyConfig) -> float:
@@ -121,21 +115,18 @@ def line_distance_scale(line_ranges: FloatArray, point_scale: float, cfg: FuzzyC
 
     Weighted by range, each beam counts as the length of surface it samples (ρ·Δφ up to its
     incidence), so the quantile is of the lines' length by distance: short clutter near the
-    robot takes many beams but little of that length."""
-    if (
-        cfg.distance_scale == "fixed"
-        or cfg.line_distance_scale == "points"
-        or line_ranges.shape[0] == 0
-    ):
+    robot takes many beams but little of that length. Compiled
+    (``_kernels.front.line_distance_scale``)."""
+    if cfg.distance_scale == "fixed" or cfg.line_distance_scale == "points":
         return point_scale
-    reference = cfg.distance_scale_reference
-    r = np.sort(line_ranges)
-    if r[-1] <= reference * point_scale:
-        return point_scale
-    # the weighted quantile: the range where the cumulative weight (midpoint rule) reaches q
-    w = np.cumsum(r) - 0.5 * r
-    q = float(np.interp(cfg.distance_scale_quantile * float(r.sum()), w, r))
-    return max(point_scale, q / reference)
+    from .._kernels import front as kernel
+
+    r, reference, quantile = (
+        f64(line_ranges),
+        cfg.distance_scale_reference,
+        cfg.distance_scale_quantile,
+    )
+    return float(kernel.line_distance_scale(r, float(point_scale), reference, quantile))
 
 
 def point_uncertainty(
