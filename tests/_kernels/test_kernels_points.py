@@ -174,14 +174,17 @@ def test_a_rule_base_the_kernel_does_not_evaluate_has_no_tables() -> None:
 @BUDGET
 @given(
     x=st.lists(
-        st.tuples(st.floats(-0.5, 1.5), st.floats(-0.5, 1.5), st.floats(-1.0, 10.0)),
+        st.tuples(
+            st.floats(-0.5, 1.5) | st.just(math.nan), st.floats(-0.5, 1.5),
+            st.floats(-1.0, 10.0) | st.just(math.nan),
+        ),
         min_size=0, max_size=30,
     )
 )  # fmt: skip
 def test_the_kernels_grading_is_the_rule_bases_own(x) -> None:
     """``grade``: eq. 4's centre average of the three-input product rule base, clamped to its
     centres, as ``RuleBase.__call__`` computes it (to rounding: numpy sums in its own order),
-    inputs beyond the sets' range included."""
+    inputs beyond the sets' range included, and a NaN input graded NaN as numpy has it."""
     from fuzzypos._kernels.points import grade
 
     rb = rule_bases(Config().fuzzy).virtual_points
@@ -198,7 +201,8 @@ def test_the_kernels_grading_is_the_rule_bases_own(x) -> None:
 @given(
     pts=st.lists(
         st.tuples(
-            st.integers(0, 12), st.integers(0, 12), st.sampled_from([0.0, 0.1, 0.25, 0.5]),
+            st.integers(0, 12), st.integers(0, 12),
+            st.sampled_from([0.0, 0.1, 0.25, 0.5, math.nan]),
             st.integers(0, 2),
         ),
         min_size=0, max_size=25,
@@ -207,7 +211,8 @@ def test_the_kernels_grading_is_the_rule_bases_own(x) -> None:
 )  # fmt: skip
 def test_the_kernels_merge_keeps_what_merge_duplicates_keeps(pts, radius) -> None:
     """``_merge``: the kept indices of ``merge_duplicates`` (most certain first, ties: virtual,
-    angular, break; stable), on points on a 0.1 m lattice with repeated uncertainties."""
+    angular, break; stable; a NaN uncertainty last, as ``np.lexsort`` puts it), on points on
+    a 0.1 m lattice with repeated uncertainties."""
     from fuzzypos._kernels.points import _merge
 
     a = np.array(pts, dtype=float).reshape(-1, 4)
