@@ -15,7 +15,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ._jit import kernel
+from ._jit import inlined, kernel
 from ._select import kth_smallest
 from .fuzzy import bilinear
 from .segmentation import (
@@ -243,7 +243,7 @@ def interior_angles(
     return angle
 
 
-@kernel
+@inlined
 def sharpest_ring_corner(points: FloatArray, k: int, threshold: float) -> tuple[int, bool]:
     """For a gapless 360° ring of points: the index of its sharpest angular point (eq. 14 with
     neighbours ``k`` steps away, modulo the ring; the first of equals) and whether it is

@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ._jit import kernel
+from ._jit import inlined, kernel
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -91,7 +91,7 @@ def grade(
     return out
 
 
-@kernel
+@inlined
 def _after(u: float, k: int, v: float, m: int) -> bool:
     """Whether the key (u, k) sorts after (v, m) in numpy's order (NaN after every number,
     NaNs equal to each other)."""
@@ -214,7 +214,7 @@ def candidates(
     return xy[:nc], ci[:nc], cj[:nc], cdv[:nc]
 
 
-@kernel
+@inlined
 def _finite(x: float) -> float:
     """``np.nan_to_num(x)``: 0 for NaN, the largest double of its sign for an infinity."""
     if math.isnan(x):
@@ -301,7 +301,7 @@ def _interest(
     return xy, u, kind
 
 
-@kernel
+@inlined
 def grading_inputs(
     normal: FloatArray,
     distance: FloatArray,
