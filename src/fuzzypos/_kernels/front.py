@@ -608,22 +608,20 @@ def scan_features(
     sensor_theta: float,
     closed: bool,
     settings: FloatArray,
-) -> tuple[bool, float, float, ChainSizes, FloatArray, IntArray, BoolArray]:
-    """The whole compiled chain of ``fuzzypos.features.extract_features`` in one call
-    (``settings``: the config's, ``fuzzypos._kernels.packing.chain_settings``, as
-    :func:`settings_of` takes them apart; the sensor's pose on the robot as three numbers):
-    :func:`usable_points` (``directions``: the beams' :func:`beam_directions`),
-    :func:`scan_front`, the kept points, :func:`fit_lines` and the lines' arrays
-    (``features._lines_of_table``), the lines on either side of each angular point and
-    ``_kernels.segmentation.join_at_corners`` (§3.5 b)), with nothing but glue between them
-    (what ``extract_features`` did in numpy between the four calls). Returns whether it is
-    done (always: a gapless 360° ring too, its seam at its sharpest corner), the points' and
-    the lines' distance scales, the :data:`ChainSizes` and the arrays packed end to end in
-    three (few arrays to hand back to Python): the floats, the integers and the masks, in
-    the order ``features._unpacked`` takes them apart (the front's arrays, as
-    ``segmentation.ScanSegments`` without the raw segments; the kept points, uncertainty and
-    ranges; the arrays of ``features.Lines``, joined at the corners; the corners' context,
-    ``features._CornerContext``)."""
+) -> tuple[float, float, ChainSizes, FloatArray, IntArray, BoolArray]:
+    """The whole compiled chain of ``fuzzypos.features.extract_features`` in one call (``settings``:
+    the config's, ``fuzzypos._kernels.packing.chain_settings``, as :func:`settings_of` takes them
+    apart; the sensor's pose on the robot as three numbers): :func:`usable_points` (``directions``:
+    the beams' :func:`beam_directions`), :func:`scan_front`, the kept points, :func:`fit_lines` and
+    the lines' arrays (``features._lines_of_table``), the lines on either side of each angular point
+    and ``_kernels.segmentation.join_at_corners`` (§3.5 b)), with nothing but glue between them
+    (what ``extract_features`` did in numpy between the four calls; a gapless 360° ring too, its
+    seam at its sharpest corner). Returns the points' and the lines' distance scales, the
+    :data:`ChainSizes` and the arrays packed end to end in three (few arrays to hand back to
+    Python): the floats, the integers and the masks, in the order ``features._unpacked`` takes them
+    apart (the front's arrays, as ``segmentation.ScanSegments`` without the raw segments; the kept
+    points, uncertainty and ranges; the arrays of ``features.Lines``, joined at the corners; the
+    corners' context, ``features._CornerContext``)."""
     config = settings_of(settings)
     band_lo, band_hi, front_params, line_params, min_sine, point_tables, line_tables = config
     beam_index, rng, p_sensor, points = usable_points(
@@ -690,4 +688,4 @@ def scan_features(
     o += 4 * m
     for c in range(n_corners):
         bl[o + c] = joined[c]
-    return True, scale, line_scale, (n, m, nl, n_corners, n_joined), fl, it, bl
+    return scale, line_scale, (n, m, nl, n_corners, n_joined), fl, it, bl

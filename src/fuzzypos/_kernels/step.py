@@ -32,7 +32,7 @@ BoolArray = NDArray[np.bool_]
 
 #: the stage :func:`features_and_step` reached: the lines gave no motion; they did, and
 #: neither fit counts; a fit counts, its assessment left to Python; all three done; the
-#: scan's features alone, the chain not done, or the scan having no line or fewer than the
+#: scan's features alone, the scan having no line or fewer than the
 #: refinement's least points (the staged calls' cases)
 NO_LINES, NOT_REFINED, REFINED, ASSESSED, FEATURES_ONLY = 0, 1, 2, 3, 4
 #: the rows of the returned (10, 3, 3) array: the lines' motion (its first row), the fit's
@@ -98,13 +98,12 @@ class RefineSettings(NamedTuple):
 
 
 class Stepped(NamedTuple):
-    """:func:`features_and_step`' values, named (:func:`run`): the chain's (whether it is
-    ``done``, the scales, the sizes and the packed floats, integers and masks), the
-    ``stage`` reached, the line pairs, ``weigh_and_refine_both``' which, paired, close and
-    on-start, the assessment's ``gate``, whether the scan alone fixes the motion
-    (``scan_alone``) and the (10, 3, 3) array its properties read."""
+    """:func:`features_and_step`' values, named (:func:`run`): the chain's (the scales, the sizes
+    and the packed floats, integers and masks), the ``stage`` reached, the line pairs,
+    ``weigh_and_refine_both``' which, paired, close and on-start, the assessment's ``gate``, whether
+    the scan alone fixes the motion (``scan_alone``) and the (10, 3, 3) array its properties
+    read."""
 
-    done: bool
     scale: float
     line_scale: float
     sizes: ChainSizes
@@ -223,24 +222,23 @@ def features_and_step(
     refine: RefineSettings,
     assess: AssessInputs,
 ) -> tuple[
-    bool, float, float, ChainSizes, FloatArray, IntArray, BoolArray, int, int, int, int, int,
+    float, float, ChainSizes, FloatArray, IntArray, BoolArray, int, int, int, int, int,
     bool, float, bool, FloatArray,
 ]:  # fmt: skip
-    """A scan's features (``front.scan_features`` of ``scan``) and, where the chain is done
-    and the scan has a line and at least ``match.min_points`` points, its
-    :func:`match_refine_assess` against the keyframe (the scan's lines, points, ranges and
-    uncertainty read from the chain's packed floats, where ``match.lines_at`` says). Returns
-    the chain's values and :func:`match_refine_assess`' (stage :data:`FEATURES_ONLY` where it
-    was not run)."""
+    """A scan's features (``front.scan_features`` of ``scan``) and, where the scan has a line and at
+    least ``match.min_points`` points, its :func:`match_refine_assess` against the keyframe (the
+    scan's lines, points, ranges and uncertainty read from the chain's packed floats, where
+    ``match.lines_at`` says). Returns the chain's values and :func:`match_refine_assess`' (stage
+    :data:`FEATURES_ONLY` where it was not run)."""
     s, lines_at = scan, match.lines_at
-    done, scale, line_scale, sizes, fl, it, bl = scan_features(
+    scale, line_scale, sizes, fl, it, bl = scan_features(
         s.ranges, s.directions, s.valid, s.angle_increment, s.sensor_x, s.sensor_y,
         s.sensor_theta, s.closed, s.settings,
     )  # fmt: skip
     n, nl = sizes[0], sizes[2]
-    if not done or nl == 0 or n == 0 or n < match.min_points:
+    if nl == 0 or n == 0 or n < match.min_points:
         return (
-            done, scale, line_scale, sizes, fl, it, bl, FEATURES_ONLY, 0, NEITHER, 0, 0, False,
+            scale, line_scale, sizes, fl, it, bl, FEATURES_ONLY, 0, NEITHER, 0, 0, False,
             0.0, False, np.zeros((10, 3, 3)),
         )  # fmt: skip
     first = (  # (an int64 from the start: a literal 0 would compile the step once more)
@@ -253,6 +251,6 @@ def features_and_step(
         assess,
     )  # fmt: skip
     return (
-        done, scale, line_scale, sizes, fl, it, bl, stage, n_pairs, which, paired, close,
+        scale, line_scale, sizes, fl, it, bl, stage, n_pairs, which, paired, close,
         on_start, gate, ok, out,
     )  # fmt: skip

@@ -475,7 +475,7 @@ def extract_features(scan: LaserScan, config: Config | None = None) -> Features:
 
 
 def features_of_chain(scan: LaserScan, config: Config, outputs: ChainOutputs) -> Features:
-    """The :class:`Features` of ``scan`` from the compiled chain's values where it is done
+    """The :class:`Features` of ``scan`` from the compiled chain's values
     (:func:`extract_features`' to the bit)."""
     scale, line_scale, sizes, fl, it, bl = outputs
     context = {
@@ -498,7 +498,7 @@ def _extract_compiled(scan: LaserScan, bases: RuleBases, cfg: Config) -> Feature
     inputs = chain_inputs(scan, cfg, bases)
     if inputs is None:
         return None
-    _done, *outputs = packing.front().scan_features(*inputs)  # (always done)
+    outputs = packing.front().scan_features(*inputs)
     return features_of_chain(scan, cfg, cast(ChainOutputs, tuple(outputs)))
 
 

@@ -231,11 +231,8 @@ class Step:
             ),
             assess,
         )  # fmt: skip
-        if not stepped.done:  # (a gapless 360° ring: the staged chain's)
-            features = self.features(scan)
-        else:
-            features = features_of_chain(scan, config, stepped.chain)
-        if not stepped.done or stepped.stage == step.FEATURES_ONLY:
+        features = features_of_chain(scan, config, stepped.chain)
+        if stepped.stage == step.FEATURES_ONLY:
             return self.match(ctx, features)
         return self._after(ctx, features, stepped, gate_open)
 
