@@ -147,6 +147,23 @@ class LocalizationConfig:
         gt=0.0,
         lt=1.0,
     )
+    crossing_share: float = _field(
+        0.05,
+        "at the right pose about one beam in 20 passes through an occupied cell of the map "
+        "farther than 2 hit_sigma before its end (glass, a door shut when mapped, the map's "
+        "own blur; 1-2 % on the shared logs' own maps): the share the localizer expects until "
+        "it has measured it on the scans it tracks (then the larger of the two)",
+        gt=0.0,
+        lt=1.0,
+    )
+    crossing_z: float = _field(
+        2.0,
+        "a place is accepted (and a tracked pose kept) only while its beams' mean crossing "
+        "share over the scans weighed stays below crossing_share plus 2 standard errors "
+        "(binomial, effective_points per scan): in another building, or at a wrong place "
+        "whose walls fit nearby, a fifth to a half of the beams cross walls",
+        gt=0.0,
+    )
     lost_scans: int = _field(
         6,
         "after 6 scans in a row whose fit is below min_fit, tracking is lost and the whole "

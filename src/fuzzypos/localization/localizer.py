@@ -29,6 +29,7 @@ from ..config.localization import LocalizationConfig
 from ..geometry import Pose2D, compose, inverse, relative
 from ..io.occupancy_map import OccupancyMap
 from ..scan import LaserScan
+from .consistency import agreement
 from .field import MapField, field_of
 from .search import MIN_POINTS, Candidate, GlobalSearch, thin
 from .types import InitialPoseError, LocalizationEstimate, LocalizerState
@@ -46,6 +47,7 @@ class _Place:
     pose: FloatArray
     evidence: deque[float]
     fits: deque[float]
+    poses: deque[FloatArray]
     information: FloatArray = field(default_factory=lambda: np.zeros((3, 3)))
     residual: float = 0.0
 
@@ -96,6 +98,9 @@ class Localizer:
         self._level = 0.0
         self._cooldown = 0
         self._pending: tuple[FloatArray, tuple[float, float]] | None = None
+        self._sensor = np.zeros(2)
+        self._crossings: deque[float] = deque(maxlen=self._cfg.lost_scans)
+        self._crossing_level = self._cfg.crossing_share
         if initial_pose is not None:
             self.set_initial_pose(initial_pose, initial_sigma)
 
@@ -161,6 +166,7 @@ class Localizer:
                 step = relative(self._last_odom, o)
             self._last_odom = o
         points = self._points(scan)
+        self._sensor = scan.sensor_pose.as_array()[:2]
         if self._pending is not None:
             return self._start_at(scan.stamp, points, step)
         if self._state is LocalizerState.TRACKING:
@@ -255,6 +261,7 @@ class Localizer:
         self._drop = 0
         self._level = result.fit
         self._cooldown = 0
+        self._crossings.clear()
 
     def _track(self, stamp: float, points: FloatArray, step: FloatArray) -> LocalizationEstimate:
         assert self._pose is not None and self._covariance is not None
@@ -283,6 +290,11 @@ class Localizer:
         if result.ok:
             self._bad = 0
             self._pose, self._covariance = result.pose, result.covariance
+            if not self._agrees(points, result.pose):
+                self._go_lost(points, result.pose, keep=False)
+                return self._searching_estimate(
+                    stamp, 0.0, "lost: the scans' beams cross the map's walls"
+                )
             if self._drop >= cfg.lost_scans and self._cooldown == 0 and self._elsewhere(points):
                 return self._searching_estimate(stamp, 0.0, "lost: another place fits better")
             return self._tracking_estimate(stamp, previous, result, "matched")
@@ -331,6 +343,41 @@ class Localizer:
         self._drop = 0
         self._cooldown = 10 * cfg.research_interval
         return False
+
+    # -- the scans against the map, in absolute terms --------------------------------------
+    def _share(self, points: FloatArray, pose: FloatArray) -> float:
+        """The share of the scan's beams that cross a wall of the map at ``pose``."""
+        a = agreement(self._field, points, self._sensor, pose, 2.0 * self._cfg.hit_sigma)
+        return a.through / max(a.points, 1)
+
+    def _crossing_bound(self, scans: int) -> float:
+        """The largest mean crossing share over ``scans`` scans a right pose gives: the
+        expected share (crossing_share, or the tracked scans' level where larger) plus
+        crossing_z binomial standard errors of effective_points per scan."""
+        cfg = self._cfg
+        p = max(cfg.crossing_share, self._crossing_level)
+        return p + cfg.crossing_z * math.sqrt(p * (1.0 - p) / (cfg.effective_points * scans))
+
+    def _crossing_of(self, place: _Place) -> float:
+        """A place's mean crossing share over the last min_scans scans (its poses there)."""
+        scans = list(self._history)[-self._cfg.min_scans :]
+        poses = list(place.poses)[-len(scans) :]
+        shares = [self._share(pts, pose) for (pts, _), pose in zip(scans, poses, strict=False)]
+        return float(np.mean(shares)) if shares else 1.0
+
+    def _agrees(self, points: FloatArray, pose: FloatArray) -> bool:
+        """Whether the tracked scans still agree with the map: the mean crossing share of the
+        last lost_scans scans within the bound (its level learned from the scans that do)."""
+        cfg = self._cfg
+        share = self._share(points, pose)
+        self._crossings.append(share)
+        if len(self._crossings) < cfg.lost_scans:
+            return True
+        mean = float(np.mean(self._crossings))
+        if mean > self._crossing_bound(cfg.lost_scans):
+            return False
+        self._crossing_level += cfg.fit_level_rate * (share - self._crossing_level)
+        return True
 
     def _go_lost(
         self,
@@ -390,6 +437,7 @@ class Localizer:
             place.information = result.covariance
             place.evidence.append(result.evidence)
             place.fits.append(result.fit)
+            place.poses.append(result.pose)
         if self._since_search % cfg.research_interval == 0:
             self._add_places(points)
         self._since_search += 1
@@ -415,8 +463,10 @@ class Localizer:
         window = self._cfg.evidence_window
         evidence: deque[float] = deque(maxlen=window)
         fits: deque[float] = deque(maxlen=window)
+        poses: deque[FloatArray] = deque(maxlen=window)
         evidence.append(now.evidence)
         fits.append(now.fit)
+        poses.append(now.pose)
         history = list(self._history)
         pose = now.pose
         for k in range(len(history) - 1, 0, -1):
@@ -427,7 +477,8 @@ class Localizer:
             pose = result.pose
             evidence.appendleft(result.evidence)
             fits.appendleft(result.fit)
-        return _Place(now.pose, evidence, fits, now.covariance)
+            poses.appendleft(pose)
+        return _Place(now.pose, evidence, fits, poses, now.covariance)
 
     def _prune(self) -> None:
         """Places that became the same are merged (the better kept); at most max_hypotheses,
@@ -465,11 +516,17 @@ class Localizer:
         fits_well = bool(recent) and float(np.mean(recent)) >= cfg.min_fit
         enough = len(self._history) >= cfg.min_scans
         decisiveness = min(1.0, lead / cfg.evidence_margin) if math.isfinite(lead) else 1.0
+        crossing = 0.0
         if enough and fits_well and lead >= cfg.evidence_margin:
-            result = _Fit(best.pose, best.information, recent[-1], 0.0, True)
-            self._begin_tracking(result)
-            return self._tracking_estimate(stamp, None, result, "localised")
-        if not fits_well:
+            crossing = self._crossing_of(best)
+            if crossing <= self._crossing_bound(cfg.min_scans):
+                result = _Fit(best.pose, best.information, recent[-1], 0.0, True)
+                self._begin_tracking(result)
+                return self._tracking_estimate(stamp, None, result, "localised")
+        if crossing > 0.0:
+            why = f"no place agrees with the map: {crossing:.0%} of the beams cross its walls"
+            decisiveness = 0.0
+        elif not fits_well:
             why = "no place in the map fits the scans well"
         elif rivals and lead < cfg.evidence_margin:
             why = f"ambiguous: {len(rivals) + 1} places explain the scans"

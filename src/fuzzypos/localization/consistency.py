@@ -1,0 +1,46 @@
+"""Whether a scan agrees with the map at a pose, in absolute terms (not only better than
+elsewhere): how many of its points end on a wall (within ``near`` of an occupied cell) and
+how many of its beams pass through one (an occupied cell on the beam farther than ``near``
+before its end, for it and the beams ``near`` beside it: the map says the laser could not
+have seen that far). At the right pose nearly all points end on walls and almost no beam
+crosses one; in another building, or at a wrong place whose walls fit nearby, many beams
+cross walls (the free-space test of place-recognition verifiers). Compiled:
+:func:`fuzzypos._kernels.agreement.agreement`."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._kernels import agreement as _kernel
+from .field import MapField
+
+FloatArray = NDArray[np.float64]
+
+
+class Agreement(NamedTuple):
+    """Counts over one scan's points at one pose: ``points``, those ending on a wall
+    (``hits``) and the beams crossing one (``through``)."""
+
+    points: int
+    hits: int
+    through: int
+
+
+def agreement(
+    field: MapField, points: FloatArray, sensor: FloatArray, pose: FloatArray, near: float
+) -> Agreement:
+    """The scan's ``points`` (robot frame; their beams start at ``sensor``, robot frame (x, y))
+    at ``pose`` (grid frame) against the map (module docstring)."""
+    pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    hits, through = _kernel.agreement(
+        pts,
+        np.ascontiguousarray(sensor[:2], dtype=np.float64),
+        np.ascontiguousarray(pose[:3], dtype=np.float64),
+        field.walls.distance,
+        float(field.walls.geometry[0]),
+        float(near),
+    )
+    return Agreement(int(pts.shape[0]), int(hits), int(through))
