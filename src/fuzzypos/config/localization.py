@@ -147,21 +147,36 @@ class LocalizationConfig:
         gt=0.0,
         lt=1.0,
     )
-    crossing_share: float = _field(
-        0.05,
-        "at the right pose about one beam in 20 passes through an occupied cell of the map "
-        "farther than 2 hit_sigma before its end (glass, a door shut when mapped, the map's "
-        "own blur; 1-2 % on the shared logs' own maps): the share the localizer expects until "
-        "it has measured it on the scans it tracks (then the larger of the two)",
+    contradicted_share: float = _field(
+        0.1,
+        "at the right pose about one point in ten is contradicted by the map: its beam passes "
+        "through an occupied cell farther than 2 hit_sigma before its end, or it ends in free "
+        "space farther than that from every wall (people, furniture moved, glass, the map's "
+        "own blur); the share expected until measured on the tracked scans (then the larger)",
         gt=0.0,
         lt=1.0,
     )
     crossing_z: float = _field(
         2.0,
-        "a place is accepted (and a tracked pose kept) only while its beams' mean crossing "
-        "share over the scans weighed stays below crossing_share plus 2 standard errors "
-        "(binomial, effective_points per scan): in another building, or at a wrong place "
-        "whose walls fit nearby, a fifth to a half of the beams cross walls",
+        "a place is accepted only where the mean contradicted share of its last min_scans "
+        "scans stays below contradicted_share plus 2 standard errors (binomial, "
+        "effective_points per scan): in another building, or at a wrong place whose walls "
+        "fit nearby, a fifth to a half of the points are contradicted",
+        gt=0.0,
+    )
+    crossing_share: float = _field(
+        0.05,
+        "of which about one beam in 20 crosses a wall (1-2 % on the shared logs' own maps); "
+        "the share expected until measured on the tracked scans (then the larger)",
+        gt=0.0,
+        lt=1.0,
+    )
+    crossing_lost_z: float = _field(
+        3.0,
+        "a tracked pose is lost when the mean crossing share of its last lost_scans scans "
+        "exceeds crossing_share plus 3 standard errors: only beams through walls count "
+        "there (clutter comes and goes), and the bound to give a place up is stricter than "
+        "to accept one",
         gt=0.0,
     )
     lost_scans: int = _field(

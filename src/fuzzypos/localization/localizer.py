@@ -100,7 +100,8 @@ class Localizer:
         self._pending: tuple[FloatArray, tuple[float, float]] | None = None
         self._sensor = np.zeros(2)
         self._crossings: deque[float] = deque(maxlen=self._cfg.lost_scans)
-        self._crossing_level = self._cfg.crossing_share
+        # the crossing and contradicted shares of the tracked scans (running means)
+        self._levels = [self._cfg.crossing_share, self._cfg.contradicted_share]
         if initial_pose is not None:
             self.set_initial_pose(initial_pose, initial_sigma)
 
@@ -345,38 +346,45 @@ class Localizer:
         return False
 
     # -- the scans against the map, in absolute terms --------------------------------------
-    def _share(self, points: FloatArray, pose: FloatArray) -> float:
-        """The share of the scan's beams that cross a wall of the map at ``pose``."""
-        a = agreement(self._field, points, self._sensor, pose, 2.0 * self._cfg.hit_sigma)
-        return a.through / max(a.points, 1)
+    def _shares(self, points: FloatArray, pose: FloatArray) -> tuple[float, float]:
+        """The shares of the scan's points the map contradicts at ``pose``: beams crossing its
+        walls, and those plus points ending in its free space away from every wall (all of
+        them where the robot would stand off the map's free space)."""
+        near = 2.0 * self._cfg.hit_sigma
+        if self._field.distance_to_free(pose) > near:
+            return 1.0, 1.0
+        a = agreement(self._field, points, self._sensor, pose, near)
+        n = max(a.points, 1)
+        return a.through / n, (a.through + a.strays) / n
 
-    def _crossing_bound(self, scans: int) -> float:
-        """The largest mean crossing share over ``scans`` scans a right pose gives: the
-        expected share (crossing_share, or the tracked scans' level where larger) plus
-        crossing_z binomial standard errors of effective_points per scan."""
-        cfg = self._cfg
-        p = max(cfg.crossing_share, self._crossing_level)
-        return p + cfg.crossing_z * math.sqrt(p * (1.0 - p) / (cfg.effective_points * scans))
+    def _bound(self, expected: float, scans: int, z: float) -> float:
+        """The largest mean share over ``scans`` scans a right pose gives: ``expected`` plus
+        ``z`` binomial standard errors of effective_points per scan."""
+        n = self._cfg.effective_points * scans
+        return expected + z * math.sqrt(expected * (1.0 - expected) / n)
 
-    def _crossing_of(self, place: _Place) -> float:
-        """A place's mean crossing share over the last min_scans scans (its poses there)."""
+    def _contradicted(self, place: _Place) -> tuple[float, float]:
+        """A place's contradicted share (crossings and strays) over the last min_scans scans
+        (its poses there): their mean and the last scan's."""
         scans = list(self._history)[-self._cfg.min_scans :]
         poses = list(place.poses)[-len(scans) :]
-        shares = [self._share(pts, pose) for (pts, _), pose in zip(scans, poses, strict=False)]
-        return float(np.mean(shares)) if shares else 1.0
+        shares = [self._shares(pts, pose)[1] for (pts, _), pose in zip(scans, poses, strict=True)]
+        return (float(np.mean(shares)), shares[-1]) if shares else (1.0, 1.0)
 
     def _agrees(self, points: FloatArray, pose: FloatArray) -> bool:
         """Whether the tracked scans still agree with the map: the mean crossing share of the
-        last lost_scans scans within the bound (its level learned from the scans that do)."""
+        last lost_scans scans within its bound; the levels learned from the scans that do."""
         cfg = self._cfg
-        share = self._share(points, pose)
-        self._crossings.append(share)
+        crossing, contradicted = self._shares(points, pose)
+        self._crossings.append(crossing)
         if len(self._crossings) < cfg.lost_scans:
             return True
         mean = float(np.mean(self._crossings))
-        if mean > self._crossing_bound(cfg.lost_scans):
+        expected = max(cfg.crossing_share, self._levels[0])
+        if mean > self._bound(expected, cfg.lost_scans, cfg.crossing_lost_z):
             return False
-        self._crossing_level += cfg.fit_level_rate * (share - self._crossing_level)
+        self._levels[0] += cfg.fit_level_rate * (crossing - self._levels[0])
+        self._levels[1] += cfg.fit_level_rate * (contradicted - self._levels[1])
         return True
 
     def _go_lost(
@@ -518,13 +526,19 @@ class Localizer:
         decisiveness = min(1.0, lead / cfg.evidence_margin) if math.isfinite(lead) else 1.0
         crossing = 0.0
         if enough and fits_well and lead >= cfg.evidence_margin:
-            crossing = self._crossing_of(best)
-            if crossing <= self._crossing_bound(cfg.min_scans):
+            # over the last min_scans scans on average, and at the last one
+            crossing, last = self._contradicted(best)
+            expected = max(cfg.contradicted_share, self._levels[1])
+            if (
+                crossing <= self._bound(expected, cfg.min_scans, cfg.crossing_z)
+                and last <= self._bound(expected, 1, cfg.crossing_z)
+                and recent[-1] >= cfg.min_fit
+            ):
                 result = _Fit(best.pose, best.information, recent[-1], 0.0, True)
                 self._begin_tracking(result)
                 return self._tracking_estimate(stamp, None, result, "localised")
         if crossing > 0.0:
-            why = f"no place agrees with the map: {crossing:.0%} of the beams cross its walls"
+            why = f"no place agrees with the map: it contradicts {crossing:.0%} of the points"
             decisiveness = 0.0
         elif not fits_well:
             why = "no place in the map fits the scans well"
