@@ -1,5 +1,6 @@
-"""numpy reference of ``fuzzypos._kernels.agreement``: the scan's points ending on a wall and
-its beams crossing one, its points ending in free space away from walls, the rays followed by sphere tracing with numpy over all beams at once."""
+"""numpy reference of ``fuzzypos._kernels.agreement``: the scan's points ending on a wall,
+its beams crossing one, its points ending in free space away from walls; the rays followed by
+sphere tracing with numpy over all beams at once."""
 
 from __future__ import annotations
 
@@ -82,10 +83,10 @@ def _crossed(
     size: tuple[float, float],
     begin: float,
 ) -> NDArray[np.bool_]:
-    """Which rays from ``start`` along ``unit`` meet an occupied cell between ``begin`` and ``stop`` (m), their
-    part over the map (``size``: width, height) followed by sphere tracing: each step the
-    distance to the nearest wall less a cell and a half, at least half a cell; a cell on a
-    wall (distance 0) is a crossing."""
+    """Which rays from ``start`` along ``unit`` meet an occupied cell between ``begin`` and
+    ``stop`` (m), their part over the map (``size``: width, height) followed by sphere
+    tracing: each step the distance to the nearest wall less a cell and a half, at least half
+    a cell; a cell on a wall (distance 0) is a crossing."""
     n = unit.shape[0]
     start = np.broadcast_to(start, unit.shape)
     t, end = _clip(0.0, size[0], start[:, 0], unit[:, 0], np.full(n, begin), stop)

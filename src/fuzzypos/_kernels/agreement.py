@@ -91,7 +91,6 @@ def agreement(
     hits = 0
     crossings = 0
     strays = 0
-    rows, cols = free.shape
     for i in range(points.shape[0]):
         qx = c * points[i, 0] - s * points[i, 1] + pose[0]
         qy = s * points[i, 0] + c * points[i, 1] + pose[1]

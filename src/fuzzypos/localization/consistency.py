@@ -1,10 +1,11 @@
 """Whether a scan agrees with the map at a pose, in absolute terms (not only better than
 elsewhere): how many of its points end on a wall (within ``near`` of an occupied cell), how
-many end in free space away from every wall (the map says nothing is there), and how many of its beams pass through one (an occupied cell on the beam farther than ``near``
-before its end, for it and the beams ``near`` beside it: the map says the laser could not
-have seen that far). At the right pose nearly all points end on walls and almost no beam
-crosses one; in another building, or at a wrong place whose walls fit nearby, many beams
-cross walls (the free-space test of place-recognition verifiers). Compiled:
+many end in free space away from every wall (the map says nothing is there), and how many of
+its beams pass through a wall (an occupied cell on the beam farther than ``near`` from both
+its ends, for it and the beams ``near`` beside it: the map says the laser could not have seen
+that far). At the right pose nearly all points end on walls and almost no beam crosses one;
+in another building, or at a wrong place whose walls fit nearby, many are contradicted (the
+free-space test of place-recognition verifiers). Compiled:
 :func:`fuzzypos._kernels.agreement.agreement`."""
 
 from __future__ import annotations

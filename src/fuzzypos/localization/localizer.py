@@ -7,11 +7,14 @@ carried by the odometry and fitted to the map at every scan, and scores the scan
 log-likelihood there. A new place is scored back over the scans the window holds (followed
 backward by the odometry, fitted at each), so all places are weighed over the same scans.
 It decides when the best place beats every distinct rival by ``evidence_margin`` over the
-window and fits the scans well; places that look the same (two identical rooms) never do,
-and it keeps searching. Then it tracks: the odometry's step as the prior, the scan fitted to
-the map's walls (point-to-line Gauss-Newton), the covariance from the fit's Hessian and
-residuals. A fit that fails ``lost_scans`` times in a row makes it LOST, and it searches
-again (docs/localization.md)."""
+window, fits the scans well, and agrees with the map in absolute terms (few beams through
+its walls, few points in its free space: :mod:`.consistency`, within a binomial bound of
+the share a right pose gives); places that look the same (two identical rooms) never do,
+nor a map of another building, and it keeps searching. Then it tracks: the odometry's step
+as the prior, the scan fitted to the map's walls (point-to-line Gauss-Newton), the
+covariance from the fit's Hessian and residuals. A fit that fails ``lost_scans`` times in a
+row, or beams crossing the map's walls over ``lost_scans`` scans beyond the bound, make it
+LOST, and it searches again (docs/localization.md)."""
 
 from __future__ import annotations
 
