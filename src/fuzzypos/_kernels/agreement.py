@@ -112,3 +112,13 @@ def agreement(
         ):
             crossings += 1
     return hits, crossings, strays
+
+
+def warm() -> None:
+    """The kernel called once on a small room, with the types the localizer hands it (so that
+    a warm-up compiles, or loads, the code the localizer then runs)."""
+    distance = np.full((12, 14), 0.2)
+    distance[0, :] = 0.0
+    free = np.ones((12, 14), dtype=np.bool_)
+    points = np.array([[0.1 * k, -0.05 * (k % 3)] for k in range(8)], dtype=np.float64)
+    agreement(points, np.zeros(2), np.array([0.3, 0.25, 0.1]), distance, free, 0.05, 0.2)

@@ -112,9 +112,11 @@ def warm_up(config: Config | None = None) -> float:
             np.array([0.1, 0.0, 0.02]), step, noise.covariance(step)
         )
         # localisation in a map (fuzzypos.localization)
+        from .._kernels.agreement import warm as warm_agreement
         from .._kernels.localize import warm as warm_localization
 
         warm_localization()
+        warm_agreement()
     return time.perf_counter() - t0
 
 
