@@ -70,3 +70,24 @@ def test_a_map_with_nothing_like_the_scans_never_localises(office, tmp_path) -> 
     assert json.loads((out / "summary.json").read_text())["localised"] is False
     t, _ = read_tum(out / "trajectory.tum")
     assert t.size == 0
+
+
+def test_a_map_another_tool_wrote_negated_trinary_and_coarser_is_localised_in(
+    office, tmp_path
+) -> None:
+    """The issue's "map made by another tool": the world's map_server map written with
+    ``negate: 1``, ``mode: trinary`` and 0.1 m cells (not the run's own 0.05 m, white-free
+    map): read as map_server reads it, localised in globally, tracking the truth."""
+    log, _, run = office
+    yaml_path, _, _ = write_world_map(
+        tmp_path / "other", sim.world_by_name("office"), 0.1, negate=True
+    )
+    yaml_path.write_text(yaml_path.read_text(encoding="utf-8") + "mode: trinary\n")
+    s = localize_log(log, yaml_path, results_dir=tmp_path / "r")
+    assert s.localised and s.summary["localised_at"]["scan"] <= 30
+    t, poses = read_tum(tmp_path / "r" / "trajectory.tum")
+    truth = {round(float(st), 6): p for st, p in zip(run.stamps, run.true_poses)}
+    want = np.array([truth[round(float(st), 6)] for st in t])
+    err = np.hypot(*(poses[:, :2] - want[:, :2]).T)
+    # within a cell of the coarser map (its walls are drawn to the nearest 0.1 m cell)
+    assert len(t) >= len(run) - 30 and np.median(err) < 0.1, (len(t), np.median(err))
