@@ -31,7 +31,7 @@ def world(tmp_path_factory):
 def _double(world, monkeypatch):
     """The command's localizer is the double (and no kernels are compiled for it)."""
     monkeypatch.setattr(job, "_LOCALIZER", ("localizer_double", "Localizer"))
-    monkeypatch.setattr(warm, "compile_kernels", lambda cfg, compiling=None: 0.0)
+    monkeypatch.setattr(warm, "compile_kernels", lambda cfg, compiling=None, *, in_map=False: 0.0)
     monkeypatch.setattr(double, "TRUTH", world[2])
     monkeypatch.setattr(double, "SETTINGS", {"searching": 5})
 

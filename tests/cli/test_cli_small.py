@@ -173,9 +173,11 @@ def test_run_says_the_kernels_compile_only_where_the_cache_is_cold(
     warm.compile_kernels()  # compiled in this process: the warm-up below only pretends
     calls: list[object] = []
     monkeypatch.setattr(warm, "compiled", lambda: True)
-    monkeypatch.setattr(warm, "_compiled_in", None)
-    monkeypatch.setattr(warm, "kernels_cold", lambda: cold)
-    monkeypatch.setattr(warm, "warm_up", lambda config=None: calls.append(config) or 0.0)
+    monkeypatch.setattr(warm, "_compiled_in", {})
+    monkeypatch.setattr(warm, "kernels_cold", lambda *, in_map=False: cold)
+    monkeypatch.setattr(
+        warm, "warm_up", lambda config=None, *, in_map=False: calls.append(config) or 0.0
+    )
     path, _ = scored_log
     res = runner.invoke(app, ["run", str(path), "--results", str(tmp_path / "res")])
     assert res.exit_code == 0, res.output
@@ -193,9 +195,9 @@ def test_demo_says_what_it_does_before_the_kernels_compile(tmp_path, monkeypatch
 
     warm.compile_kernels()
     monkeypatch.setattr(warm, "compiled", lambda: True)
-    monkeypatch.setattr(warm, "_compiled_in", None)
-    monkeypatch.setattr(warm, "kernels_cold", lambda: True)
-    monkeypatch.setattr(warm, "warm_up", lambda config=None: 0.0)
+    monkeypatch.setattr(warm, "_compiled_in", {})
+    monkeypatch.setattr(warm, "kernels_cold", lambda *, in_map=False: True)
+    monkeypatch.setattr(warm, "warm_up", lambda config=None, *, in_map=False: 0.0)
     res = runner.invoke(app, ["demo", "--laps", "0.05", "--out", str(tmp_path / "demo")])
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()

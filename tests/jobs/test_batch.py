@@ -285,12 +285,12 @@ def test_a_rows_seconds_leave_out_the_kernels_compiling(
     log = tmp_path / "sim.clf"
     write_sim_log(log)
 
-    def slow_warm_up(config: Any = None) -> float:
+    def slow_warm_up(config: Any = None, *, in_map: bool = False) -> float:
         time.sleep(2.0)
         return 2.0
 
     monkeypatch.setattr(warm, "compiled", lambda: True)
-    monkeypatch.setattr(warm, "_compiled_in", None)  # as in a new worker process
+    monkeypatch.setattr(warm, "_compiled_in", {})  # as in a new worker process
     monkeypatch.setattr(warm, "warm_up", slow_warm_up)
     run = _Run(str(log), Config(), "default", None, str(tmp_path / "out"), None, force=False)
     t0 = time.perf_counter()

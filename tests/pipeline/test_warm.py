@@ -184,12 +184,12 @@ def test_a_runs_speed_figures_leave_out_the_kernels_compiling(tmp_path, monkeypa
     path = tmp_path / "sim.clf"
     write_sim_log(path)
 
-    def slow_warm_up(config=None) -> float:
+    def slow_warm_up(config=None, *, in_map=False) -> float:
         time.sleep(2.0)
         return 2.0
 
     monkeypatch.setattr(warm, "compiled", lambda: True)
-    monkeypatch.setattr(warm, "_compiled_in", None)  # as in a new process
+    monkeypatch.setattr(warm, "_compiled_in", {})  # as in a new process
     monkeypatch.setattr(warm, "warm_up", slow_warm_up)
     res = run_log(path, results_dir=tmp_path / "res", plot=False, hash_input=False)
     s = json.loads((tmp_path / "res" / "summary.json").read_text())
@@ -199,3 +199,23 @@ def test_a_runs_speed_figures_leave_out_the_kernels_compiling(tmp_path, monkeypa
     # once per process: the next run compiles nothing
     again = run_log(path, results_dir=tmp_path / "again", plot=False, hash_input=False)
     assert again.summary["compile_seconds"] == 0.0
+
+
+def test_the_map_kernels_are_warmed_for_localisation_only(monkeypatch) -> None:
+    """``warm_up`` compiles localisation's kernels (:data:`warm.MAP_KERNELS`) only with
+    ``in_map`` (``fuzzypos localize``): a first ``fuzzypos run`` does not wait for them."""
+    import importlib
+
+    from fuzzypos._kernels import compiled
+    from fuzzypos.pipeline import warm
+
+    if not compiled():
+        pytest.skip("the compiled kernels are off (NUMBA_DISABLE_JIT)")
+    called: list[str] = []
+    for name in warm.MAP_KERNELS:
+        module = importlib.import_module(f"fuzzypos._kernels.{name}")
+        monkeypatch.setattr(module, "warm", lambda name=name: called.append(name))
+    warm.warm_up()
+    assert called == []
+    warm.warm_up(in_map=True)
+    assert sorted(called) == sorted(warm.MAP_KERNELS)

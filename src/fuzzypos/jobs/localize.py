@@ -704,7 +704,7 @@ def localize_log(
     compile_seconds = 0.0
     if localizer is None:
         localizer = _default_localizer()
-        compile_seconds = warm.compile_kernels(cfg, compiling)
+        compile_seconds = warm.compile_kernels(cfg, compiling, in_map=True)
     loc = localizer(occupancy_map, cfg, initial_pose=pose0, initial_sigma=initial_sigma)
     labels = {
         "selection": {"start_s": start, "end_s": end, "max_scans": max_scans},

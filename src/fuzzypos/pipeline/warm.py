@@ -60,9 +60,14 @@ def _scan(pose: FloatArray, beams: int, stamp: float) -> LaserScan:
     return LaserScan(ranges, -0.5 * math.pi, inc, 0.0, 20.0, stamp)
 
 
-def warm_up(config: Config | None = None) -> float:
-    """Run every compiled kernel once (each is compiled, or loaded from the disk cache, on its
-    first call); returns the seconds it took."""
+#: the kernel modules of localisation in a map (``fuzzypos.localization``), compiled only for it
+MAP_KERNELS = ("localize", "agreement")
+
+
+def warm_up(config: Config | None = None, *, in_map: bool = False) -> float:
+    """Run every compiled kernel of positioning once (each is compiled, or loaded from the disk
+    cache, on its first call), and with ``in_map`` those of localisation in a map
+    (:data:`MAP_KERNELS`) too; returns the seconds it took."""
     t0 = time.perf_counter()
     cfg = config if config is not None else Config()
     step = np.array([0.08, 0.0, 0.02])
@@ -111,7 +116,7 @@ def warm_up(config: Config | None = None) -> float:
         positioner.uncertainty.prior_information(
             np.array([0.1, 0.0, 0.02]), step, noise.covariance(step)
         )
-        # localisation in a map (fuzzypos.localization)
+    if in_map and compiled():  # localisation in a map (fuzzypos.localization)
         from .._kernels.agreement import warm as warm_agreement
         from .._kernels.localize import warm as warm_localization
 
@@ -120,20 +125,23 @@ def warm_up(config: Config | None = None) -> float:
     return time.perf_counter() - t0
 
 
-def kernels_cold() -> bool:
+def kernels_cold(*, in_map: bool = False) -> bool:
     """Whether :func:`warm_up` will compile rather than load (quick: numba's cache indexes
     read, nothing compiled): where some kernel module has no kernel whose cache index loads.
     numba's index is stale, and reads as empty, where its module's file (size, time), the
     kernels' sources (:func:`~fuzzypos._kernels._jit.sources_stamp`) or numba's version
     changed; a kernel only ever called from another kernel keeps no index of its own, but
-    each module has one :func:`warm_up` calls from Python. False where the compiled kernels
-    are off, or numba's cache cannot be read so (not known to be cold)."""
+    each module has one :func:`warm_up` calls from Python (:data:`MAP_KERNELS`' only with
+    ``in_map``). False where the compiled kernels are off, or numba's cache cannot be read so
+    (not known to be cold)."""
     if not compiled():
         return False
     from .. import _kernels
 
     try:
         for info in pkgutil.iter_modules(_kernels.__path__):
+            if info.name in MAP_KERNELS and not in_map:
+                continue
             module = importlib.import_module(f"{_kernels.__name__}.{info.name}")
             indexes = [
                 value._cache._cache_file
@@ -147,24 +155,25 @@ def kernels_cold() -> bool:
     return False
 
 
-#: the seconds of this process's :func:`compile_kernels` (None: not yet)
-_compiled_in: float | None = None
+#: the seconds of this process's :func:`compile_kernels`, without and with ``in_map``
+_compiled_in: dict[bool, float] = {}
 
 
 def compile_kernels(
     config: Config | None = None,
     announce: Callable[[], AbstractContextManager[object]] | None = None,
+    *,
+    in_map: bool = False,
 ) -> float:
-    """Compile (or load) every kernel once per process (:func:`warm_up`), inside
-    ``announce()`` where the cache is cold (:func:`kernels_cold`: its caller says why this
-    takes a while); returns the seconds it took, 0 after the first call and where the compiled
-    kernels are off."""
-    global _compiled_in
-    if _compiled_in is not None or not compiled():
+    """Compile (or load) every kernel of positioning (with ``in_map``, of localisation in a map
+    too) once per process (:func:`warm_up`), inside ``announce()`` where the cache is cold
+    (:func:`kernels_cold`: its caller says why this takes a while); returns the seconds it
+    took, 0 after the first call and where the compiled kernels are off."""
+    if in_map in _compiled_in or not compiled():
         return 0.0
     t0 = time.perf_counter()
-    cold = announce is not None and kernels_cold()
+    cold = announce is not None and kernels_cold(in_map=in_map)
     with announce() if cold and announce is not None else contextlib.nullcontext():
-        warm_up(config)
-    _compiled_in = time.perf_counter() - t0
-    return _compiled_in
+        warm_up(config, in_map=in_map)
+    _compiled_in[in_map] = time.perf_counter() - t0
+    return _compiled_in[in_map]
